@@ -1,0 +1,17 @@
+"""hybridnav: hybrid mobile-robot navigation.
+
+Robot kinematics written once in CasADi, swarm and potential-field planners that call the compiled
+kinematics, Lyapunov/linearization analysis of the same models, and a GA tuner for Mamdani fuzzy
+systems. See ``README.md`` and ``DESIGN.md``.
+"""
+
+from importlib.metadata import PackageNotFoundError, version as _version
+
+from hybridnav.errors import HybridnavError
+
+try:
+    __version__ = _version("hybridnav")
+except PackageNotFoundError:  # running from a source tree that was never installed
+    __version__ = "0.0.0+unknown"
+
+__all__ = ["HybridnavError", "__version__"]
