@@ -1,0 +1,514 @@
+"""The kinematic model base class: symbolic CasADi declaration, compiled batched stepping.
+
+A model declares, once, in CasADi SX:
+
+* its state ``x`` (plant states, then controller states such as the tractor-trailer's ``xi``),
+  its input ``u`` and its parameters ``p``, each with names;
+* its open-loop right-hand side ``f(x_plant, u, p)``;
+* its go-to-point controller ``u = k(x, target, p)`` and the dynamics of its controller states;
+* the closed loop ``xdot = F(x, target, p)``.
+
+Planners call :meth:`Model.step` and :meth:`Model.rollout` with whole batches: ``X`` is ``(N, nx)``
+and ``targets`` is ``(N, 2)``. Both integrate the closed loop with fixed-step RK4 (the controller is
+evaluated inside every RK4 stage, or held over the step for zero-order-hold controllers). The CasADi
+functions are built once per batch size, shared between equal models in the process, optionally
+JIT-compiled with the system C compiler (silent fallback to CasADi's virtual machine when no compiler
+works), and called through :meth:`casadi.Function.buffer` on NumPy arrays the wrapper keeps alive,
+so the hot loop pays no per-call ``DM`` conversion.
+
+Memory layout: a CasADi ``(nx, N)`` matrix is column-major, which is exactly the memory of a
+C-contiguous NumPy ``(N, nx)`` array, so batches cross the boundary without transposes.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import shutil
+import tempfile
+import threading
+from abc import ABC, abstractmethod
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import casadi as cs
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Model", "wrap_angle", "jit_available"]
+
+
+def wrap_angle(a):
+    """Wrap an angle (CasADi expression) to ``(-pi, pi]`` via ``atan2(sin a, cos a)``."""
+    return cs.atan2(cs.sin(a), cs.cos(a))
+
+
+# --------------------------------------------------------------------------------------------
+# Compilation: JIT with a silent fallback, and a process-wide cache of compiled functions.
+# --------------------------------------------------------------------------------------------
+
+_jit_state: dict[str, Any] = {}
+_cache_lock = threading.Lock()
+_FUNCTIONS: OrderedDict[tuple, cs.Function] = OrderedDict()
+_FUNCTION_CACHE_SIZE = 128
+
+
+def _jit_function(name: str, fn: cs.Function) -> cs.Function:
+    """JIT-compile ``fn`` in a private temporary folder, removed once the library is loaded.
+
+    CasADi would otherwise write its C source into the working directory. The shared object stays
+    mapped after its file is deleted (POSIX), so nothing is left behind, even at exit.
+    """
+    folder = tempfile.mkdtemp(prefix="hybridnav-jit-")
+    try:
+        opts = {
+            "jit": True,
+            "compiler": "shell",
+            "jit_name": "hybridnav_jit",
+            "jit_temp_suffix": True,
+            "jit_cleanup": False,
+            "jit_options": {"compiler": os.environ.get("CC", "gcc"), "flags": ["-O2"],
+                            "verbose": False, "cleanup": False, "directory": folder + os.sep},
+        }
+        args = fn.mx_in()
+        return cs.Function(name, args, fn.call(args), opts)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def jit_available() -> bool:
+    """Whether CasADi can JIT-compile here (tried once per process, on a tiny function).
+
+    Set the environment variable ``HYBRIDNAV_JIT=0`` to disable JIT compilation altogether.
+    """
+    if os.environ.get("HYBRIDNAV_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+        return False
+    if "ok" not in _jit_state:
+        try:
+            z = cs.SX.sym("z")
+            f = _jit_function("hybridnav_jit_probe", cs.Function("probe", [z], [2 * z]))
+            _jit_state["ok"] = float(f(1.5)) == 3.0
+        except Exception as exc:  # no compiler, no headers, sandboxed temp dir, ...
+            log.info("CasADi JIT unavailable, using the virtual machine: %s", exc)
+            _jit_state["ok"] = False
+    return _jit_state["ok"]
+
+
+def _compile(key: tuple, build, jit: bool) -> cs.Function:
+    """Return the cached function for ``key``, building (and JIT-compiling) it on first use."""
+    full_key = key + (jit,)
+    with _cache_lock:
+        fn = _FUNCTIONS.get(full_key)
+        if fn is not None:
+            _FUNCTIONS.move_to_end(full_key)
+            return fn
+    fn = build()
+    if jit and jit_available():
+        try:
+            fn = _jit_function(fn.name(), fn)
+        except Exception as exc:
+            log.info("JIT compilation of %s failed, using the virtual machine: %s", fn.name(), exc)
+    with _cache_lock:
+        _FUNCTIONS[full_key] = fn
+        while len(_FUNCTIONS) > _FUNCTION_CACHE_SIZE:
+            _FUNCTIONS.popitem(last=False)
+    return fn
+
+
+class _Buffered:
+    """A compiled function bound to NumPy input/output arrays through ``Function.buffer()``.
+
+    One instance per (function, thread): CasADi buffers hold work memory and are not re-entrant.
+    """
+
+    def __init__(self, fn: cs.Function, in_shapes, out_shapes):
+        self.fn = fn
+        self.ins = [np.zeros(s) for s in in_shapes]
+        self.outs = [np.zeros(s) for s in out_shapes]
+        self._buf, self._trigger = fn.buffer()
+        for i, a in enumerate(self.ins):
+            self._buf.set_arg(i, memoryview(a))
+        for i, a in enumerate(self.outs):
+            self._buf.set_res(i, memoryview(a))
+
+    def __call__(self) -> None:
+        self._trigger()
+
+
+# --------------------------------------------------------------------------------------------
+# The model base class
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Symbols:
+    x: cs.SX
+    u: cs.SX
+    p: cs.SX
+    target: cs.SX
+
+
+class Model(ABC):
+    """A kinematic robot model with its go-to-point controller, compiled for batches.
+
+    Subclasses set the class attributes and implement :meth:`open_loop`, :meth:`controller` and,
+    when they have controller states, :meth:`controller_dynamics`.
+
+    Parameters
+    ----------
+    dt : float
+        Control and integration step in seconds (fixed-step RK4).
+    jit : bool or None
+        JIT-compile the batched functions with the C compiler. ``None`` (default) compiles when a
+        compiler works and falls back silently otherwise.
+    radius : float
+        Footprint radius of a disk-shaped robot (models with a body shape derive theirs).
+    **params
+        Numeric model parameters overriding :attr:`defaults`, and the model's options (see
+        :attr:`option_defaults`), e.g. ``alpha1=0.2`` or ``controller="heading"``.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    plant_state_names: ClassVar[tuple[str, ...]] = ()
+    controller_state_names: ClassVar[tuple[str, ...]] = ()
+    input_names: ClassVar[tuple[str, ...]] = ()
+    defaults: ClassVar[dict[str, float]] = {}
+    param_docs: ClassVar[dict[str, str]] = {}
+    #: parameters that may be ``inf`` (e.g. "no limit")
+    infinite_ok: ClassVar[frozenset[str]] = frozenset()
+    option_defaults: ClassVar[dict[str, Any]] = {}
+    option_choices: ClassVar[dict[str, tuple]] = {}
+    #: ``"continuous"``: the controller is evaluated inside every RK4 stage (the closed loop is an
+    #: ODE); ``"zoh"``: the input is computed at the start of each control cycle and held.
+    hold: str = "continuous"
+
+    def __init__(self, dt: float = 0.1, jit: bool | None = None, radius: float = 0.5,
+                 **params: Any) -> None:
+        dt = _check_number("dt", dt)
+        if not dt > 0:
+            raise HybridnavError(f"model {self.name}: dt: expected a positive number, got {dt!r}")
+        self.dt = float(dt)
+        self.jit = jit
+        self._radius = _check_number(f"model {self.name}: radius", radius)
+        if self._radius < 0:
+            raise HybridnavError(f"model {self.name}: radius: expected >= 0, got {radius!r}")
+        options = dict(self.option_defaults)
+        values = dict(self.defaults)
+        for key, value in params.items():
+            if key in options:
+                choices = self.option_choices.get(key)
+                if choices is not None and value not in choices:
+                    raise HybridnavError(
+                        f"model {self.name}: {key}: expected one of {', '.join(map(repr, choices))},"
+                        f" got {value!r}"
+                    )
+                options[key] = value
+            elif key in values:
+                values[key] = _check_number(f"model {self.name}: {key}", value,
+                                            allow_inf=key in self.infinite_ok)
+            else:
+                known = sorted(list(self.defaults) + list(self.option_defaults))
+                raise HybridnavError(
+                    f"model {self.name}: unknown parameter {key!r}; expected one of: "
+                    + ", ".join(known)
+                )
+        self.options = options
+        self.params = values
+        self._validate_params()
+        self.state_names = tuple(self.plant_state_names) + tuple(self.controller_state_names)
+        self.nx = len(self.state_names)
+        self.n_plant = len(self.plant_state_names)
+        self.nu = len(self.input_names)
+        self.param_names = tuple(self.defaults)
+        self.sym = _Symbols(
+            x=cs.SX.sym("x", self.nx),
+            u=cs.SX.sym("u", self.nu),
+            p=cs.SX.sym("p", len(self.param_names)),
+            target=cs.SX.sym("target", 2),
+        )
+        self._local = threading.local()
+
+    # ---- what subclasses provide -------------------------------------------------------------
+
+    @abstractmethod
+    def open_loop(self, x, u, p) -> cs.SX:
+        """Open-loop right-hand side of the plant states, ``f(x_plant, u, p)``."""
+
+    @abstractmethod
+    def controller(self, x, target, p) -> cs.SX:
+        """Go-to-point control law ``u = k(x, target, p)`` (``x`` is the full state)."""
+
+    def controller_dynamics(self, x, target, p) -> cs.SX:
+        """Derivatives of the controller states (empty for models without any)."""
+        return cs.SX(0, 1)
+
+    def _validate_params(self) -> None:
+        """Check parameter values (subclasses raise :class:`HybridnavError`)."""
+
+    # ---- symbolic views ------------------------------------------------------------------------
+
+    def p_dict(self, p) -> dict[str, Any]:
+        """Map parameter names to the entries of a parameter vector ``p`` (symbolic or numeric)."""
+        return {n: p[i] for i, n in enumerate(self.param_names)}
+
+    def closed_loop(self, x=None, target=None, p=None) -> cs.SX:
+        """Closed-loop right-hand side ``F(x, target, p)`` (defaults: the model's symbols).
+
+        For zero-order-hold models this is the flow with the input computed from the same ``x``
+        (the continuous-time idealization); :meth:`step` holds the input over a cycle instead.
+        """
+        s = self.sym
+        x = s.x if x is None else x
+        target = s.target if target is None else target
+        p = s.p if p is None else p
+        u = self.controller(x, target, p)
+        plant = self.open_loop(x[: self.n_plant], u, p)
+        return cs.vertcat(plant, self.controller_dynamics(x, target, p))
+
+    def p_value(self) -> np.ndarray:
+        """The numeric parameter vector in :attr:`param_names` order."""
+        return np.array([self.params[n] for n in self.param_names], dtype=float)
+
+    def function(self, kind: str = "closed_loop") -> cs.Function:
+        """A CasADi function of the model's symbols.
+
+        ``kind`` is ``"closed_loop"`` (``x, target, p -> xdot``), ``"open_loop"``
+        (``x_plant, u, p -> xdot_plant``), ``"controller"`` (``x, target, p -> u``) or ``"step"``
+        (``x, target, p -> x_next``, one RK4 control cycle).
+        """
+        s = self.sym
+        if kind == "closed_loop":
+            return cs.Function("closed_loop", [s.x, s.target, s.p], [self.closed_loop()],
+                               ["x", "target", "p"], ["xdot"])
+        if kind == "open_loop":
+            xp = s.x[: self.n_plant]
+            xps = cs.SX.sym("x", self.n_plant)
+            f = cs.substitute(self.open_loop(xp, s.u, s.p), xp, xps) if self.n_plant else xp
+            return cs.Function("open_loop", [xps, s.u, s.p], [f], ["x", "u", "p"], ["xdot"])
+        if kind == "controller":
+            return cs.Function("controller", [s.x, s.target, s.p],
+                               [self.controller(s.x, s.target, s.p)], ["x", "target", "p"], ["u"])
+        if kind == "step":
+            return cs.Function("step", [s.x, s.target, s.p], [self._rk4_expr()],
+                               ["x", "target", "p"], ["x_next"])
+        raise HybridnavError(
+            f"model {self.name}: function kind: expected closed_loop, open_loop, controller or step,"
+            f" got {kind!r}"
+        )
+
+    def _rk4_expr(self) -> cs.SX:
+        s, h = self.sym, self.dt
+        x, t, p = s.x, s.target, s.p
+        if self.hold == "zoh":
+            u = self.controller(x, t, p)
+
+            def rhs(z):
+                plant = self.open_loop(z[: self.n_plant], u, p)
+                return cs.vertcat(plant, self.controller_dynamics(z, t, p))
+        else:
+
+            def rhs(z):
+                return self.closed_loop(z, t, p)
+
+        k1 = rhs(x)
+        k2 = rhs(x + h / 2 * k1)
+        k3 = rhs(x + h / 2 * k2)
+        k4 = rhs(x + h * k3)
+        return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    # ---- compiled batched evaluation ------------------------------------------------------------
+
+    def _key(self) -> tuple:
+        return (type(self).__qualname__, self.dt, tuple(sorted(self.params.items())),
+                tuple(sorted((k, repr(v)) for k, v in self.options.items())))
+
+    def _use_jit(self) -> bool:
+        return jit_available() if self.jit is None else bool(self.jit) and jit_available()
+
+    def _step_single(self) -> cs.Function:
+        """One control cycle of one robot with the numeric parameters folded in."""
+        s = self.sym
+        x_next = cs.substitute(self._rk4_expr(), s.p, cs.DM(self.p_value()))
+        return cs.Function(f"{self.name}_step", [s.x, s.target], [x_next])
+
+    def _buffered(self, kind: str, n: int, steps: int = 1) -> _Buffered:
+        cache = getattr(self._local, "buffers", None)
+        if cache is None:
+            cache = self._local.buffers = {}
+        bkey = (kind, n, steps)
+        b = cache.get(bkey)
+        if b is not None:
+            return b
+        nx = self.nx
+        if kind == "step":
+
+            def build():
+                return self._step_single().map(n)
+
+            fn = _compile(self._key() + ("step", n), build, self._use_jit())
+            b = _Buffered(fn, [(n, nx), (n, 2)], [(n, nx)])
+        else:
+
+            def build():
+                single = self._step_single()
+                acc = single.mapaccum(f"{self.name}_acc", steps)
+                x0 = cs.MX.sym("x0", nx)
+                tg = cs.MX.sym("target", 2)
+                per_robot = cs.Function(f"{self.name}_rollout1", [x0, tg],
+                                        [acc(x0, cs.repmat(tg, 1, steps))])
+                return per_robot.map(n)
+
+            fn = _compile(self._key() + ("rollout", n, steps), build, self._use_jit())
+            b = _Buffered(fn, [(n, nx), (n, 2)], [(n, steps, nx)])
+        if len(cache) > 32:
+            cache.pop(next(iter(cache)))
+        cache[bkey] = b
+        return b
+
+    def _check_batch(self, X, targets) -> tuple[np.ndarray, np.ndarray]:
+        X = np.asarray(X, dtype=float)
+        targets = np.asarray(targets, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.nx:
+            raise HybridnavError(
+                f"model {self.name}: X: expected an (N, {self.nx}) array of states "
+                f"({', '.join(self.state_names)}), got shape {X.shape}"
+            )
+        if targets.shape != (X.shape[0], 2):
+            raise HybridnavError(
+                f"model {self.name}: targets: expected an ({X.shape[0]}, 2) array, got shape "
+                f"{targets.shape}"
+            )
+        return X, targets
+
+    def step(self, X, targets, out: np.ndarray | None = None) -> np.ndarray:
+        """Advance a batch of robots by one control cycle ``dt`` (closed loop, RK4).
+
+        Parameters
+        ----------
+        X : array_like, shape (N, nx)
+            States in :attr:`state_names` order.
+        targets : array_like, shape (N, 2)
+            The point each robot's controller drives to.
+        out : ndarray, shape (N, nx), optional
+            Where to write the result (may be ``X`` itself).
+
+        Returns
+        -------
+        ndarray, shape (N, nx)
+        """
+        X, targets = self._check_batch(X, targets)
+        n = X.shape[0]
+        if n == 0:
+            return np.zeros((0, self.nx)) if out is None else out
+        b = self._buffered("step", n)
+        b.ins[0][...] = X
+        b.ins[1][...] = targets
+        b()
+        if out is None:
+            return b.outs[0].copy()
+        out[...] = b.outs[0]
+        return out
+
+    def rollout(self, X0, targets, steps: int) -> np.ndarray:
+        """Simulate a batch of robots for ``steps`` control cycles towards fixed targets.
+
+        Parameters
+        ----------
+        X0 : array_like, shape (N, nx)
+        targets : array_like, shape (N, 2)
+        steps : int
+            Number of control cycles (>= 0).
+
+        Returns
+        -------
+        ndarray, shape (N, steps + 1, nx)
+            ``[:, 0]`` is ``X0``; ``[:, k]`` the state at ``t = k * dt``.
+        """
+        X0, targets = self._check_batch(X0, targets)
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
+            raise HybridnavError(
+                f"model {self.name}: steps: expected a non-negative integer, got {steps!r}"
+            )
+        n, steps = X0.shape[0], int(steps)
+        traj = np.empty((n, steps + 1, self.nx))
+        traj[:, 0] = X0
+        if n == 0 or steps == 0:
+            return traj
+        b = self._buffered("rollout", n, steps)
+        b.ins[0][...] = X0
+        b.ins[1][...] = targets
+        b()
+        traj[:, 1:] = b.outs[0]
+        return traj
+
+    # ---- states, targets, footprints -------------------------------------------------------------
+
+    def initial_state(self, start, target, initial: Mapping[str, float] | None = None) -> np.ndarray:
+        """The state vector of a robot at ``start`` that is about to drive to ``target``.
+
+        ``initial`` gives other states by name (default 0); controller states are then set for the
+        target by :meth:`retarget`.
+        """
+        initial = dict(initial or {})
+        x = np.zeros(self.nx)
+        x[0], x[1] = float(start[0]), float(start[1])
+        for key, value in initial.items():
+            if key not in self.state_names[2:]:
+                raise HybridnavError(
+                    f"model {self.name}: initial.{key}: unknown state; expected one of: "
+                    + ", ".join(self.state_names[2:])
+                )
+            x[self.state_names.index(key)] = _check_number(f"initial.{key}", value)
+        return self.retarget(x[None, :], np.asarray(target, dtype=float)[None, :])[0]
+
+    def retarget(self, X, targets) -> np.ndarray:
+        """Reset the controller states of a batch for new targets (identity without any)."""
+        X, _ = self._check_batch(X, targets)
+        return X.copy()
+
+    @property
+    def radius(self) -> float:
+        """Radius of the disk covering the whole robot footprint."""
+        return self._radius
+
+    def footprint(self, X) -> tuple[np.ndarray, np.ndarray]:
+        """Disks covering the robot body for collision checks.
+
+        Returns
+        -------
+        centers : ndarray, shape (N, m, 2)
+        radii : ndarray, shape (m,)
+        """
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        return X[:, None, :2].copy(), np.array([self.radius])
+
+    def numeric_closed_loop(self):
+        """A NumPy-callable ``F(x, target) -> xdot`` for one robot (for scipy integrators)."""
+        f = self.function("closed_loop")
+        p = self.p_value()
+
+        def rhs(x, target):
+            return np.asarray(f(x, target, p)).ravel()
+
+        return rhs
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
+        opts = "".join(f", {k}={v!r}" for k, v in self.options.items())
+        return f"{type(self).__name__}(dt={self.dt:g}, {params}{opts})"
+
+
+def _check_number(key: str, value: Any, allow_inf: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise HybridnavError(f"{key}: expected a number, got {value!r}")
+    v = float(value)
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise HybridnavError(f"{key}: expected a finite number, got {value!r}")
+    return v

@@ -1,0 +1,36 @@
+"""Point-mass robot (FAStep-Kinematic / ACO-Kinematic papers, eq. 12 of FAStep-Kinematic).
+
+Open loop: the robot's velocity is its input, ``xdot = u1``, ``ydot = u2``. Go-to-point controller
+``u = (alpha1 (x1 - x), alpha2 (y1 - y))``, so the closed loop is
+``xdot = alpha1 (x1 - x)``, ``ydot = alpha2 (y1 - y)``, with the closed form
+``x(t) = x1 + (x0 - x1) exp(-alpha1 t)``.
+"""
+
+from __future__ import annotations
+
+import casadi as cs
+
+from hybridnav.models.base import Model
+
+__all__ = ["PointMass"]
+
+
+class PointMass(Model):
+    """Holonomic point mass with the papers' proportional go-to-point controller."""
+
+    name = "point_mass"
+    description = "holonomic point mass, xdot = alpha1 (x1 - x), ydot = alpha2 (y1 - y)"
+    plant_state_names = ("x", "y")
+    input_names = ("vx", "vy")
+    defaults = {"alpha1": 0.1, "alpha2": 0.1}
+    param_docs = {
+        "alpha1": "convergence gain along x (1/s); > 0 for stability (FAStep-Kinematic Theorem 1)",
+        "alpha2": "convergence gain along y (1/s)",
+    }
+
+    def open_loop(self, x, u, p):
+        return cs.vertcat(u[0], u[1])
+
+    def controller(self, x, target, p):
+        q = self.p_dict(p)
+        return cs.vertcat(q["alpha1"] * (target[0] - x[0]), q["alpha2"] * (target[1] - x[1]))

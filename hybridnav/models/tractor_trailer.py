@@ -1,0 +1,167 @@
+"""Non-standard tractor-trailer robot (FAStep-Kinematic eq. 13, ACO-Kinematic eq. 15).
+
+A rear-wheel-drive car-like tractor with an off-axle hitched two-wheel passive trailer. States
+``x, y`` (the tractor's centre, half-way between its axles), ``theta0`` (tractor heading),
+``theta1`` (trailer heading) and the controller state ``xi``; inputs ``v`` (rear-axle speed) and
+``phi`` (steering angle)::
+
+    xdot      = v cos th0 - (v/2) tan(phi) sin th0
+    ydot      = v sin th0 + (v/2) tan(phi) cos th0
+    th0dot    = (v/L) tan(phi)
+    th1dot    = (v/Lt) (sin(th0 - th1) - (c/L) tan(phi) cos(th0 - th1))
+
+(the ``v/2`` terms say that ``(x, y)`` lies ``L/2`` ahead of the rear axle; ``c`` is the hitch's
+distance behind the rear axle and ``Lt`` the hitch-to-trailer-axle length). The go-to-point law::
+
+    v    = alpha * distance to the target
+    phi  = (7/9) atan(xi + beta / cos|th0 - th1|)
+    beta = max{0, 0.5 - cos|th1 - th0|} * sign(th1 - th0)
+
+``xi`` law (option ``xi_law``):
+
+``"filter"`` (default)
+    ``xidot = k_xi (wrap(atan2(y1 - y, x1 - x) - th0) - xi)``: ``xi`` follows the heading error to
+    the target with time constant ``1 / k_xi``. :meth:`retarget` sets
+    ``xi = wrap(atan2(y1 - y, x1 - x) - th0)`` whenever a robot gets a new target.
+``"paper"``
+    The law as the papers print it, ``xidot = ((y1 - y) cos th0 - (x1 - x) sin th0) /
+    sqrt((x - x1)^2 + (y - y1)^2 + 0.01) - atan2(y1 - y, x1 - x) + th0``. Simulated as printed,
+    ``xi`` hardly moves, the steering angle stays nearly constant and the robot circles: the first
+    term is the sine of the heading error and the rest is minus the (unwrapped) heading error, so
+    ``xidot ~ sin(e) - e``, which is tiny for small errors. Kept so that anyone can see it.
+
+Limits of the law (both ``xi`` laws): the speed is proportional to the distance and the steering
+is bounded, so near the target the heading error ``e`` obeys roughly
+``edot = alpha e (1 - 7 d / (9 L))``: it decays while ``d > 9L/7`` and grows inside. A robot that
+has not lined up with its target by then settles on an orbit about ``L/2`` to ``1.5 L`` from it
+instead of reaching it (tested). Robots that start far enough away (about ``10 L``, for
+initial heading errors up to 90 degrees) line up in time and reach it; planners should keep
+waypoints farther apart than ``9L/7`` or use a goal radius larger than the orbit.
+
+The footprint is the tractor body (``L`` x ``b``, centred on ``(x, y)``) and the trailer body
+(``Lt`` x ``b``, from the hitch to the trailer axle), each covered by a row of disks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as cs
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+from hybridnav.models.base import Model, wrap_angle
+
+__all__ = ["TractorTrailer"]
+
+
+class TractorTrailer(Model):
+    """Tractor with an off-axle hitched trailer and the papers' steering law."""
+
+    name = "tractor_trailer"
+    description = "car-like tractor with an off-axle hitched passive trailer (states x, y, th0, th1, xi)"
+    plant_state_names = ("x", "y", "theta0", "theta1")
+    controller_state_names = ("xi",)
+    input_names = ("v", "phi")
+    defaults = {"L": 1.6, "Lt": 1.2, "c": 0.5, "b": 1.0, "alpha": 0.1, "k_xi": 2.0}
+    param_docs = {
+        "L": "tractor length between axles (the tractor body is L long)",
+        "Lt": "trailer length, hitch to trailer axle",
+        "c": "hitch offset behind the tractor's rear axle",
+        "b": "body width of tractor and trailer",
+        "alpha": "speed gain, v = alpha * distance to the target (1/s)",
+        "k_xi": "xi_law='filter': rate at which xi follows the heading error (1/s)",
+    }
+    option_defaults = {"xi_law": "filter"}
+    option_choices = {"xi_law": ("filter", "paper")}
+
+    def _validate_params(self) -> None:
+        for key in ("L", "Lt", "b", "alpha", "k_xi"):
+            if not self.params[key] > 0:
+                raise HybridnavError(
+                    f"model tractor_trailer: {key}: expected a positive number, got "
+                    f"{self.params[key]!r}"
+                )
+        if self.params["c"] < 0:
+            raise HybridnavError(
+                f"model tractor_trailer: c: expected a number >= 0, got {self.params['c']!r}"
+            )
+
+    def open_loop(self, x, u, p):
+        q = self.p_dict(p)
+        th0, th1 = x[2], x[3]
+        v, tphi = u[0], cs.tan(u[1])
+        return cs.vertcat(
+            v * cs.cos(th0) - v / 2 * tphi * cs.sin(th0),
+            v * cs.sin(th0) + v / 2 * tphi * cs.cos(th0),
+            v / q["L"] * tphi,
+            v / q["Lt"] * (cs.sin(th0 - th1) - q["c"] / q["L"] * tphi * cs.cos(th0 - th1)),
+        )
+
+    def controller(self, x, target, p):
+        q = self.p_dict(p)
+        dx, dy = target[0] - x[0], target[1] - x[1]
+        th0, th1, xi = x[2], x[3], x[4]
+        v = q["alpha"] * cs.sqrt(dx**2 + dy**2)
+        gap = cs.fabs(th0 - th1)
+        beta = cs.fmax(0, 0.5 - cs.cos(gap)) * cs.sign(th1 - th0)
+        phi = 7.0 / 9.0 * cs.atan(xi + beta / cs.cos(gap))
+        return cs.vertcat(v, phi)
+
+    def controller_dynamics(self, x, target, p):
+        q = self.p_dict(p)
+        dx, dy = target[0] - x[0], target[1] - x[1]
+        th0, xi = x[2], x[4]
+        if self.options["xi_law"] == "paper":
+            return (dy * cs.cos(th0) - dx * cs.sin(th0)) / cs.sqrt(dx**2 + dy**2 + 0.01) - cs.atan2(
+                dy, dx
+            ) + th0
+        return q["k_xi"] * (wrap_angle(cs.atan2(dy, dx) - th0) - xi)
+
+    def retarget(self, X, targets) -> np.ndarray:
+        """Set ``xi = wrap(atan2(y1 - y, x1 - x) - theta0)`` for each robot's new target."""
+        X, targets = self._check_batch(X, targets)
+        X = X.copy()
+        err = np.arctan2(targets[:, 1] - X[:, 1], targets[:, 0] - X[:, 0]) - X[:, 2]
+        X[:, 4] = np.arctan2(np.sin(err), np.cos(err))
+        return X
+
+    @property
+    def radius(self) -> float:
+        """Half-diagonal of the tractor body, ``sqrt(L^2 + b^2) / 2`` (the papers' clearance)."""
+        return math.hypot(self.params["L"], self.params["b"]) / 2
+
+    def _bodies(self):
+        """(offset of the body centre along its axis from its anchor, length, disks) per body."""
+        q = self.params
+        out = []
+        for length in (q["L"], q["Lt"]):
+            n = max(1, math.ceil(length / q["b"]))
+            out.append((length, n, math.hypot(length / (2 * n), q["b"] / 2)))
+        return out
+
+    def footprint(self, X) -> tuple[np.ndarray, np.ndarray]:
+        """Disks covering the tractor body and the trailer body.
+
+        Returns
+        -------
+        centers : ndarray, shape (N, m, 2)
+        radii : ndarray, shape (m,)
+        """
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        q = self.params
+        (lt, nt, rt), (lr, nr, rr) = self._bodies()
+        u0 = np.stack([np.cos(X[:, 2]), np.sin(X[:, 2])], axis=1)
+        u1 = np.stack([np.cos(X[:, 3]), np.sin(X[:, 3])], axis=1)
+        pos = X[:, :2]
+        # tractor: centred on (x, y); trailer: from the hitch back to the trailer axle
+        s_t = (np.arange(nt) + 0.5) / nt * lt - lt / 2
+        hitch = pos - (q["L"] / 2 + q["c"]) * u0
+        s_r = (np.arange(nr) + 0.5) / nr * lr
+        centers = np.concatenate(
+            [pos[:, None, :] + s_t[None, :, None] * u0[:, None, :],
+             hitch[:, None, :] - s_r[None, :, None] * u1[:, None, :]],
+            axis=1,
+        )
+        radii = np.concatenate([np.full(nt, rt), np.full(nr, rr)])
+        return centers, radii

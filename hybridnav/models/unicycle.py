@@ -1,0 +1,91 @@
+"""Differential-drive (unicycle) robot, e.g. a TurtleBot3 (RFD-PSO and EFFC papers).
+
+Open loop with wheel speeds as inputs: ``v = (vl + vr) / 2``, ``omega = (vr - vl) / L``,
+``xdot = v cos(theta)``, ``ydot = v sin(theta)``, ``thetadot = omega``.
+
+Controllers (option ``controller``):
+
+``"go_to_point"`` (default, continuous)
+    With ``rho`` the distance to the target and ``e = wrap(atan2(y1 - y, x1 - x) - theta)`` the
+    heading error: ``v = k_rho rho cos(e)``, ``omega = k_alpha e``. The wheel speeds
+    ``vr, vl = v +- omega L / 2`` are scaled down together (keeping the curvature) when one exceeds
+    ``wheel_max``. With ``k_rho, k_alpha > 0`` the distance decreases whenever ``|e| < pi/2`` and the
+    heading error decays exponentially, so the robot reaches the target from any start.
+
+``"heading"`` (zero-order hold; the EFFC paper's robot)
+    Constant speed ``speed``; the commanded heading is the direction from the robot to its target
+    point (the EFFC planner passes ``position + force``). Each control cycle the heading turns by
+    ``clip(wrap(psi - theta), -max_turn, max_turn)`` (``max_turn = pi/4`` by default): the input
+    ``omega`` is that angle divided by ``dt`` and held for the cycle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as cs
+
+from hybridnav.errors import HybridnavError
+from hybridnav.models.base import Model, wrap_angle
+
+__all__ = ["Unicycle"]
+
+
+class Unicycle(Model):
+    """Differential-drive robot with go-to-point or rate-limited heading control."""
+
+    name = "unicycle"
+    description = "differential drive (TurtleBot3-like), wheel speeds vl, vr"
+    plant_state_names = ("x", "y", "theta")
+    input_names = ("vl", "vr")
+    defaults = {
+        "L": 0.16,
+        "k_rho": 0.5,
+        "k_alpha": 2.0,
+        "wheel_max": math.inf,
+        "speed": 0.1,
+        "max_turn": math.pi / 4,
+    }
+    param_docs = {
+        "L": "distance between the driving wheels (TurtleBot3 Burger: 0.16 m)",
+        "k_rho": "go_to_point: speed gain, v = k_rho * distance * cos(heading error)",
+        "k_alpha": "go_to_point: turn gain, omega = k_alpha * heading error",
+        "wheel_max": "go_to_point: wheel speed limit (inf: none)",
+        "speed": "heading: constant forward speed",
+        "max_turn": "heading: largest heading change per control cycle (rad)",
+    }
+    infinite_ok = frozenset({"wheel_max"})
+    option_defaults = {"controller": "go_to_point"}
+    option_choices = {"controller": ("go_to_point", "heading")}
+
+    @property
+    def hold(self) -> str:  # type: ignore[override]
+        return "zoh" if self.options["controller"] == "heading" else "continuous"
+
+    def _validate_params(self) -> None:
+        for key in ("L", "k_rho", "k_alpha", "speed", "max_turn", "wheel_max"):
+            if not self.params[key] > 0:
+                raise HybridnavError(
+                    f"model unicycle: {key}: expected a positive number, got {self.params[key]!r}"
+                )
+
+    def open_loop(self, x, u, p):
+        q = self.p_dict(p)
+        v = (u[0] + u[1]) / 2
+        omega = (u[1] - u[0]) / q["L"]
+        return cs.vertcat(v * cs.cos(x[2]), v * cs.sin(x[2]), omega)
+
+    def controller(self, x, target, p):
+        q = self.p_dict(p)
+        dx, dy = target[0] - x[0], target[1] - x[1]
+        e = wrap_angle(cs.atan2(dy, dx) - x[2])
+        if self.options["controller"] == "heading":
+            v = q["speed"]
+            omega = cs.fmin(cs.fmax(e, -q["max_turn"]), q["max_turn"]) / self.dt
+            return cs.vertcat(v - omega * q["L"] / 2, v + omega * q["L"] / 2)
+        rho = cs.sqrt(dx**2 + dy**2)
+        v = q["k_rho"] * rho * cs.cos(e)
+        omega = q["k_alpha"] * e
+        vl, vr = v - omega * q["L"] / 2, v + omega * q["L"] / 2
+        scale = cs.fmax(1, cs.fmax(cs.fabs(vl), cs.fabs(vr)) / q["wheel_max"])
+        return cs.vertcat(vl / scale, vr / scale)

@@ -1,0 +1,249 @@
+"""The result contract every planner fills: :class:`Result`, :class:`RobotResult`, the writer.
+
+A planner run that writes to a folder leaves there
+
+* ``result.json``: ``scenario``, ``planner``, ``params``, ``seed``, ``version`` and ``robots``, a
+  list of objects with ``name``, ``outcome`` (one of :data:`OUTCOMES`), ``path_length``,
+  ``time_to_goal`` (null unless reached), ``min_clearance`` (null when there was nothing to be
+  near), ``compute_time`` and any extra per-robot metrics a planner adds;
+* ``trajectory_<robot name>.csv`` per robot, header ``t,x,y`` then the model's other state names.
+
+Both are written atomically. :func:`read_result` reads a folder back.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import atomic_write_text
+
+__all__ = ["OUTCOMES", "RobotResult", "Result", "path_length", "read_result", "write_result"]
+
+#: The outcome of each robot. A planner that runs out of its step or time budget reports
+#: ``timeout``; it never loops forever and never raises for it.
+OUTCOMES = ("reached", "collided", "out_of_bounds", "stuck", "timeout")
+
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
+
+
+def path_length(xy: np.ndarray) -> float:
+    """Length of a polyline given as an ``(T, 2)`` array of points."""
+    xy = np.asarray(xy, dtype=float)
+    if len(xy) < 2:
+        return 0.0
+    return float(np.hypot(*np.diff(xy, axis=0).T).sum())
+
+
+@dataclass
+class RobotResult:
+    """Outcome, metrics and trajectory of one robot in one run.
+
+    Parameters
+    ----------
+    name : str
+        Robot name (also used in the trajectory file name).
+    outcome : str
+        One of :data:`OUTCOMES`.
+    t : ndarray, shape (T,)
+        Sample times in seconds.
+    states : ndarray, shape (T, nx)
+        States at those times; the first two columns are ``x`` and ``y``.
+    state_names : sequence of str
+        ``("x", "y", ...)``, the model's state names.
+    time_to_goal : float or None
+        Time at which the goal was reached; must be given exactly when ``outcome == "reached"``.
+    min_clearance : float or None
+        Smallest clearance between the robot's footprint and any obstacle or other robot.
+    compute_time : float
+        Wall-clock seconds the planner spent on this robot.
+    metrics : dict
+        Further per-robot metrics (written into ``result.json`` beside the standard ones).
+    """
+
+    name: str
+    outcome: str
+    t: np.ndarray
+    states: np.ndarray
+    state_names: Sequence[str]
+    time_to_goal: float | None = None
+    min_clearance: float | None = None
+    compute_time: float = 0.0
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.outcome not in OUTCOMES:
+            raise HybridnavError(
+                f"robot {self.name}: outcome: expected one of {', '.join(OUTCOMES)}, got "
+                f"{self.outcome!r}"
+            )
+        if not isinstance(self.name, str) or not _SAFE_NAME.match(self.name):
+            raise HybridnavError(
+                f"robot name: expected letters, digits, '_', '-' or '.', got {self.name!r}"
+            )
+        self.t = np.asarray(self.t, dtype=float).reshape(-1)
+        self.states = np.asarray(self.states, dtype=float).reshape(len(self.t), -1)
+        self.state_names = tuple(self.state_names)
+        if self.state_names[:2] != ("x", "y") or len(self.state_names) != self.states.shape[1]:
+            raise HybridnavError(
+                f"robot {self.name}: state_names: expected ('x', 'y', ...) with one name per state"
+                f" column ({self.states.shape[1]}), got {self.state_names}"
+            )
+        if (self.outcome == "reached") != (self.time_to_goal is not None):
+            raise HybridnavError(
+                f"robot {self.name}: time_to_goal: expected a time exactly when the outcome is "
+                f"'reached' (outcome {self.outcome!r}, time_to_goal {self.time_to_goal!r})"
+            )
+
+    @property
+    def path_length(self) -> float:
+        """Length of the travelled ``(x, y)`` polyline."""
+        return path_length(self.states[:, :2])
+
+    def summary(self) -> dict[str, Any]:
+        """The robot's entry in ``result.json``."""
+        out = {
+            "name": self.name,
+            "outcome": self.outcome,
+            "path_length": self.path_length,
+            "time_to_goal": self.time_to_goal,
+            "min_clearance": self.min_clearance,
+            "compute_time": self.compute_time,
+        }
+        out.update(self.metrics)
+        return {k: _json_number(v) for k, v in out.items()}
+
+    def trajectory_csv(self) -> str:
+        """The trajectory file's text: header ``t,x,y,...`` and one row per sample."""
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(("t",) + self.state_names)
+        for ti, row in zip(self.t, self.states):
+            w.writerow([repr(float(ti))] + [repr(float(v)) for v in row])
+        return buf.getvalue()
+
+
+@dataclass
+class Result:
+    """One planner run on one scenario: what was run, and every robot's outcome."""
+
+    scenario: str
+    planner: str
+    params: Mapping[str, Any]
+    seed: int | None
+    robots: list[RobotResult]
+    version: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.version:
+            from hybridnav import __version__
+
+            self.version = __version__
+        names = [r.name for r in self.robots]
+        if len(set(names)) != len(names):
+            raise HybridnavError(f"result: robots: duplicate robot names in {names}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The content of ``result.json``."""
+        return {
+            "scenario": self.scenario,
+            "planner": self.planner,
+            "params": dict(self.params),
+            "seed": self.seed,
+            "version": self.version,
+            "robots": [r.summary() for r in self.robots],
+        }
+
+    def write(self, folder: str | Path) -> Path:
+        """Write ``result.json`` and the trajectory CSVs into ``folder`` (created if needed)."""
+        return write_result(self, folder)
+
+
+def _json_number(v: Any) -> Any:
+    if isinstance(v, (np.floating, np.integer)):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def write_result(result: Result, folder: str | Path) -> Path:
+    """Write a :class:`Result` to ``folder``; returns the path of ``result.json``.
+
+    Trajectories are written first and ``result.json`` last, so a folder with a ``result.json``
+    is complete.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for r in result.robots:
+        atomic_write_text(folder / f"trajectory_{r.name}.csv", r.trajectory_csv())
+    text = json.dumps(result.to_dict(), indent=2, allow_nan=False, default=_json_default)
+    path = folder / "result.json"
+    atomic_write_text(path, text + "\n")
+    return path
+
+
+def _json_default(v: Any) -> Any:
+    if isinstance(v, np.ndarray):
+        return [_json_number(x) for x in v.tolist()]
+    if isinstance(v, (np.floating, np.integer, np.bool_)):
+        return v.item()
+    raise TypeError(f"not JSON serializable: {type(v).__name__}")
+
+
+def read_result(folder: str | Path) -> Result:
+    """Read a folder written by :func:`write_result` back into a :class:`Result`."""
+    folder = Path(folder)
+    path = folder / "result.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HybridnavError(f"{path}: no such file (expected a hybridnav result folder)") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise HybridnavError(f"{path}: expected a JSON object at the top level")
+    for key in ("scenario", "planner", "params", "seed", "version", "robots"):
+        if key not in data:
+            raise HybridnavError(f"{path}: {key}: missing (expected a hybridnav result.json)")
+    robots = []
+    standard = {"name", "outcome", "path_length", "time_to_goal", "min_clearance", "compute_time"}
+    for i, entry in enumerate(data["robots"]):
+        if not isinstance(entry, dict) or "name" not in entry or "outcome" not in entry:
+            raise HybridnavError(f"{path}: robots[{i}]: expected an object with name and outcome")
+        csv_path = folder / f"trajectory_{entry['name']}.csv"
+        t, states, names = _read_trajectory(csv_path)
+        robots.append(RobotResult(
+            name=entry["name"], outcome=entry["outcome"], t=t, states=states, state_names=names,
+            time_to_goal=entry.get("time_to_goal"), min_clearance=entry.get("min_clearance"),
+            compute_time=entry.get("compute_time", 0.0),
+            metrics={k: v for k, v in entry.items() if k not in standard},
+        ))
+    return Result(scenario=data["scenario"], planner=data["planner"], params=data["params"],
+                  seed=data["seed"], robots=robots, version=data["version"])
+
+
+def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise HybridnavError(f"{path}: no such file (every robot has a trajectory CSV)") from None
+    rows = list(csv.reader(lines))
+    if not rows or rows[0][:3] != ["t", "x", "y"]:
+        raise HybridnavError(f"{path}: line 1: expected the header t,x,y,...")
+    try:
+        data = np.array([[float(v) for v in r] for r in rows[1:]], dtype=float)
+    except ValueError as exc:
+        raise HybridnavError(f"{path}: expected numbers in every data row: {exc}") from None
+    data = data.reshape(len(rows) - 1, len(rows[0]))
+    return data[:, 0], data[:, 1:], tuple(rows[0][1:])

@@ -1,0 +1,242 @@
+"""Kinematic models: closed forms, scipy references, batching, targets, errors."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from hybridnav import HybridnavError, models
+
+
+def reference(model, x0, target, t_end, dt_out):
+    """solve_ivp (Radau, rtol = atol = 1e-10) of the model's closed loop."""
+    rhs = model.numeric_closed_loop()
+    t_eval = np.arange(0, t_end + 1e-9, dt_out)
+    sol = solve_ivp(lambda t, x: rhs(x, target), (0, t_end), x0, method="Radau",
+                    rtol=1e-10, atol=1e-10, t_eval=t_eval)
+    assert sol.success
+    return sol.y.T
+
+
+def test_point_mass_matches_closed_form():
+    m = models.get("point_mass")                       # alpha1 = alpha2 = 0.1
+    x0 = np.array([[5.0, 45.0], [-3.0, 2.0]])
+    tg = np.array([[45.0, 5.0], [0.0, 0.0]])
+    steps = 300
+    traj = m.rollout(x0, tg, steps)
+    t = np.arange(steps + 1) * m.dt
+    exact_x = tg[:, None, 0] + (x0[:, None, 0] - tg[:, None, 0]) * np.exp(-0.1 * t)
+    exact_y = tg[:, None, 1] + (x0[:, None, 1] - tg[:, None, 1]) * np.exp(-0.1 * t)
+    assert np.abs(traj[..., 0] - exact_x).max() < 1e-8
+    assert np.abs(traj[..., 1] - exact_y).max() < 1e-8
+
+
+@pytest.mark.parametrize("dt, tol", [(0.1, 1e-4), (0.01, 1e-7)])
+def test_tractor_trailer_matches_radau(dt, tol):
+    m = models.get("tractor_trailer", dt=dt)
+    target = np.array([45.0, 25.0])
+    x0 = m.initial_state([5.0, 45.0], target, {"theta0": -0.3, "theta1": -0.2})
+    steps = round(30.0 / dt)
+    ours = m.rollout(x0[None], target[None], steps)[0]
+    ref = reference(m, x0, target, 30.0, dt)
+    assert ref.shape == ours.shape
+    assert np.abs(ours - ref).max() < tol
+
+
+@pytest.mark.parametrize("dt, tol", [(0.1, 1e-4), (0.01, 1e-7)])
+def test_unicycle_go_to_point_matches_radau(dt, tol):
+    m = models.get("unicycle", dt=dt, wheel_max=0.6)
+    target = np.array([2.0, 3.0])
+    x0 = m.initial_state([0.0, 0.0], target, {"theta": 0.2})
+    steps = round(30.0 / dt)
+    ours = m.rollout(x0[None], target[None], steps)[0]
+    ref = reference(m, x0, target, 30.0, dt)
+    assert np.abs(ours - ref).max() < tol
+
+
+def test_unicycle_heading_controller_holds_input_over_each_cycle():
+    """Zero-order hold: per cycle, the input from the cycle's start state, integrated exactly."""
+    m = models.get("unicycle", controller="heading", speed=0.1, dt=0.1)
+    ctrl = m.function("controller")
+    f = m.function("open_loop")
+    p = m.p_value()
+    x = np.array([0.0, 0.0, 3.0])       # facing away: the turn is clipped to pi/4 per cycle
+    target = np.array([3.0, 3.0])
+    ours = m.rollout(x[None], target[None], 40)[0]
+    for k in range(40):
+        u = np.asarray(ctrl(x, target, p)).ravel()
+        omega = (u[1] - u[0]) / m.params["L"]
+        assert abs(omega * m.dt) <= math.pi / 4 + 1e-12
+        sol = solve_ivp(lambda t, z: np.asarray(f(z, u, p)).ravel(), (0, m.dt), x,
+                        method="Radau", rtol=1e-12, atol=1e-12)
+        x = sol.y[:, -1]
+        # RK4 on a 45-degree arc per cycle: about 1e-6 m of truncation error per cycle
+        assert np.abs(ours[k + 1] - x).max() < 1e-5
+    # the first cycles turn by exactly the limit
+    assert ours[1, 2] - ours[0, 2] == pytest.approx(-math.pi / 4, abs=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(models.MODELS))
+def test_batched_rollout_equals_single_robot_rollouts(name):
+    m = models.get(name)
+    rng = np.random.default_rng(3)
+    n = 7
+    starts = rng.uniform(0, 10, (n, 2))
+    targets = rng.uniform(0, 10, (n, 2))
+    inits = {"tractor_trailer": {"theta0": 0.4, "theta1": 0.3}, "unicycle": {"theta": 1.0}}
+    X0 = np.array([m.initial_state(s, t, inits.get(name)) for s, t in zip(starts, targets)])
+    batch = m.rollout(X0, targets, 50)
+    for i in range(n):
+        single = m.rollout(X0[i:i + 1], targets[i:i + 1], 50)
+        np.testing.assert_array_equal(batch[i], single[0])
+    # step() repeated is the rollout
+    X = X0.copy()
+    for k in range(50):
+        X = m.step(X, targets)
+    np.testing.assert_allclose(X, batch[:, -1], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(models.MODELS))
+def test_jit_and_virtual_machine_agree(name):
+    if not models.jit_available():
+        pytest.skip("no working C compiler here")
+    rng = np.random.default_rng(5)
+    mj = models.get(name, jit=True)
+    mv = models.get(name, jit=False)
+    X0 = np.column_stack([rng.uniform(0, 5, (4, 2)), rng.uniform(-0.5, 0.5, (4, mj.nx - 2))])
+    tg = rng.uniform(5, 10, (4, 2))
+    np.testing.assert_allclose(mj.rollout(X0, tg, 30), mv.rollout(X0, tg, 30), rtol=0, atol=1e-12)
+
+
+def _grid_starts(radii, n_bearings, heading_errors):
+    """Starts around the origin and initial headings = bearing to the origin - error."""
+    out = []
+    for r in radii:
+        for a in np.linspace(-math.pi, math.pi, n_bearings, endpoint=False):
+            bearing = math.atan2(-math.sin(a), -math.cos(a))
+            for de in heading_errors:
+                out.append(((r * math.cos(a), r * math.sin(a)), bearing - de))
+    return out
+
+
+@pytest.mark.parametrize("name, key, steps", [("point_mass", None, 2000),
+                                              ("unicycle", "theta", 600)])
+def test_holonomic_and_unicycle_reach_target_from_every_start_and_heading(name, key, steps):
+    m = models.get(name)
+    errors = np.linspace(-math.pi, math.pi, 8, endpoint=False) if key else [0.0]
+    starts = _grid_starts((1.0, 5.0, 20.0), 8, errors)
+    X0 = np.array([m.initial_state(s, (0, 0), {key: h} if key else {}) for s, h in starts])
+    final = m.rollout(X0, np.zeros((len(X0), 2)), steps)[:, -1]
+    assert np.hypot(final[:, 0], final[:, 1]).max() < 1e-3
+
+
+def test_tractor_trailer_reaches_target_from_far_starts_with_any_heading_error_up_to_90_degrees():
+    m = models.get("tractor_trailer")
+    starts = _grid_starts((20.0, 40.0), 8, np.linspace(-math.pi / 2, math.pi / 2, 7))
+    X0 = np.array([m.initial_state(s, (0, 0), {"theta0": h, "theta1": h}) for s, h in starts])
+    traj = m.rollout(X0, np.zeros((len(X0), 2)), 3000)
+    dist = np.hypot(traj[:, -1, 0], traj[:, -1, 1])
+    assert dist.max() < 0.05
+    # the trailer never jackknifes on the way (|theta0 - theta1| stays well below pi/2)
+    assert np.abs(traj[..., 2] - traj[..., 3]).max() < 1.0
+
+
+def test_tractor_trailer_orbits_a_target_that_is_too_close_to_turn_onto():
+    """The papers' law is unstable within about 9L/7 of the target (see the module docstring)."""
+    m = models.get("tractor_trailer")
+    for error in (0.3, 1.0):
+        x0 = m.initial_state((10.0, 0.0), (0, 0), {"theta0": math.pi - error,
+                                                   "theta1": math.pi - error})
+        traj = m.rollout(x0[None], np.zeros((1, 2)), 3000)[0]
+        dist = np.hypot(traj[-600:, 0], traj[-600:, 1])    # the last minute
+        assert 0.5 < dist.min() and dist.max() < 2 * m.params["L"]
+
+
+def test_tractor_trailer_filter_law_reaches_without_jackknife_and_paper_law_circles():
+    target = np.array([45.0, 25.0])
+    good = models.get("tractor_trailer")
+    x0 = good.initial_state([5.0, 45.0], target)
+    tr = good.rollout(x0[None], target[None], 3000)[0]
+    assert np.hypot(*(tr[-1, :2] - target)) < 1e-3
+    assert np.abs(tr[:, 2] - tr[:, 3]).max() < 0.35
+    paper = models.get("tractor_trailer", xi_law="paper")
+    tr = paper.rollout(paper.initial_state([5.0, 45.0], target)[None], target[None], 3000)[0]
+    assert np.hypot(*(tr[-1, :2] - target)) > 30.0   # still far away after 300 s
+
+
+def test_tractor_trailer_retarget_sets_xi_to_heading_error():
+    m = models.get("tractor_trailer")
+    X = np.array([[0.0, 0.0, 3.0, 3.0, 0.0]])
+    X2 = m.retarget(X, [[-1.0, -0.1]])
+    err = math.atan2(-0.1, -1.0) - 3.0
+    assert X2[0, 4] == pytest.approx(math.atan2(math.sin(err), math.cos(err)))
+    assert X[0, 4] == 0.0  # the input is not modified
+
+
+def test_tractor_trailer_footprint_covers_both_bodies():
+    m = models.get("tractor_trailer")
+    q = m.params
+    X = np.array([[10.0, 5.0, 0.7, -0.4, 0.0]])
+    centers, radii = m.footprint(X)
+    assert centers.shape == (1, len(radii), 2)
+    u0 = np.array([math.cos(0.7), math.sin(0.7)])
+    n0 = np.array([-u0[1], u0[0]])
+    u1 = np.array([math.cos(-0.4), math.sin(-0.4)])
+    n1 = np.array([-u1[1], u1[0]])
+    s = np.linspace(-0.5, 0.5, 41)
+    tractor = [X[0, :2] + a * q["L"] * u0 + w * q["b"] * n0 for a in s for w in s]
+    hitch = X[0, :2] - (q["L"] / 2 + q["c"]) * u0
+    trailer = [hitch - (a + 0.5) * q["Lt"] * u1 + w * q["b"] * n1 for a in s for w in s]
+    pts = np.array(tractor + trailer)
+    d = np.linalg.norm(pts[:, None, :] - centers[0][None], axis=2) - radii[None]
+    assert d.min(axis=1).max() <= 1e-12
+    assert m.radius == pytest.approx(math.hypot(q["L"], q["b"]) / 2)
+
+
+def test_point_mass_function_views():
+    m = models.get("point_mass", alpha1=0.3, alpha2=0.2)
+    f = m.function("closed_loop")
+    xdot = np.asarray(f([1.0, 2.0], [4.0, 6.0], m.p_value())).ravel()
+    np.testing.assert_allclose(xdot, [0.9, 0.8])
+    assert m.state_names == ("x", "y")
+    assert m.function("open_loop").size1_in(0) == 2
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: models.get("bicycle"), "unknown model 'bicycle'; expected one of: point_mass"),
+        (lambda: models.get("point_mass", alpah1=0.1), "unknown parameter 'alpah1'"),
+        (lambda: models.get("point_mass", alpha1="fast"), "alpha1: expected a number"),
+        (lambda: models.get("point_mass", alpha1=float("nan")), "alpha1: expected a finite number"),
+        (lambda: models.get("point_mass", dt=0.0), "dt: expected a positive number"),
+        (lambda: models.get("tractor_trailer", L=-1.0), "L: expected a positive number"),
+        (lambda: models.get("tractor_trailer", xi_law="magic"), "xi_law: expected one of"),
+        (lambda: models.get("unicycle", controller="pid"), "controller: expected one of"),
+        (lambda: models.get("point_mass").step(np.zeros((3, 3)), np.zeros((3, 2))),
+         "X: expected an (N, 2) array"),
+        (lambda: models.get("point_mass").rollout(np.zeros((3, 2)), np.zeros((2, 2)), 5),
+         "targets: expected an (3, 2) array"),
+        (lambda: models.get("point_mass").rollout(np.zeros((1, 2)), np.zeros((1, 2)), -1),
+         "steps: expected a non-negative integer"),
+        (lambda: models.get("unicycle").initial_state([0, 0], [1, 1], {"phi": 1.0}),
+         "initial.phi: unknown state; expected one of: theta"),
+    ],
+)
+def test_bad_input_raises_hybridnav_error(call, message):
+    with pytest.raises(HybridnavError) as info:
+        call()
+    assert message in str(info.value)
+    assert isinstance(info.value, ValueError)
+
+
+def test_empty_batch_and_zero_steps():
+    m = models.get("unicycle")
+    assert m.step(np.zeros((0, 3)), np.zeros((0, 2))).shape == (0, 3)
+    traj = m.rollout(np.ones((2, 3)), np.zeros((2, 2)), 0)
+    assert traj.shape == (2, 1, 3)
+    np.testing.assert_array_equal(traj[:, 0], np.ones((2, 3)))
