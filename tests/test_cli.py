@@ -1,0 +1,74 @@
+"""The hybridnav command: listing, drawing, and clean errors (exit 2, no traceback)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from hybridnav import __version__
+from hybridnav.cli import main
+from hybridnav.world import list_scenarios
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "hybridnav.cli", *args], capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"hybridnav {__version__}"
+
+
+def test_scenarios_lists_every_builtin_with_its_description(capsys):
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    names = [name for name, _ in list_scenarios()]
+    assert [line.split()[0] for line in out] == names
+    for expected in ("fastep-s1", "fastep-s2", "fastep-s3", "aco-three-robots", "aco-local-minimum",
+                     "tractor-trailer-1", "tractor-trailer-3", "effc-train-1", "effc-train-2",
+                     "effc-env-a", "effc-env-b", "rfd-pso-700", "pso-ba-dynamic", "arena"):
+        assert expected in names
+
+
+@pytest.mark.parametrize("scenario", ["fastep-s3", "tractor-trailer-3", "pso-ba-dynamic", "arena"])
+def test_show_writes_a_png(tmp_path, capsys, scenario):
+    out = tmp_path / "pics" / f"{scenario}.png"
+    assert main(["show", scenario, "-o", str(out)]) == 0
+    data = out.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+    assert scenario in capsys.readouterr().out
+    assert [p.name for p in out.parent.iterdir()] == [out.name]   # no temporary files left
+
+
+def test_models_lists_parameters(capsys):
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    for text in ("point_mass:", "tractor_trailer:", "unicycle:", "alpha1 = 0.1", "xi_law = 'filter'"):
+        assert text in out
+
+
+def test_unknown_scenario_exits_2_without_traceback():
+    proc = run("show", "no-such-scenario", "-o", "x.png")
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("hybridnav: error: ")
+    assert "no-such-scenario" in proc.stderr
+
+
+def test_bad_scenario_file_names_file_and_key(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        'name = "bad"\ndt = 0.1\nmax_time = 10.0\n'
+        "[workspace]\nxmin = 0.0\nxmax = 10.0\nymin = 0.0\nymax = 10.0\n"
+        '[[robots]]\nname = "R1"\nmodel = "point_mass"\nstart = [1.0, 1.0]\ngoal = [20.0, 5.0]\n'
+    )
+    proc = run("show", str(bad), "-o", str(tmp_path / "bad.png"))
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert "bad.toml" in proc.stderr and "robots[0].goal" in proc.stderr
+    assert not (tmp_path / "bad.png").exists()
