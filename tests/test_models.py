@@ -209,7 +209,7 @@ def test_point_mass_function_views():
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda: models.get("bicycle"), "unknown model 'bicycle'; expected one of: point_mass"),
+        (lambda: models.get("bicycle"), "unknown model 'bicycle'; expected one of: lbcs, point_mass"),
         (lambda: models.get("point_mass", alpah1=0.1), "unknown parameter 'alpah1'"),
         (lambda: models.get("point_mass", alpha1="fast"), "alpha1: expected a number"),
         (lambda: models.get("point_mass", alpha1=float("nan")), "alpha1: expected a finite number"),

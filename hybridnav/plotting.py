@@ -1,0 +1,158 @@
+"""Drawing scenarios with matplotlib (headless-safe: no pyplot, no backend switching)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle as CirclePatch
+from matplotlib.patches import FancyArrowPatch
+from matplotlib.patches import Polygon as PolygonPatch
+from matplotlib.patches import Rectangle as RectanglePatch
+
+from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
+
+__all__ = ["draw_scenario", "save_scenario_png"]
+
+log = logging.getLogger(__name__)
+
+_OBSTACLE_STYLE = {"facecolor": "0.35", "edgecolor": "black", "linewidth": 0.8}
+_MOVING_STYLE = {"facecolor": "tab:red", "edgecolor": "darkred", "linewidth": 0.8, "alpha": 0.75}
+
+
+def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, show_grid: bool = True) -> Axes:
+    """Draw a scenario: workspace, obstacles, grid map, robots, starts and goals.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new :class:`matplotlib.figure.Figure` (no pyplot) is made otherwise.
+    t : float
+        Time at which moving circles are drawn (their velocity is drawn as an arrow, and their
+        position at ``t = 0`` as a dashed outline when ``t != 0``).
+    show_grid : bool
+        Draw the scenario's map grid (only for ``[grid] map`` scenarios) with ``imshow``.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    if ax is None:
+        fig = Figure(figsize=(6.4, 6.4), layout="constrained")
+        ax = fig.add_subplot()
+    world = scenario.world
+    xmin, xmax, ymin, ymax = world.workspace
+    span = max(xmax - xmin, ymax - ymin)
+
+    if show_grid and scenario.grid is not None and scenario.grid.map is not None:
+        from hybridnav.grid import build_grid
+
+        og = build_grid(scenario)
+        ax.imshow(og.occ, origin="lower", extent=og.extent, cmap="Greys", vmin=0, vmax=1.6,
+                  interpolation="nearest", zorder=0)
+
+    ax.add_patch(RectanglePatch((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="black",
+                                linewidth=1.5, zorder=1))
+
+    for o in world.obstacles:
+        if isinstance(o, Circle):
+            ax.add_patch(CirclePatch(o.center, o.radius, zorder=2, **_OBSTACLE_STYLE))
+        elif isinstance(o, (Polygon, Rectangle)):
+            ax.add_patch(PolygonPatch(o.vertices, closed=True, zorder=2, **_OBSTACLE_STYLE))
+        elif isinstance(o, Segment):
+            ax.plot([o.a[0], o.b[0]], [o.a[1], o.b[1]], color="black", linewidth=2.5, zorder=2,
+                    solid_capstyle="round")
+        elif isinstance(o, MovingCircle):
+            c = o.center_at(t)
+            if t != 0.0:
+                ax.add_patch(CirclePatch(o.center, o.radius, fill=False, edgecolor="darkred",
+                                         linestyle="--", linewidth=0.8, zorder=2))
+            ax.add_patch(CirclePatch(c, o.radius, zorder=3, **_MOVING_STYLE))
+            if o.velocity > 0:
+                u = np.array([math.cos(o.heading), math.sin(o.heading)])
+                tail = c + u * o.radius
+                head = tail + u * max(0.06 * span, 10.0 * o.velocity * scenario.dt)
+                ax.add_patch(FancyArrowPatch(tuple(tail), tuple(head), arrowstyle="-|>", mutation_scale=12,
+                                             color="darkred", linewidth=1.2, zorder=3))
+
+    colors = [f"C{i % 10}" for i in range(len(scenario.robots))]
+    starts = {r.name: np.asarray(r.start) for r in scenario.robots}
+    for r, col in zip(scenario.robots, colors):
+        s = starts[r.name]
+        model = scenario.model(r, jit=False)
+        target = r.goal if r.goal is not None else starts.get(r.goal_follow, s)
+        centers, radii = model.footprint(model.initial_state(s, target, r.initial)[None])
+        for c, rad in zip(centers[0], radii):   # the model's covering disks (one for a disk robot)
+            ax.add_patch(CirclePatch(c, rad, facecolor=col, edgecolor="black", alpha=0.35,
+                                     linewidth=0.8, zorder=4))
+        ax.plot(*s, marker="o", color=col, markersize=6, markeredgecolor="black", zorder=5)
+        ax.annotate(r.name, s, xytext=(5, 5), textcoords="offset points", color=col, fontsize=9,
+                    fontweight="bold", zorder=6)
+        if r.goal is not None:
+            g = np.asarray(r.goal)
+            ax.add_patch(CirclePatch(g, r.goal_radius, fill=False, edgecolor=col, linestyle="--",
+                                     linewidth=1.0, zorder=4))
+            ax.plot(*g, marker="*", color=col, markersize=12, markeredgecolor="black", zorder=5)
+            ax.annotate(f"{r.name} goal", g, xytext=(5, -12), textcoords="offset points", color=col,
+                        fontsize=8, zorder=6)
+        elif r.goal_follow is not None and r.goal_follow in starts:
+            ax.add_patch(FancyArrowPatch(tuple(s), tuple(starts[r.goal_follow]), arrowstyle="-|>",
+                                         mutation_scale=12, color=col, linestyle=":", linewidth=1.2,
+                                         shrinkA=6, shrinkB=6, zorder=4))
+
+    pad = 0.03 * span
+    ax.set_xlim(xmin - pad, xmax + pad)
+    ax.set_ylim(ymin - pad, ymax + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"x [{scenario.units}]")
+    ax.set_ylabel(f"y [{scenario.units}]")
+    title = scenario.name if t == 0.0 else f"{scenario.name} (t = {t:g} s)"
+    ax.set_title(title)
+    return ax
+
+
+def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float = 0.0, dpi: int = 120) -> Path:
+    """Draw a scenario and write it to a PNG file atomically.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    path : str or path-like
+        Destination; the image is written to a temporary file in the same directory and then
+        moved into place with :func:`os.replace`.
+    t : float
+        Time for moving obstacles.
+    dpi : int
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+    """
+    path = Path(path)
+    fig = Figure(figsize=(6.4, 6.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    draw_scenario(scenario, ax=ax, t=t)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=dpi)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    log.debug("wrote %s", path)
+    return path
