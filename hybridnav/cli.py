@@ -52,6 +52,19 @@ def _cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    from hybridnav.analysis.report import analyze
+
+    result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
+                     progress=lambda msg: print(f"  {msg} ...", flush=True))
+    width = max(len(c["name"]) for c in result["checks"])
+    print(f"{result['model']} on {result['scenario']}, target {result['target']}:")
+    for c in result["checks"]:
+        print(f"  {c['name']:<{width}}  {c['status']}")
+    print(f"wrote {args.out}/analysis.json, report.md and {len(result['plots'])} plots")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
     parser = argparse.ArgumentParser(
@@ -74,6 +87,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--time", type=float, default=0.0, metavar="T",
                    help="draw moving obstacles at time T (seconds, default 0)")
     p.set_defaults(func=_cmd_show)
+
+    p = sub.add_parser("analyze", help="stability analysis of a model: Lyapunov, linearization, "
+                                       "region of attraction, sweeps")
+    p.add_argument("model", choices=["point_mass", "unicycle", "tractor_trailer", "lbcs"])
+    p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
+                                      "one per model)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for analysis.json, "
+                                                              "report.md and plots")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
+    p.set_defaults(func=_cmd_analyze)
 
     p = sub.add_parser("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)

@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -26,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_write_text
+from hybridnav.fileio import atomic_write_text, dumps_json, json_ready
 
 __all__ = ["OUTCOMES", "RobotResult", "Result", "path_length", "read_result", "write_result"]
 
@@ -121,7 +120,7 @@ class RobotResult:
             "compute_time": self.compute_time,
         }
         out.update(self.metrics)
-        return {k: _json_number(v) for k, v in out.items()}
+        return json_ready(out)
 
     def trajectory_csv(self) -> str:
         """The trajectory file's text: header ``t,x,y,...`` and one row per sample."""
@@ -169,14 +168,6 @@ class Result:
         return write_result(self, folder)
 
 
-def _json_number(v: Any) -> Any:
-    if isinstance(v, (np.floating, np.integer)):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def write_result(result: Result, folder: str | Path) -> Path:
     """Write a :class:`Result` to ``folder``; returns the path of ``result.json``.
 
@@ -187,18 +178,9 @@ def write_result(result: Result, folder: str | Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     for r in result.robots:
         atomic_write_text(folder / f"trajectory_{r.name}.csv", r.trajectory_csv())
-    text = json.dumps(result.to_dict(), indent=2, allow_nan=False, default=_json_default)
     path = folder / "result.json"
-    atomic_write_text(path, text + "\n")
+    atomic_write_text(path, dumps_json(result.to_dict()))
     return path
-
-
-def _json_default(v: Any) -> Any:
-    if isinstance(v, np.ndarray):
-        return [_json_number(x) for x in v.tolist()]
-    if isinstance(v, (np.floating, np.integer, np.bool_)):
-        return v.item()
-    raise TypeError(f"not JSON serializable: {type(v).__name__}")
 
 
 def read_result(folder: str | Path) -> Result:

@@ -13,13 +13,16 @@ from typing import Any
 
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model, jit_available, wrap_angle
+from hybridnav.models.lbcs import LbCS
 from hybridnav.models.point_mass import PointMass
 from hybridnav.models.tractor_trailer import TractorTrailer
 from hybridnav.models.unicycle import Unicycle
 
-MODELS: dict[str, type[Model]] = {cls.name: cls for cls in (PointMass, TractorTrailer, Unicycle)}
+MODELS: dict[str, type[Model]] = {
+    cls.name: cls for cls in (PointMass, TractorTrailer, Unicycle, LbCS)
+}
 
-__all__ = ["MODELS", "Model", "PointMass", "TractorTrailer", "Unicycle", "get", "jit_available",
+__all__ = ["MODELS", "LbCS", "Model", "PointMass", "TractorTrailer", "Unicycle", "get", "jit_available",
            "wrap_angle"]
 
 
@@ -29,7 +32,7 @@ def get(name: str, dt: float = 0.1, **params: Any) -> Model:
     Parameters
     ----------
     name : str
-        One of :data:`MODELS`: ``point_mass``, ``tractor_trailer``, ``unicycle``.
+        One of :data:`MODELS`: ``point_mass``, ``tractor_trailer``, ``unicycle``, ``lbcs``.
     dt : float
         Control and integration step in seconds.
     **params

@@ -30,7 +30,7 @@ import tempfile
 import threading
 from abc import ABC, abstractmethod
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -148,6 +148,8 @@ class _Buffered:
 
 @dataclass(frozen=True)
 class _Symbols:
+    """The model's symbols: state ``x``, input ``u``, parameters ``p``, target ``(x1, y1)``."""
+
     x: cs.SX
     u: cs.SX
     p: cs.SX
@@ -227,11 +229,12 @@ class Model(ABC):
         self.n_plant = len(self.plant_state_names)
         self.nu = len(self.input_names)
         self.param_names = tuple(self.defaults)
+        # one named scalar symbol per entry, so expressions print readably ("alpha1*(x1-x)")
         self.sym = _Symbols(
-            x=cs.SX.sym("x", self.nx),
-            u=cs.SX.sym("u", self.nu),
-            p=cs.SX.sym("p", len(self.param_names)),
-            target=cs.SX.sym("target", 2),
+            x=_named(self.state_names),
+            u=_named(self.input_names),
+            p=_named(self.param_names),
+            target=_named(("x1", "y1")),
         )
         self._local = threading.local()
 
@@ -271,6 +274,35 @@ class Model(ABC):
         u = self.controller(x, target, p)
         plant = self.open_loop(x[: self.n_plant], u, p)
         return cs.vertcat(plant, self.controller_dynamics(x, target, p))
+
+    def with_params(self, **overrides: Any) -> Model:
+        """A copy of this model with some parameters or options changed."""
+        return type(self)(dt=self.dt, jit=self.jit, radius=self._radius,
+                          **{**self.params, **self.options, **overrides})
+
+    def lyapunov_candidate(self, x=None, target=None) -> cs.SX:
+        """The default Lyapunov candidate ``V = 1/2 ((x1 - x)^2 + (y1 - y)^2)``."""
+        x = self.sym.x if x is None else x
+        target = self.sym.target if target is None else target
+        return 0.5 * ((target[0] - x[0]) ** 2 + (target[1] - x[1]) ** 2)
+
+    def state_constraints(self, x=None, p=None) -> cs.SX:
+        """Expressions that are positive exactly on the admissible states (default: none).
+
+        The analysis tools restrict their regions to ``{x : every entry > 0}`` (for LbCS: the free
+        space, outside every obstacle).
+        """
+        return cs.SX(0, 1)
+
+    def admissible(self, X) -> np.ndarray:
+        """Whether each state of a batch ``(N, nx)`` satisfies :meth:`state_constraints`."""
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        g = self.state_constraints()
+        if g.numel() == 0:
+            return np.ones(len(X), dtype=bool)
+        fn = cs.Function("g", [self.sym.x, self.sym.p], [g]).map(len(X))
+        vals = np.asarray(fn(X.T, self.p_value())).reshape(-1, len(X))
+        return np.all(vals > 0, axis=0)
 
     def p_value(self) -> np.ndarray:
         """The numeric parameter vector in :attr:`param_names` order."""
@@ -503,6 +535,11 @@ class Model(ABC):
         params = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
         opts = "".join(f", {k}={v!r}" for k, v in self.options.items())
         return f"{type(self).__name__}(dt={self.dt:g}, {params}{opts})"
+
+
+def _named(names: Sequence[str]) -> cs.SX:
+    """A column of scalar SX symbols with the given names (valid as a Function input)."""
+    return cs.vertcat(*[cs.SX.sym(n) for n in names]) if names else cs.SX(0, 1)
 
 
 def _check_number(key: str, value: Any, allow_inf: bool = False) -> float:

@@ -69,6 +69,31 @@ class Unicycle(Model):
                     f"model unicycle: {key}: expected a positive number, got {self.params[key]!r}"
                 )
 
+    def polar_error_dynamics(self) -> tuple[cs.SX, cs.SX, tuple[str, str]]:
+        """The go-to-point closed loop in polar error coordinates ``(rho, e)``.
+
+        With ``rho`` the distance to the target and ``e`` the heading error (no wheel saturation)::
+
+            rhodot = -k_rho rho cos(e)^2
+            edot   =  k_rho sin(e) cos(e) - k_alpha e
+
+        Unlike the Cartesian closed loop, this is differentiable at the target ``(0, 0)``, where
+        its linearization is ``diag(-k_rho, k_rho - k_alpha)``: stable when ``k_alpha > k_rho``.
+
+        Returns
+        -------
+        z : casadi.SX
+            The symbols ``(rho, e)``.
+        zdot : casadi.SX
+            Their derivatives, in the model's parameter symbols ``self.sym.p``.
+        names : tuple of str
+        """
+        q = self.p_dict(self.sym.p)
+        rho, e = cs.SX.sym("rho"), cs.SX.sym("e")
+        zdot = cs.vertcat(-q["k_rho"] * rho * cs.cos(e) ** 2,
+                          q["k_rho"] * cs.sin(e) * cs.cos(e) - q["k_alpha"] * e)
+        return cs.vertcat(rho, e), zdot, ("rho", "e")
+
     def open_loop(self, x, u, p):
         q = self.p_dict(p)
         v = (u[0] + u[1]) / 2

@@ -1,0 +1,171 @@
+"""Exact linearization of the CasADi models into python-control state-space systems."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as cs
+import control
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+from hybridnav.models.base import Model
+
+__all__ = ["LinearizationReport", "controllability_rank", "is_stable", "linearize",
+           "linearize_expression", "summarize"]
+
+
+def linearize(
+    model: Model,
+    x0: Sequence[float],
+    u0: Sequence[float] | None = None,
+    *,
+    target: Sequence[float] | None = None,
+    name: str | None = None,
+) -> control.StateSpace:
+    """Linearize a model with CasADi's exact Jacobians.
+
+    Two modes:
+
+    * **open loop** (``target`` is None): ``dx/dt = f(x, u)`` about ``(x0, u0)`` over the plant
+      states; ``A = df/dx``, ``B = df/du``. The point need not be an equilibrium (e.g. straight
+      driving): ``f(x0, u0)`` is then the nominal velocity and the system describes deviations.
+    * **closed loop** (``target`` given): ``dx/dt = F(x, target)`` about ``x0``, with the target as
+      input; ``A = dF/dx``, ``B = dF/d(x1, y1)``.
+
+    ``C`` is the identity (every state is an output) and ``D = 0``. The result is a
+    ``control.StateSpace`` with named states, inputs and outputs; ``sys.nominal_rate`` holds
+    ``f(x0, u0)`` (resp. ``F(x0)``).
+
+    Raises
+    ------
+    HybridnavError
+        Wrong sizes, or a Jacobian entry that is not finite (the model is not differentiable
+        there, e.g. the unicycle's heading controller at its target): the message names the state
+        rows.
+    """
+    x0 = _vector(x0, "x0")
+    s = model.sym
+    pval = cs.DM(model.p_value())
+    if target is None:
+        if u0 is None:
+            raise HybridnavError(
+                f"u0: expected the nominal input ({', '.join(model.input_names)}) for an open-loop"
+                " linearization (or pass target= for the closed loop)"
+            )
+        u0 = _vector(u0, "u0")
+        if x0.size != model.n_plant or u0.size != model.nu:
+            raise HybridnavError(
+                f"x0, u0: expected {model.n_plant} plant states ({', '.join(model.plant_state_names)})"
+                f" and {model.nu} inputs ({', '.join(model.input_names)}), got {x0.size} and "
+                f"{u0.size}"
+            )
+        xs = s.x[: model.n_plant]
+        f = cs.substitute(model.open_loop(xs, s.u, s.p), s.p, pval)
+        fn = cs.Function("lin", [xs, s.u], [f, cs.jacobian(f, xs), cs.jacobian(f, s.u)])
+        rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, u0))
+        states, inputs = list(model.plant_state_names), list(model.input_names)
+    else:
+        t = _vector(target, "target")
+        if x0.size != model.nx or t.size != 2:
+            raise HybridnavError(
+                f"x0: expected {model.nx} states ({', '.join(model.state_names)}) and a 2-vector "
+                f"target, got {x0.size} and {t.size}"
+            )
+        f = cs.substitute(model.closed_loop(), s.p, pval)
+        fn = cs.Function("lin", [s.x, s.target],
+                         [f, cs.jacobian(f, s.x), cs.jacobian(f, s.target)])
+        rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, t))
+        states, inputs = list(model.state_names), ["x1", "y1"]
+    bad = sorted({states[i] for i in np.argwhere(~np.isfinite(np.hstack([A, B])))[:, 0]})
+    if bad:
+        raise HybridnavError(
+            f"x0: {model.name} is not differentiable at {x0.tolist()}: the Jacobian rows of "
+            f"{', '.join(bad)} are not finite there"
+        )
+    n = len(states)
+    sys = control.ss(A, B, np.eye(n), np.zeros((n, B.shape[1])), states=states, inputs=inputs,
+                     outputs=list(states), name=name or f"{model.name}_lin")
+    sys.nominal_rate = rate.ravel()
+    return sys
+
+
+def linearize_expression(
+    z: cs.SX, zdot: cs.SX, z0: Sequence[float], names: Sequence[str], *,
+    symbols: cs.SX | None = None, values: Sequence[float] | None = None, name: str = "lin",
+) -> control.StateSpace:
+    """Linearize an autonomous CasADi vector field ``zdot(z)`` about ``z0`` (exact Jacobian).
+
+    ``symbols`` / ``values`` substitute parameters first (e.g. ``model.sym.p`` and
+    ``model.p_value()``). The result has no inputs (``B`` is ``(n, 0)``) and ``C = I``.
+    """
+    if symbols is not None:
+        zdot = cs.substitute(zdot, symbols, cs.DM(np.asarray(values, dtype=float)))
+    fn = cs.Function("lin", [z], [zdot, cs.jacobian(zdot, z)])
+    rate, A = (np.asarray(a, dtype=float) for a in fn(_vector(z0, "z0")))
+    if not np.all(np.isfinite(A)):
+        raise HybridnavError(f"z0: the vector field is not differentiable at {list(z0)}")
+    n = A.shape[0]
+    sys = control.ss(A, np.zeros((n, 0)), np.eye(n), np.zeros((n, 0)), states=list(names),
+                     outputs=list(names), name=name)
+    sys.nominal_rate = rate.ravel()
+    return sys
+
+
+def is_stable(sys: control.StateSpace, tol: float = 1e-12) -> bool:
+    """Whether every eigenvalue of ``A`` has a real part below ``-tol`` (asymptotic stability)."""
+    return bool(np.all(np.linalg.eigvals(sys.A).real < -tol))
+
+
+def controllability_rank(sys: control.StateSpace) -> int:
+    """Rank of the controllability matrix ``control.ctrb(A, B)``."""
+    if sys.ninputs == 0:
+        return 0
+    return int(np.linalg.matrix_rank(control.ctrb(sys.A, sys.B)))
+
+
+@dataclass
+class LinearizationReport:
+    """Eigenvalues, stability and controllability of a linearization."""
+
+    name: str
+    point: dict[str, float]
+    A: np.ndarray
+    B: np.ndarray
+    eigenvalues: np.ndarray
+    stable: bool
+    controllability_rank: int
+    n_states: int
+    nominal_rate: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return {
+            "name": self.name, "point": self.point, "A": self.A.tolist(), "B": self.B.tolist(),
+            "eigenvalues": [[float(e.real), float(e.imag)] for e in self.eigenvalues],
+            "stable": self.stable, "controllability_rank": self.controllability_rank,
+            "n_states": self.n_states, "controllable": self.controllability_rank == self.n_states,
+            "nominal_rate": self.nominal_rate.tolist(),
+        }
+
+
+def summarize(sys: control.StateSpace, point: dict[str, float] | None = None) -> LinearizationReport:
+    """Eigenvalues, stability and controllability rank of a linearized system."""
+    return LinearizationReport(
+        name=sys.name, point=dict(point or {}), A=np.asarray(sys.A), B=np.asarray(sys.B),
+        eigenvalues=np.linalg.eigvals(sys.A), stable=is_stable(sys),
+        controllability_rank=controllability_rank(sys), n_states=sys.nstates,
+        nominal_rate=np.asarray(getattr(sys, "nominal_rate", np.zeros(sys.nstates))),
+    )
+
+
+def _vector(v, key: str) -> np.ndarray:
+    try:
+        a = np.asarray(v, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise HybridnavError(f"{key}: expected a vector of numbers, got {v!r}") from None
+    if not np.all(np.isfinite(a)):
+        raise HybridnavError(f"{key}: expected finite numbers, got {a.tolist()}")
+    return a

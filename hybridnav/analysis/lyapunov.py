@@ -1,0 +1,477 @@
+"""Lyapunov checks of closed-loop models, and their equilibria.
+
+:func:`check_lyapunov` decides, for a candidate ``V`` and a region, one of three statuses:
+
+``"proved"``
+    Only from an exact argument: ``V`` and ``Vdot`` are quadratic forms (checked symbolically with
+    ``casadi.is_quadratic``) about the same point, with constant Hessians that are positive and
+    negative definite (eigenvalues), so ``V > 0`` and ``Vdot < 0`` everywhere else.
+``"counterexample"``
+    A concrete state in the region, away from the equilibrium, with ``Vdot >= 0`` — found by
+    dense sampling, by a multistart IPOPT search maximizing ``Vdot``, from an indefinite quadratic
+    form, or (for gradient flows such as LbCS) at a stationary point other than the target, where
+    ``Vdot = 0`` exactly.
+``"no_counterexample"``
+    Neither: sampling (>= 1e5 states through a mapped CasADi function) and the search found none.
+    This is evidence, never a proof.
+
+For gradient flows ``xdot_i = -c_i dV/dx_i`` with ``c_i > 0`` (the LbCS model), the identity
+``Vdot = -sum_i c_i (dV/dx_i)^2 <= 0`` is established symbolically (``casadi.is_equal`` on the
+expression graphs) and reported as ``vdot_nonpositive_proved``; strict decrease then fails exactly
+at the stationary points, which :func:`find_equilibria` locates.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as cs
+import numpy as np
+from scipy.optimize import root
+
+from hybridnav.analysis.region import Box, as_box
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import json_ready
+from hybridnav.models.base import Model
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Equilibrium", "LyapunovReport", "check_lyapunov", "find_equilibria", "lyapunov_functions"]
+
+STATUSES = ("proved", "no_counterexample", "counterexample")
+_IPOPT = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": 300,
+          "ipopt.tol": 1e-10}
+
+
+@dataclass
+class LyapunovReport:
+    """What :func:`check_lyapunov` decided and how.
+
+    Attributes
+    ----------
+    status : str
+        ``"proved"``, ``"no_counterexample"`` or ``"counterexample"``.
+    V, vdot : str
+        The candidate and its derivative along the closed loop, as readable expressions (with the
+        model's parameter and target symbols ``x1, y1``).
+    counterexample : ndarray or None
+        A state with ``Vdot >= 0`` (only when ``status == "counterexample"``).
+    worst_vdot : float
+        The largest ``Vdot`` seen in the region away from the equilibrium.
+    worst_state : ndarray or None
+        Where it was seen.
+    method : str
+        How the status was decided.
+    vdot_nonpositive_proved : bool
+        ``Vdot <= 0`` everywhere was established exactly (quadratic forms or a gradient flow).
+    details : dict
+        Numbers behind the decision (eigenvalues, sample counts, optimizer runs, ...).
+    """
+
+    status: str
+    V: str
+    vdot: str
+    counterexample: np.ndarray | None
+    worst_vdot: float
+    worst_state: np.ndarray | None
+    method: str
+    vdot_nonpositive_proved: bool = False
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return {
+            "status": self.status,
+            "V": self.V,
+            "vdot": self.vdot,
+            "counterexample": None if self.counterexample is None else self.counterexample.tolist(),
+            "worst_vdot": _num(self.worst_vdot),
+            "worst_state": None if self.worst_state is None else self.worst_state.tolist(),
+            "method": self.method,
+            "vdot_nonpositive_proved": self.vdot_nonpositive_proved,
+            "details": json_ready(self.details),
+        }
+
+
+@dataclass
+class Equilibrium:
+    """An equilibrium of a closed loop: state, Jacobian eigenvalues and their classification."""
+
+    state: np.ndarray
+    eigenvalues: np.ndarray
+    kind: str        # "stable", "saddle", "unstable" or "degenerate"
+    V: float
+    is_target: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return {"state": self.state.tolist(),
+                "eigenvalues": [[float(e.real), float(e.imag)] for e in self.eigenvalues],
+                "kind": self.kind, "V": _num(self.V), "is_target": self.is_target}
+
+
+def lyapunov_functions(model: Model, V=None, *, target, params: Mapping[str, float] | None = None):
+    """Numeric CasADi functions ``x -> (V, Vdot)`` and the symbolic expressions behind them.
+
+    Returns
+    -------
+    model : Model
+        The model with ``params`` applied.
+    V, Vdot : casadi.SX
+        Symbolic in the state only (target and parameters substituted).
+    V_sym, Vdot_sym : casadi.SX
+        With the parameter and target symbols kept (for printing).
+    """
+    if params:
+        model = model.with_params(**params)
+    s = model.sym
+    v_sym = _candidate(model, V)
+    vdot_sym = cs.jtimes(v_sym, s.x, model.closed_loop())
+    target = _target(target)
+    keep = cs.vertcat(s.target, s.p)
+    values = cs.DM(np.concatenate([target, model.p_value()]))
+    v_num = cs.substitute(v_sym, keep, values)
+    vdot_num = cs.substitute(vdot_sym, keep, values)
+    return model, v_num, vdot_num, v_sym, vdot_sym
+
+
+def check_lyapunov(
+    model: Model,
+    V=None,
+    *,
+    target: Sequence[float],
+    region: Mapping[str, Sequence[float]] | Box,
+    level: float | None = None,
+    params: Mapping[str, float] | None = None,
+    seed: int = 0,
+    samples: int = 100_000,
+    starts: int = 16,
+    exclude: float = 1e-6,
+) -> LyapunovReport:
+    """Check that ``V`` decreases along the closed loop of ``model`` driving to ``target``.
+
+    Parameters
+    ----------
+    model : Model
+        A closed-loop model from :func:`hybridnav.models.get`.
+    V : casadi.SX or callable, optional
+        The candidate, an expression in ``model.sym.x`` (and optionally ``model.sym.target`` and
+        ``model.sym.p``) or a callable ``V(x)`` / ``V(x, target)`` returning one. Default: the
+        model's own candidate (``1/2`` squared distance to the target; ``L`` for LbCS).
+    target : (2,) array_like
+        The target point ``(x1, y1)``; the equilibrium is where ``V`` vanishes.
+    region : dict or Box
+        ``{state: (lo, hi)}`` for every state of the model.
+    level : float, optional
+        Restrict the region to ``{V <= level}``.
+    params : dict, optional
+        Parameter overrides for the model (e.g. ``{"alpha1": -0.1}``).
+    seed : int
+        Seed of the sampling and of the optimizer's starting points.
+    samples : int
+        Number of states sampled uniformly in the box (>= 1e5 by default).
+    starts : int
+        Number of IPOPT starts (half from the worst samples, half random).
+    exclude : float
+        States with ``V < exclude * max V`` count as "at the equilibrium" and are left out.
+
+    Returns
+    -------
+    LyapunovReport
+    """
+    model, v_num, vdot_num, v_sym, vdot_sym = lyapunov_functions(model, V, target=target,
+                                                                 params=params)
+    box = as_box(model, region)
+    x = model.sym.x
+    report = LyapunovReport(status="no_counterexample", V=_pretty(v_sym), vdot=_pretty(vdot_sym),
+                            counterexample=None, worst_vdot=-np.inf, worst_state=None, method="")
+    if _quadratic_argument(model, v_num, vdot_num, box, level, report):
+        return report
+    grad_flow = _gradient_flow(model, v_sym)
+    rng = np.random.default_rng(seed)
+    both = cs.Function("v_vdot", [x], [v_num, vdot_num])
+
+    # 1) dense sampling through one mapped CasADi call
+    pts = box.sample(int(samples), rng)
+    out = both.map(len(pts))(pts.T)
+    v_s, d_s = np.asarray(out[0]).ravel(), np.asarray(out[1]).ravel()
+    finite_v = np.isfinite(v_s)
+    v_floor = exclude * (np.max(v_s[finite_v]) if finite_v.any() else 1.0)
+    keep = finite_v & (v_s >= v_floor) & model.admissible(pts)
+    if level is not None:
+        keep &= v_s <= level
+    nan = int(np.sum(keep & np.isnan(d_s)))
+    keep &= ~np.isnan(d_s)
+    report.details.update(samples=int(samples), samples_in_region=int(keep.sum()),
+                          nan_vdot_samples=nan, v_floor=v_floor, level=level,
+                          region=box.to_dict(), target=list(map(float, _target(target))))
+    if not keep.any():
+        raise HybridnavError(
+            "region: no sampled state lies in the region away from the equilibrium "
+            f"(level {level!r}); widen the box or raise the level"
+        )
+    P, D = pts[keep], d_s[keep]
+    scale = max(1.0, float(np.max(np.abs(D[np.isfinite(D)]))) if np.isfinite(D).any() else 1.0)
+    tol = 1e-12 * scale
+    i = int(np.argmax(D))
+    best_d, best_x, how = float(D[i]), P[i].copy(), "dense sampling"
+
+    # 2) for gradient flows: Vdot <= 0 exactly; equality at stationary points other than the target
+    if grad_flow:
+        report.vdot_nonpositive_proved = True
+        eqs = find_equilibria(model, target=target, region=box, seed=seed)
+        others = [e for e in eqs if not e.is_target and (level is None or e.V <= level)]
+        report.details["stationary_points"] = [e.to_dict() for e in others]
+        if others:
+            e = min(others, key=lambda e: e.V)
+            d = float(np.asarray(both(e.state)[1]).item())
+            report.status, report.counterexample = "counterexample", e.state
+            report.worst_vdot, report.worst_state = max(d, best_d), e.state
+            report.method = (
+                "gradient flow: Vdot = -sum_i c_i (dV/dx_i)^2 <= 0 holds identically (symbolic); "
+                f"it vanishes at a {e.kind} stationary point other than the target, "
+                f"found by multistart Newton"
+            )
+            return report
+
+    # 3) multistart IPOPT maximizing Vdot over the region, away from the equilibrium
+    order = np.argsort(-np.where(np.isfinite(D), D, np.inf))
+    k = max(1, starts // 2)
+    chosen = np.concatenate([order[:k], rng.choice(len(P), size=min(k, len(P)), replace=False)])
+    # admissibility constraints (e.g. outside every obstacle) kept a hair inside the boundary
+    cons = cs.substitute(model.state_constraints(), model.sym.p, cs.DM(model.p_value()))
+    ncons = cons.numel()
+    solver = cs.nlpsol("vdot_max", "ipopt", {"x": x, "f": -vdot_num, "g": cs.vertcat(v_num, cons)},
+                       _IPOPT)
+    lbg = np.concatenate([[v_floor], np.full(ncons, 1e-9)])
+    ubg = np.concatenate([[np.inf if level is None else level], np.full(ncons, np.inf)])
+    runs = 0
+    for j in chosen:
+        try:
+            sol = solver(x0=P[j], lbx=box.lower, ubx=box.upper, lbg=lbg, ubg=ubg)
+        except RuntimeError as exc:       # evaluation errors at singular states
+            log.debug("IPOPT start %s failed: %s", P[j], exc)
+            continue
+        runs += 1
+        xs = np.clip(np.asarray(sol["x"]).ravel(), box.lower, box.upper)
+        v, d = (float(np.asarray(a).item()) for a in both(xs))
+        if not (np.isfinite(v) and v >= v_floor * (1 - 1e-9)):
+            continue
+        if level is not None and v > level * (1 + 1e-9):
+            continue
+        if not model.admissible(xs[None])[0]:
+            continue
+        if not np.isnan(d) and d > best_d:
+            best_d, best_x, how = d, xs, "multistart IPOPT"
+    report.details.update(ipopt_runs=runs, tolerance=tol)
+    report.worst_vdot, report.worst_state = best_d, best_x
+    if best_d >= -tol:
+        report.status, report.counterexample = "counterexample", best_x
+        report.method = f"{how}: Vdot = {best_d:.6g} >= 0 at this state"
+    else:
+        report.status = "no_counterexample"
+        extra = "; Vdot <= 0 is exact (gradient flow)" if grad_flow else ""
+        report.method = (
+            f"dense sampling ({int(keep.sum())} states in the region) and {runs} IPOPT runs found "
+            f"no Vdot >= 0 (max {best_d:.6g}){extra}; not a proof"
+        )
+    return report
+
+
+def find_equilibria(
+    model: Model,
+    *,
+    target: Sequence[float],
+    region: Mapping[str, Sequence[float]] | Box,
+    seed: int = 0,
+    starts: int = 400,
+) -> list[Equilibrium]:
+    """Equilibria of the closed loop in a region, by multistart Newton (scipy ``root``).
+
+    Each is classified by the eigenvalues of the exact Jacobian: ``"stable"`` (all real parts
+    negative: a local minimum of ``V`` for a gradient flow), ``"unstable"``, ``"saddle"`` or
+    ``"degenerate"`` (a zero real part). Only admissible states count (see
+    :meth:`hybridnav.models.Model.state_constraints`).
+    """
+    box = as_box(model, region)
+    s = model.sym
+    tgt = _target(target)
+    values = cs.DM(np.concatenate([tgt, model.p_value()]))
+    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
+    v = cs.substitute(model.lyapunov_candidate(), cs.vertcat(s.target, s.p), values)
+    F = cs.Function("F", [s.x], [f, cs.jacobian(f, s.x), v])
+    rng = np.random.default_rng(seed)
+    X0 = box.sample(starts, rng)
+    X0 = X0[model.admissible(X0)]
+    span = float(np.max(box.upper - box.lower)) or 1.0
+    found: list[Equilibrium] = []
+    for x0 in X0:
+        with np.errstate(all="ignore"):
+            sol = root(lambda z: np.asarray(F(z)[0]).ravel(), x0,
+                       jac=lambda z: np.asarray(F(z)[1]), method="hybr", tol=1e-14)
+        z = sol.x
+        fz, jz, vz = (np.asarray(a) for a in F(z))
+        if not (np.all(np.isfinite(fz)) and np.linalg.norm(fz) < 1e-9 * max(1.0, span)):
+            continue
+        if not box.contains(z) or not model.admissible(z[None])[0]:
+            continue
+        if any(np.linalg.norm(z - e.state) < 1e-6 * span for e in found):
+            continue
+        eig = np.linalg.eigvals(jz)
+        re = eig.real
+        if np.all(re < 0):
+            kind = "stable"
+        elif np.all(re > 0):
+            kind = "unstable"
+        elif np.any(np.abs(re) < 1e-12 * max(1.0, np.max(np.abs(re)))):
+            kind = "degenerate"
+        else:
+            kind = "saddle"
+        is_target = bool(np.linalg.norm(z[:2] - tgt) < 1e-6 * span)
+        found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
+    found.sort(key=lambda e: (not e.is_target, e.V))
+    return found
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: LyapunovReport) -> bool:
+    """The exact route: V, Vdot quadratic forms with definite constant Hessians."""
+    x = model.sym.x
+    if not (cs.is_quadratic(v_num, x) and cs.is_quadratic(vdot_num, x)):
+        return False
+    z = np.zeros(model.nx)
+    fn = cs.Function("quad", [x], [v_num, cs.gradient(v_num, x), cs.hessian(v_num, x)[0],
+                                  vdot_num, cs.gradient(vdot_num, x), cs.hessian(vdot_num, x)[0]])
+    _, gv0, hv, _, _, hd = (np.asarray(a, dtype=float) for a in fn(z))
+    hv, hd = (hv + hv.T) / 2, (hd + hd.T) / 2
+    ev_v = np.linalg.eigvalsh(hv)
+    ev_d = np.linalg.eigvalsh(hd)
+    report.details.update(hessian_V=hv.tolist(), hessian_vdot=hd.tolist(),
+                          eig_hessian_V=ev_v.tolist(), eig_hessian_vdot=ev_d.tolist())
+    if not np.all(ev_v > 0):
+        return False                      # V is not positive definite: sample instead
+    xs = np.linalg.solve(hv, -gv0.ravel())
+    v0, _, _, d0, gd0, _ = (np.asarray(a, dtype=float) for a in fn(xs))
+    scale = max(1.0, float(np.max(np.abs(hv))), float(np.max(np.abs(hd))))
+    if max(abs(v0.item()), abs(d0.item()), float(np.max(np.abs(gd0)))) > 1e-9 * scale:
+        return False                      # not both centred on the same point
+    report.details["equilibrium"] = xs.tolist()
+    if np.all(ev_d < 0):
+        report.status = "proved"
+        report.vdot_nonpositive_proved = True
+        report.worst_vdot, report.worst_state = 0.0, xs
+        report.method = (
+            "exact: V and Vdot are quadratic forms about x* = "
+            f"{np.array2string(xs, precision=6)} with constant Hessians; eig(H_V) = "
+            f"{np.array2string(ev_v, precision=6)} > 0 and eig(H_Vdot) = "
+            f"{np.array2string(ev_d, precision=6)} < 0, so V > 0 and Vdot < 0 for every x != x*"
+        )
+        return True
+    # an eigenvector with a non-negative eigenvalue is an exact counterexample direction
+    w, vecs = np.linalg.eigh(hd)
+    direction = vecs[:, int(np.argmax(w))]
+    state = _inside(xs, direction, box, level, fn)
+    if state is None:
+        return False
+    d = float(np.asarray(fn(state)[3]).item())
+    report.status = "counterexample"
+    report.counterexample = report.worst_state = state
+    report.worst_vdot = d
+    report.method = (
+        "exact: Vdot is a quadratic form about x* whose Hessian has the eigenvalue "
+        f"{w.max():.6g} >= 0; along its eigenvector Vdot = {d:.6g} >= 0"
+    )
+    return True
+
+
+def _inside(xs, direction, box: Box, level, fn) -> np.ndarray | None:
+    """A point x* + t v inside the box (and level set), as far out as allowed, t != 0."""
+    for sign in (1.0, -1.0):
+        t = _max_step(xs, sign * direction, box)
+        for _ in range(60):
+            if t <= 0:
+                break
+            z = xs + sign * t * direction
+            if level is None or float(np.asarray(fn(z)[0]).item()) <= level:
+                return z
+            t /= 2
+    return None
+
+
+def _max_step(x, d, box: Box) -> float:
+    if not box.contains(x):
+        return 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hi = np.where(d > 0, (box.upper - x) / d, np.where(d < 0, (box.lower - x) / d, np.inf))
+    return float(np.min(hi))
+
+
+def _gradient_flow(model: Model, v_sym) -> bool:
+    """Whether the closed loop is ``xdot_i = -c_i dV/dx_i`` symbolically, with ``c_i > 0``."""
+    gains = getattr(model, "gradient_flow_gains", None)
+    if gains is None:
+        return False
+    c = gains()
+    cval = np.asarray(cs.Function("c", [model.sym.p], [c])(model.p_value())).ravel()
+    if not np.all(cval > 0):
+        return False
+    f = model.closed_loop()
+    xs = model.sym.x
+    g = cs.gradient(v_sym, xs)
+    return all(cs.is_equal(f[i], -c[i] * g[i], 1000) for i in range(model.nx))
+
+
+def _candidate(model: Model, V) -> cs.SX:
+    s = model.sym
+    if V is None:
+        return model.lyapunov_candidate()
+    if isinstance(V, (cs.SX, float, int)):
+        expr = cs.SX(V)
+    elif callable(V):
+        try:
+            nparams = len(inspect.signature(V).parameters)
+        except (TypeError, ValueError):
+            nparams = 1
+        expr = V(s.x, s.target) if nparams >= 2 else V(s.x)
+        if not isinstance(expr, cs.SX):
+            raise HybridnavError(
+                "V: expected the callable to return a CasADi SX expression of the state, got "
+                f"{type(expr).__name__}"
+            )
+    else:
+        raise HybridnavError(
+            f"V: expected a CasADi SX expression or a callable V(x[, target]), got "
+            f"{type(V).__name__}"
+        )
+    if expr.shape != (1, 1):
+        raise HybridnavError(f"V: expected a scalar expression, got shape {expr.shape}")
+    allowed = cs.symvar(cs.vertcat(s.x, s.target, s.p))
+    free = [str(v) for v in cs.symvar(expr) if not any(cs.is_equal(v, a) for a in allowed)]
+    if free:
+        raise HybridnavError(
+            f"V: depends on symbols that are not the model's state, target or parameters: "
+            f"{', '.join(free)} (build V from model.sym.x)"
+        )
+    return expr
+
+
+def _target(target) -> np.ndarray:
+    t = np.asarray(target, dtype=float).ravel()
+    if t.shape != (2,) or not np.all(np.isfinite(t)):
+        raise HybridnavError(f"target: expected two finite numbers (x1, y1), got {target!r}")
+    return t
+
+
+def _pretty(expr) -> str:
+    return str(expr)
+
+
+def _num(v: float) -> float | None:
+    v = float(v)
+    return v if np.isfinite(v) else None

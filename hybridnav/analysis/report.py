@@ -1,0 +1,242 @@
+"""The standard stability analysis of a model: every check, written as JSON, Markdown and plots.
+
+This is what ``hybridnav analyze MODEL [--scenario S] --out DIR`` runs.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybridnav import __version__, models
+from hybridnav.analysis.linearize import linearize, linearize_expression, summarize
+from hybridnav.analysis.lyapunov import check_lyapunov, find_equilibria
+from hybridnav.analysis.plots import (
+    plot_eigenvalues,
+    plot_lbcs_field,
+    plot_phase_portrait,
+    plot_sweep,
+    plot_V_time,
+    plot_vdot_map,
+    save_figure,
+)
+from hybridnav.analysis.roa import estimate_roa
+from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import atomic_write_text, dumps_json, json_ready
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ANALYZABLE", "analyze"]
+
+#: Models ``analyze`` knows, and the scenario used when none is given.
+ANALYZABLE = {"point_mass": "fastep-s1", "unicycle": "effc-train-1",
+              "tractor_trailer": "tractor-trailer-1", "lbcs": "aco-local-minimum"}
+
+
+def analyze(model_name: str, scenario: str | None = None, out: str | Path = "analysis",
+            seed: int = 0, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run every check for ``model_name`` and write ``analysis.json``, ``report.md`` and plots.
+
+    The scenario supplies the target (its first robot's goal), the region (its workspace) and, for
+    ``lbcs``, the circular obstacles; a robot of the same model contributes its parameters.
+
+    Returns
+    -------
+    dict
+        The content of ``analysis.json``.
+    """
+    from hybridnav.world import load_scenario
+
+    if model_name not in ANALYZABLE:
+        raise HybridnavError(
+            f"model: expected one of {', '.join(sorted(ANALYZABLE))}, got {model_name!r}"
+        )
+    scen = load_scenario(scenario or ANALYZABLE[model_name])
+    robot = next((r for r in scen.robots if r.model == model_name), scen.robots[0])
+    goal = robot.goal if robot.goal is not None else scen.robot(robot.goal_follow).start
+    target = np.asarray(goal, dtype=float)
+    if model_name == "lbcs":
+        model = models.LbCS.from_scenario(scen, robot.name)
+    else:
+        params = robot.params if robot.model == model_name else {}
+        model = models.get(model_name, dt=scen.dt, **params)
+    xmin, xmax, ymin, ymax = scen.world.workspace
+    region = {"x": (xmin, xmax), "y": (ymin, ymax)}
+    for name in model.state_names[2:]:
+        region[name] = (-math.pi, math.pi)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    say = progress or (lambda msg: log.info(msg))
+    checks: list[dict[str, Any]] = []
+    plots: list[str] = []
+
+    def plot(fig, name):
+        save_figure(fig, out / name)
+        plots.append(name)
+
+    say("Lyapunov check")
+    rep = check_lyapunov(model, target=target, region=region, seed=seed)
+    checks.append({**rep.to_dict(), "name": "lyapunov", "status": rep.status})
+    fixed = {"theta": 0.0} if model_name == "unicycle" else None
+    if model_name == "tractor_trailer":
+        fixed = {"theta0": 0.0, "theta1": 0.0, "xi": 0.0}
+    plot(plot_vdot_map(model, target=target, region=region, report=rep, fixed=fixed),
+         "vdot_map.png")
+
+    say("linearization")
+    lin = _linearizations(model, target)
+    reports = {k: v.pop("_report") for k, v in lin.items() if "_report" in v}
+    for name, item in lin.items():
+        checks.append({**item, "name": f"linearization: {name}"})
+    if reports:
+        plot(plot_eigenvalues(reports), "eigenvalues.png")
+
+    if model_name in ("point_mass", "lbcs"):
+        say("region of attraction")
+        roa = estimate_roa(model, target=target, region=region, seed=seed)
+        checks.append({**roa.to_dict(), "name": "region of attraction", "status": roa.status})
+    if model_name == "lbcs":
+        say("stationary points")
+        eqs = find_equilibria(model, target=target, region=region, seed=seed)
+        others = [e for e in eqs if not e.is_target]
+        checks.append({"name": "stationary points other than the target",
+                       "status": "found" if others else "none_found",
+                       "points": [e.to_dict() for e in others]})
+        tr = model.rollout(np.array([robot.start]), target[None], scen.max_steps)
+        final = tr[0, -1]
+        stalled = float(np.hypot(*(final - target))) > robot.goal_radius
+        checks.append({"name": "LbCS run from the scenario's start",
+                       "status": "stalled" if stalled else "reached",
+                       "start": list(robot.start), "final_state": final.tolist()})
+        plot(plot_lbcs_field(model, target=target, region=region, equilibria=eqs,
+                             trajectories=tr), "lbcs_field.png")
+    else:
+        plot(plot_phase_portrait(model, target=target, region=region, fixed=fixed),
+             "phase_portrait.png")
+
+    say("closed-loop sweep")
+    table, traj, Vt = _sweep(model, target, region, scen)
+    table.to_csv(out / "sweep.csv", index=False)
+    summary = {"runs": len(table), "reached": int(table["reached"].sum()),
+               "V_monotone": int(table["V_monotone"].sum())}
+    if "jackknife" in table:
+        summary.update(jackknife=int(table["jackknife"].sum()),
+                       max_gap=float(table["max_gap"].max()))
+    checks.append({"name": "closed-loop sweep (V = 1/2 distance^2)" if model_name != "lbcs"
+                   else "closed-loop sweep (V = L)",
+                   "status": "all_monotone" if summary["V_monotone"] == summary["runs"]
+                   else "not_all_monotone", **summary})
+    plot(plot_sweep(table, traj, target=target, title=f"{model_name}: closed-loop sweep"),
+         "sweep.png")
+    t = np.arange(Vt.shape[1]) * model.dt
+    pick = np.linspace(0, len(Vt) - 1, min(12, len(Vt))).astype(int)
+    plot(plot_V_time(t, Vt[pick]), "V_time.png")
+
+    result = {"model": model_name, "params": model.params, "scenario": scen.name,
+              "target": target.tolist(), "region": {k: list(v) for k, v in region.items()},
+              "seed": seed, "version": __version__, "checks": checks, "plots": plots}
+    result = json_ready(result)
+    atomic_write_text(out / "analysis.json", dumps_json(result))
+    atomic_write_text(out / "report.md", _markdown(result, table))
+    return result
+
+
+def _linearizations(model, target) -> dict[str, dict[str, Any]]:
+    out: dict[str, dict[str, Any]] = {}
+
+    def add(name, thunk, point):
+        try:
+            rep = summarize(thunk(), point)
+        except HybridnavError as exc:
+            out[name] = {"status": "not_differentiable", "reason": str(exc)}
+            return
+        out[name] = {"status": "stable" if rep.stable else "not_asymptotically_stable",
+                     **rep.to_dict(), "_report": rep}
+
+    if model.name in ("point_mass", "lbcs"):
+        x0 = np.asarray(target, dtype=float)
+        add("closed loop at the target", lambda: linearize(model, x0, target=target),
+            dict(zip(model.state_names, x0)))
+    if model.name == "unicycle":
+        x0 = np.array([target[0], target[1], 0.0])
+        add("closed loop at the target (Cartesian)", lambda: linearize(model, x0, target=target),
+            dict(zip(model.state_names, x0)))
+        z, zdot, names = model.polar_error_dynamics()
+        add("closed loop at the target (polar error coordinates rho, e)",
+            lambda: linearize_expression(z, zdot, [0.0, 0.0], names, symbols=model.sym.p,
+                                         values=model.p_value(), name="unicycle_polar"),
+            {"rho": 0.0, "e": 0.0})
+        add("open loop, straight driving (vl = vr = 0.1)",
+            lambda: linearize(model, [0.0, 0.0, 0.0], [0.1, 0.1]), {"x": 0, "y": 0, "theta": 0})
+    if model.name == "tractor_trailer":
+        add("open loop, straight driving (v = 1, phi = 0)",
+            lambda: linearize(model, [0.0, 0.0, 0.0, 0.0], [1.0, 0.0]),
+            {"x": 0, "y": 0, "theta0": 0, "theta1": 0})
+    return out
+
+
+def _sweep(model, target, region, scen):
+    """Starts on a grid over the workspace, every 45 degrees of heading."""
+    xs = np.linspace(*region["x"], 9)[1:-1]
+    ys = np.linspace(*region["y"], 9)[1:-1]
+    pos = np.array([(x, y) for x in xs for y in ys
+                    if math.hypot(x - target[0], y - target[1]) > 1e-9])
+    headings = np.linspace(-math.pi, math.pi, 8, endpoint=False)
+    init: dict[str, Any] = {}
+    if "theta" in model.state_names:
+        init = {"theta": headings}
+    elif "theta0" in model.state_names:
+        init = {"theta0": headings, "theta1": "theta0"}
+    X0, starts = grid_starts(model, target, pos, init)
+    keep = model.admissible(X0)
+    X0, starts = X0[keep], starts[keep].reset_index(drop=True)
+    steps = min(scen.max_steps, 3000)
+    table, traj, Vt = closed_loop_sweep(model, X0, target=target, steps=steps,
+                                        goal_radius=scen.robots[0].goal_radius)
+    return starts.join(table), traj, Vt
+
+
+def _markdown(result: dict[str, Any], table) -> str:
+    lines = [f"# Stability analysis: {result['model']}", "",
+             f"Scenario `{result['scenario']}`, target {result['target']}, region "
+             f"{result['region']}, seed {result['seed']}, hybridnav {result['version']}.", "",
+             "| check | status | how / numbers |", "|---|---|---|"]
+    for c in result["checks"]:
+        how = c.get("method") or c.get("reason") or ""
+        if "eigenvalues" in c and c["name"].startswith("linearization"):
+            how = "eigenvalues " + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in c["eigenvalues"])
+            how += f"; controllability rank {c['controllability_rank']} of {c['n_states']}"
+        if c["name"] == "region of attraction":
+            how = (f"level {c['level']:.6g} ({c['bounded_by']}); {c['converged']}/{c['simulated']}"
+                   f" simulated starts converged, {c['monotone']} monotone")
+        if c["name"].startswith("closed-loop sweep"):
+            how = f"{c['reached']}/{c['runs']} reached, {c['V_monotone']} with V monotone"
+            if "jackknife" in c:
+                how += f", {c['jackknife']} jackknifed (max |th0 - th1| {c['max_gap']:.3f} rad)"
+        if c["name"].startswith("stationary points"):
+            how = "; ".join(f"{p['kind']} at ({p['state'][0]:.4g}, {p['state'][1]:.4g})"
+                            for p in c["points"]) or "none"
+        if "final_state" in c:
+            how = f"from {c['start']} it ends at {[round(v, 4) for v in c['final_state']]}"
+        lines.append(f"| {c['name']} | **{c['status']}** | {how.replace('|', '/')} |")
+    lines += ["", "Plots: " + ", ".join(f"[{p}]({p})" for p in result["plots"]), ""]
+    if "max_gap" in table:
+        worst = table.sort_values("max_gap", ascending=False).head(10)
+        lines += ["## Largest trailer angles in the sweep", "", _md_table(worst), ""]
+    return "\n".join(lines)
+
+
+def _md_table(df) -> str:
+    """A DataFrame as a Markdown table (numbers to 4 significant digits)."""
+    def cell(v):
+        return f"{v:.4g}" if isinstance(v, (float, np.floating)) else str(v)
+
+    rows = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
+    rows += ["| " + " | ".join(cell(v) for v in r) + " |" for r in df.itertuples(index=False)]
+    return "\n".join(rows)
