@@ -151,6 +151,7 @@ def check_lyapunov(
     samples: int = 100_000,
     starts: int = 16,
     exclude: float = 1e-6,
+    equilibria: Sequence[Equilibrium] | None = None,
 ) -> LyapunovReport:
     """Check that ``V`` decreases along the closed loop of ``model`` driving to ``target``.
 
@@ -178,6 +179,9 @@ def check_lyapunov(
         Number of IPOPT starts (half from the worst samples, half random).
     exclude : float
         States with ``V < exclude * max V`` count as "at the equilibrium" and are left out.
+    equilibria : list of Equilibrium, optional
+        For gradient flows: the stationary points, when already known (from
+        :func:`find_equilibria` on the same model, target and region); found here otherwise.
 
     Returns
     -------
@@ -191,7 +195,7 @@ def check_lyapunov(
                             counterexample=None, worst_vdot=-np.inf, worst_state=None, method="")
     if _quadratic_argument(model, v_num, vdot_num, box, level, report):
         return report
-    grad_flow = _gradient_flow(model, v_sym)
+    grad_flow = is_gradient_flow(model, v_sym)
     rng = np.random.default_rng(seed)
     both = cs.Function("v_vdot", [x], [v_num, vdot_num])
 
@@ -223,7 +227,8 @@ def check_lyapunov(
     # 2) for gradient flows: Vdot <= 0 exactly; equality at stationary points other than the target
     if grad_flow:
         report.vdot_nonpositive_proved = True
-        eqs = find_equilibria(model, target=target, region=box, seed=seed)
+        eqs = equilibria if equilibria is not None else find_equilibria(
+            model, target=target, region=box, seed=seed)
         others = [e for e in eqs if not e.is_target and (level is None or e.V <= level)]
         report.details["stationary_points"] = [e.to_dict() for e in others]
         if others:
@@ -271,7 +276,8 @@ def check_lyapunov(
     report.worst_vdot, report.worst_state = best_d, best_x
     if best_d >= -tol:
         report.status, report.counterexample = "counterexample", best_x
-        report.method = f"{how}: Vdot = {best_d:.6g} >= 0 at this state"
+        zero = " (zero to rounding)" if best_d < 0 else ""
+        report.method = f"{how}: Vdot = {best_d:.6g}{zero} >= 0 at this state"
     else:
         report.status = "no_counterexample"
         extra = "; Vdot <= 0 is exact (gradient flow)" if grad_flow else ""
@@ -292,6 +298,10 @@ def find_equilibria(
 ) -> list[Equilibrium]:
     """Equilibria of the closed loop in a region, by multistart Newton (scipy ``root``).
 
+    Newton starts from ``starts`` uniform samples, from the points of a dense sample where the
+    vector field is smallest, and from the end points of 200-second closed-loop runs (which
+    settle in stable equilibria, however small their basin).
+
     Each is classified by the eigenvalues of the exact Jacobian: ``"stable"`` (all real parts
     negative: a local minimum of ``V`` for a gradient flow), ``"unstable"``, ``"saddle"`` or
     ``"degenerate"`` (a zero real part). Only admissible states count (see
@@ -307,6 +317,17 @@ def find_equilibria(
     rng = np.random.default_rng(seed)
     X0 = box.sample(starts, rng)
     X0 = X0[model.admissible(X0)]
+    # small basins are easy to miss with uniform starts: also start from the points of a dense
+    # sample where |F| is smallest, and from where short closed-loop runs end up
+    dense = box.sample(50 * starts, rng)
+    dense = dense[model.admissible(dense)]
+    if len(dense):
+        fd = np.asarray(cs.Function("f", [s.x], [f]).map(len(dense))(dense.T))
+        norm = np.linalg.norm(np.where(np.isfinite(fd), fd, np.inf), axis=0)
+        runs = model.rollout(dense[:starts], np.tile(tgt, (min(starts, len(dense)), 1)),
+                             int(round(200.0 / model.dt)))[:, -1]
+        runs = runs[np.all(np.isfinite(runs), axis=1) & box.contains(runs)]
+        X0 = np.vstack([X0, dense[np.argsort(norm)[:starts // 2]], runs])
     span = float(np.max(box.upper - box.lower)) or 1.0
     found: list[Equilibrium] = []
     for x0 in X0:
@@ -412,7 +433,7 @@ def _max_step(x, d, box: Box) -> float:
     return float(np.min(hi))
 
 
-def _gradient_flow(model: Model, v_sym) -> bool:
+def is_gradient_flow(model: Model, v_sym) -> bool:
     """Whether the closed loop is ``xdot_i = -c_i dV/dx_i`` symbolically, with ``c_i > 0``."""
     gains = getattr(model, "gradient_flow_gains", None)
     if gains is None:

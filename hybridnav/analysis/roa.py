@@ -10,7 +10,12 @@ from typing import Any
 import casadi as cs
 import numpy as np
 
-from hybridnav.analysis.lyapunov import check_lyapunov, lyapunov_functions
+from hybridnav.analysis.lyapunov import (
+    check_lyapunov,
+    find_equilibria,
+    is_gradient_flow,
+    lyapunov_functions,
+)
 from hybridnav.analysis.region import Box, as_box
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
@@ -33,7 +38,8 @@ class RoaEstimate:
         The Lyapunov check's status at ``level``.
     bounded_by : str
         ``"counterexample"`` (a state with ``Vdot >= 0`` just above ``level``), ``"box"`` (the level
-        set reaches the region's boundary) or ``"none"`` (the whole box).
+        set reaches the region's boundary) or ``"simulation"`` (a simulated start inside the
+        level set did not converge; the level was lowered below where it ended).
     counterexample : ndarray or None
         The counterexample that bounds the level, if any.
     simulated, converged, monotone : int
@@ -83,7 +89,8 @@ def estimate_roa(
     level set stays inside the region): each candidate level is checked with
     :func:`check_lyapunov` (sampling + multistart IPOPT). The final level is re-checked with
     ``>= 1e5`` samples, then ``confirm`` starts sampled inside it are simulated with the model's
-    batched rollout for ``horizon`` seconds to confirm convergence and monotone decrease.
+    batched rollout for ``horizon`` seconds to confirm convergence and monotone decrease; a start
+    that does not converge lowers the level below ``V`` where it ended, and the check repeats.
 
     Parameters
     ----------
@@ -103,7 +110,10 @@ def estimate_roa(
     vfun = cs.Function("V", [model.sym.x], [v_num])
     rng = np.random.default_rng(seed)
     c_box = _min_on_boundary(model, vfun, box, rng)
-    check = {"target": target, "region": box, "seed": seed}
+    check: dict[str, Any] = {"target": target, "region": box, "seed": seed}
+    _, _, _, v_sym, _ = lyapunov_functions(model, V, target=target)
+    if is_gradient_flow(model, v_sym):     # its stationary points, found once for every level
+        check["equilibria"] = find_equilibria(model, target=target, region=box, seed=seed)
     full = check_lyapunov(model, V, level=c_box, **check)
     if full.status != "counterexample":
         level, status, bounded, cex = c_box, full.status, "box", None
@@ -126,6 +136,16 @@ def estimate_roa(
         if level > 0:
             status = check_lyapunov(model, V, level=level, **check).status
     sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon) if level > 0 else {}
+    for _ in range(5):
+        # a start inside {V <= level} that did not converge ended near a state with Vdot >= 0
+        # that the search missed: lower the level below V there and confirm again
+        stuck = sim.get("stuck_V")
+        if stuck is None or not len(stuck):
+            break
+        bounded, cex = "simulation", sim["stuck_state"]
+        level = float(np.min(stuck)) * (1 - rtol)
+        status = check_lyapunov(model, V, level=level, **check).status
+        sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon)
     return RoaEstimate(level=float(level), status=status, bounded_by=bounded, counterexample=cex,
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
@@ -165,7 +185,9 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon) -> dict[str,
     slack = 1e-9 * max(level, 1e-300)
     monotone = np.all(np.diff(V, axis=1) <= slack, axis=1)
     converged = V[:, -1] <= 1e-3 * level
-    return {"simulated": len(X0), "converged": int(converged.sum()),
+    lowest = int(np.argmin(np.where(converged, np.inf, V[:, -1])))
+    return {"stuck_V": V[~converged, -1], "stuck_state": traj[lowest, -1],
+            "simulated": len(X0), "converged": int(converged.sum()),
             "monotone": int(monotone.sum()),
             "details": {"simulated_time": float(traj.shape[1] - 1) * model.dt,
                         "worst_final_V": float(np.max(V[:, -1]))}}
