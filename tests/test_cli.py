@@ -72,3 +72,10 @@ def test_bad_scenario_file_names_file_and_key(tmp_path):
     assert "Traceback" not in proc.stderr
     assert "bad.toml" in proc.stderr and "robots[0].goal" in proc.stderr
     assert not (tmp_path / "bad.png").exists()
+
+
+def test_analyze_with_a_bad_scenario_exits_2(tmp_path):
+    proc = run("analyze", "lbcs", "--scenario", "fastep-s3", "--out", str(tmp_path / "a"))
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert "fastep-s3.toml: obstacles[0]: the LbCS model takes circle obstacles only" in proc.stderr

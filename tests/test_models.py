@@ -240,3 +240,28 @@ def test_empty_batch_and_zero_steps():
     traj = m.rollout(np.ones((2, 3)), np.zeros((2, 2)), 0)
     assert traj.shape == (2, 1, 3)
     np.testing.assert_array_equal(traj[:, 0], np.ones((2, 3)))
+
+
+def test_without_a_working_compiler_the_models_fall_back_silently(tmp_path):
+    """CC points nowhere: JIT fails, the VM runs, results are the same, nothing is printed."""
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np\n"
+        "from hybridnav import models\n"
+        "assert not models.jit_available()\n"
+        "m = models.get('tractor_trailer')\n"
+        "x0 = m.initial_state([5.0, 45.0], [45.0, 25.0])\n"
+        "print(repr(m.rollout(x0[None], np.array([[45.0, 25.0]]), 50)[0, -1].tolist()))\n"
+    )
+    env = dict(__import__("os").environ, CC=str(tmp_path / "no-such-compiler"))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                          cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    m = models.get("tractor_trailer")
+    x0 = m.initial_state([5.0, 45.0], [45.0, 25.0])
+    expected = m.rollout(x0[None], np.array([[45.0, 25.0]]), 50)[0, -1]
+    np.testing.assert_allclose(eval(proc.stdout), expected, rtol=0, atol=1e-12)
+    assert list(tmp_path.iterdir()) == []          # no generated C files in the working folder

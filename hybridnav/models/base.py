@@ -22,10 +22,12 @@ C-contiguous NumPy ``(N, nx)`` array, so batches cross the boundary without tran
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
 import shutil
+import sys
 import tempfile
 import threading
 from abc import ABC, abstractmethod
@@ -67,19 +69,44 @@ def _jit_function(name: str, fn: cs.Function) -> cs.Function:
     """
     folder = tempfile.mkdtemp(prefix="hybridnav-jit-")
     try:
+        compiler = os.environ.get("CC", "gcc")
+        if shutil.which(compiler) is None:
+            raise RuntimeError(f"C compiler {compiler!r} not found")
         opts = {
             "jit": True,
             "compiler": "shell",
             "jit_name": "hybridnav_jit",
             "jit_temp_suffix": True,
             "jit_cleanup": False,
-            "jit_options": {"compiler": os.environ.get("CC", "gcc"), "flags": ["-O2"],
+            "jit_options": {"compiler": compiler, "flags": ["-O2"],
                             "verbose": False, "cleanup": False, "directory": folder + os.sep},
         }
         args = fn.mx_in()
-        return cs.Function(name, args, fn.call(args), opts)
+        with _quiet_stderr(folder):
+            return cs.Function(name, args, fn.call(args), opts)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _quiet_stderr(folder: str):
+    """Send the compiler's messages (written to file descriptor 2) to the debug log instead."""
+    path = os.path.join(folder, "compiler-messages.txt")
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(path, "wb") as sink:
+            os.dup2(sink.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)
+        with contextlib.suppress(OSError), open(path, "rb") as fh:
+            text = fh.read().decode(errors="replace").strip()
+            if text:
+                log.debug("compiler output: %s", text)
 
 
 def jit_available() -> bool:
