@@ -5,7 +5,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from matplotlib.patches import FancyArrowPatch
 from matplotlib.patches import Polygon as PolygonPatch
 from matplotlib.patches import Rectangle as RectanglePatch
 
+from hybridnav.fileio import atomic_path
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
 __all__ = ["draw_scenario", "save_scenario_png"]
@@ -119,6 +119,15 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
     return ax
 
 
+def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 120,
+                bbox_inches: str | None = "tight") -> Path:
+    """Write a figure to ``path`` atomically (format from the suffix); returns the path."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, bbox_inches=bbox_inches)
+    return path
+
+
 def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float = 0.0, dpi: int = 120) -> Path:
     """Draw a scenario and write it to a PNG file atomically.
 
@@ -142,17 +151,6 @@ def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     draw_scenario(scenario, ax=ax, t=t)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=dpi)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    save_figure(fig, path, dpi=dpi, bbox_inches=None)
     log.debug("wrote %s", path)
     return path

@@ -29,7 +29,6 @@ import logging
 import math
 import os
 import re
-import tempfile
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -41,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError, where
+from hybridnav.fileio import atomic_write_text
 
 __all__ = [
     "MODEL_NAMES",
@@ -1493,16 +1493,5 @@ def save_scenario(s: Scenario, path: str | os.PathLike[str]) -> Path:
     pathlib.Path
     """
     path = Path(path)
-    text = scenario_to_toml(s)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    atomic_write_text(path, scenario_to_toml(s))
     return path

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import casadi as cs
 import numpy as np
@@ -14,19 +12,11 @@ from matplotlib.patches import Circle as CirclePatch
 
 from hybridnav.analysis.lyapunov import Equilibrium, LyapunovReport, lyapunov_functions
 from hybridnav.analysis.region import Box, as_box
-from hybridnav.fileio import atomic_path
 from hybridnav.models.base import Model
+from hybridnav.plotting import save_figure
 
 __all__ = ["plot_eigenvalues", "plot_lbcs_field", "plot_phase_portrait", "plot_sweep",
            "plot_V_time", "plot_vdot_map", "save_figure"]
-
-
-def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 120) -> Path:
-    """Write a figure to ``path`` atomically; returns the path."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
-    return path
 
 
 def _slice(model: Model, box: Box, fixed: Mapping[str, float] | None, n: int):

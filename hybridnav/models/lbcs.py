@@ -23,7 +23,6 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import casadi as cs
-import numpy as np
 
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
