@@ -65,6 +65,86 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_planners(args: argparse.Namespace) -> int:
+    from hybridnav.planners import PLANNERS
+
+    for name, cls in sorted(PLANNERS.items()):
+        extra = []
+        if not cls.moving_obstacles:
+            extra.append("static obstacles only")
+        if not cls.moving_targets:
+            extra.append("fixed goals only")
+        note = f" ({'; '.join(extra)})" if extra else ""
+        print(f"{name}: {cls.description}{note}")
+        print(f"  robots: {', '.join(cls.models)}")
+        for key, p in cls.params.items():
+            print(f"  {key} = {p.default!r}    {p.doc}")
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hybridnav import planners
+    from hybridnav.plotting import plot_result, save_figure
+    from hybridnav.world import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    planner = planners.get(args.planner, **planners.parse_assignments(args.set or []))
+    result = planner.run(scenario, seed=args.seed)
+    out = Path(args.out)
+    result.write(out)
+    save_figure(plot_result(scenario, result), out / "path.png")
+    extra = planner.diagnostics(scenario, result)
+    for name, fig in extra.items():
+        save_figure(fig, out / name)
+    print(f"{scenario.name} with {planner.name} (seed {args.seed}):")
+    print(f"  {'robot':<10} {'outcome':<14} {'length':>10} {'time':>9} {'clearance':>10} "
+          f"{'compute':>9}")
+    for r in result.robots:
+        t = "-" if r.time_to_goal is None else f"{r.time_to_goal:.1f}"
+        c = "-" if r.min_clearance is None or r.min_clearance == float("inf") else \
+            f"{r.min_clearance:.3g}"
+        print(f"  {r.name:<10} {r.outcome:<14} {r.path_length:>10.4g} {t:>9} {c:>10} "
+              f"{r.compute_time:>8.2f}s")
+    files = ["result.json", *(f"trajectory_{r.name}.csv" for r in result.robots), "path.png",
+             *extra]
+    print(f"wrote {out}/: {', '.join(files)}")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.planners import parse_assignments
+
+    plans = [p.strip() for p in args.planners.split(",") if p.strip()]
+    scens = [s.strip() for s in args.scenarios.split(",") if s.strip()]
+    params: dict[str, dict[str, str]] = {}
+    for key, value in parse_assignments(args.set or []).items():
+        planner, dot, name = key.partition(".")
+        if not dot:
+            raise HybridnavError(f"--set {key}={value}: expected planner.parameter=value")
+        params.setdefault(planner, {})[name] = value
+    bar = tqdm(total=len(plans) * len(scens) * args.runs, unit="run", desc="compare")
+
+    def progress(done, total):
+        bar.update(done - bar.n)
+
+    try:
+        table, summary = compare(plans, scens, args.runs, seed=args.seed, params=params,
+                                 workers=args.workers, dask=args.dask, progress=progress)
+    finally:
+        bar.close()
+    files = write_comparison(args.out, table, summary)
+    cols = ["planner", "scenario", "success_rate", "path_length_mean", "path_length_std",
+            "time_to_goal_mean", "time_to_goal_std"]
+    print(summary[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(f"wrote {args.out}/: {', '.join(files)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
     parser = argparse.ArgumentParser(
@@ -98,6 +178,33 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
     p.set_defaults(func=_cmd_analyze)
 
+    p = sub.add_parser("planners", help="list the planners and their parameters with defaults")
+    p.set_defaults(func=_cmd_planners)
+
+    p = sub.add_parser("run", help="run a planner on a scenario and write the result files")
+    p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
+    p.add_argument("--planner", required=True, help="planner name (see 'hybridnav planners')")
+    p.add_argument("--seed", type=int, default=0, help="seed of the planner's randomness")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="set a planner parameter (repeatable)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for result.json, "
+                                                              "trajectories and plots")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
+                                       "plots")
+    p.add_argument("--planners", required=True, help="comma-separated planner names")
+    p.add_argument("--scenarios", required=True, help="comma-separated scenario names or paths")
+    p.add_argument("--runs", type=int, default=10, help="runs per combination (default 10)")
+    p.add_argument("--seed", type=int, default=0, help="seed from which every run's seed derives")
+    p.add_argument("--set", action="append", metavar="PLANNER.KEY=VALUE",
+                   help="set a planner parameter (repeatable)")
+    backend = p.add_mutually_exclusive_group()
+    backend.add_argument("--workers", type=int, default=1, help="local worker processes")
+    backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the tables and plots")
+    p.set_defaults(func=_cmd_compare)
+
     p = sub.add_parser("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)
     return parser
@@ -114,6 +221,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HybridnavError as exc:
         print(f"hybridnav: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into head or less that quit early
+        return 0
     except OSError as exc:  # unwritable output folder, disk full, ...
         print(f"hybridnav: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return 1

@@ -154,3 +154,40 @@ def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float
     save_figure(fig, path, dpi=dpi, bbox_inches=None)
     log.debug("wrote %s", path)
     return path
+
+
+_OUTCOME_MARK = {"reached": ("*", "green"), "collided": ("X", "red"),
+                 "out_of_bounds": ("X", "purple"), "stuck": ("s", "orange"),
+                 "timeout": ("D", "gray")}
+
+
+def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
+    """The scenario with every robot's path, its final footprint and outcome marker.
+
+    Moving obstacles are drawn where they are at the end of the longest run.
+    """
+    t_end = max((float(r.t[-1]) for r in result.robots), default=0.0)
+    if ax is None:
+        fig = Figure(figsize=(6.6, 6.4), layout="constrained")
+        ax = fig.add_subplot()
+    else:
+        fig = ax.figure
+    draw_scenario(scenario, ax=ax, t=t_end)
+    models = {r.name: scenario.model(r, jit=False) for r in scenario.robots}
+    for i, rr in enumerate(result.robots):
+        col = f"C{i % 10}"
+        xy = rr.states[:, :2]
+        ax.plot(xy[:, 0], xy[:, 1], color=col, linewidth=1.6, zorder=7,
+                label=f"{rr.name}: {rr.outcome}, length {rr.path_length:.3g}")
+        model = models.get(rr.name)
+        if model is not None and rr.states.shape[1] == model.nx:
+            centers, radii = model.footprint(rr.states[-1][None])
+            for c, rad in zip(centers[0], radii):
+                ax.add_patch(CirclePatch(c, rad, fill=False, edgecolor=col, linewidth=1.0,
+                                         zorder=7))
+        mark, mcol = _OUTCOME_MARK.get(rr.outcome, ("o", "black"))
+        ax.plot(*xy[-1], marker=mark, color=mcol, markersize=11, markeredgecolor="black",
+                zorder=8)
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(f"{scenario.name}: {result.planner} (seed {result.seed})")
+    return fig

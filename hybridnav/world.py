@@ -715,6 +715,33 @@ class World:
             near[sel] = Qe[sel, e]
         return clear, near, idx
 
+    def nearest_each(self, P: ArrayLike, t: ArrayLike = 0.0) -> tuple[FloatArray, FloatArray]:
+        """Signed clearance to, and nearest surface point on, every obstacle.
+
+        Returns
+        -------
+        clearance : ndarray, shape (N, K)
+        point : ndarray, shape (N, K, 2)
+        """
+        P = _points(P)
+        n, k = P.shape[0], len(self.obstacles)
+        if not k:
+            return np.zeros((n, 0)), np.zeros((n, 0, 2))
+        D, C, de, Qe = self._per_obstacle(P, t, want_points=True)
+        near = np.empty((n, k, 2))
+        if self._c_idx.size:
+            Cb = np.broadcast_to(C, (n,) + C.shape[1:])
+            nc = Cb.shape[1]
+            pts = _nearest_on_circle(np.repeat(P, nc, axis=0), Cb.reshape(-1, 2),
+                                     np.tile(self._cr, n))
+            near[:, self._c_idx] = pts.reshape(n, nc, 2)
+        if self._g_idx.size:
+            ends = np.append(self._g_start[1:], de.shape[1])
+            for col, (a, b) in zip(self._g_idx, zip(self._g_start, ends)):
+                e = a + np.argmin(de[:, a:b], axis=1)
+                near[:, col] = Qe[np.arange(n), e]
+        return D, near
+
     def border_clearance(self, P: ArrayLike) -> FloatArray:
         """Signed distance to the workspace boundary: positive inside, negative outside.
 

@@ -527,6 +527,16 @@ class Model(ABC):
             x[self.state_names.index(key)] = _check_number(f"initial.{key}", value)
         return self.retarget(x[None, :], np.asarray(target, dtype=float)[None, :])[0]
 
+    def carrot(self, X, velocity) -> np.ndarray:
+        """Targets that make the controller command (about) ``velocity`` now, shape ``(N, 2)``.
+
+        Reactive planners (potential fields) want a velocity; the models take a target point.
+        The default puts the target one second of that velocity ahead; models whose controller
+        can be inverted exactly override it.
+        """
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2)
+
     def retarget(self, X, targets) -> np.ndarray:
         """Reset the controller states of a batch for new targets (identity without any)."""
         X, _ = self._check_batch(X, targets)

@@ -9,6 +9,7 @@ Open loop: the robot's velocity is its input, ``xdot = u1``, ``ydot = u2``. Go-t
 from __future__ import annotations
 
 import casadi as cs
+import numpy as np
 
 from hybridnav.models.base import Model
 
@@ -27,6 +28,12 @@ class PointMass(Model):
         "alpha1": "convergence gain along x (1/s); > 0 for stability (FAStep-Kinematic Theorem 1)",
         "alpha2": "convergence gain along y (1/s)",
     }
+
+    def carrot(self, X, velocity):
+        """``x + (vx / alpha1, vy / alpha2)``: the controller then commands exactly ``velocity``."""
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        gains = np.array([self.params["alpha1"], self.params["alpha2"]])
+        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / gains
 
     def open_loop(self, x, u, p):
         return cs.vertcat(u[0], u[1])

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 
 import casadi as cs
+import numpy as np
 
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model, wrap_angle
@@ -68,6 +69,17 @@ class Unicycle(Model):
                 raise HybridnavError(
                     f"model unicycle: {key}: expected a positive number, got {self.params[key]!r}"
                 )
+
+    def carrot(self, X, velocity):
+        """Heading controller: the direction of ``velocity`` (its speed is the ``speed`` param).
+
+        Go-to-point: ``x + velocity / k_rho`` (that speed once the robot faces that way).
+        """
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        V = np.asarray(velocity, dtype=float).reshape(-1, 2)
+        if self.options["controller"] == "heading":
+            return X[:, :2] + V
+        return X[:, :2] + V / self.params["k_rho"]
 
     def polar_error_dynamics(self) -> tuple[cs.SX, cs.SX, tuple[str, str]]:
         """The go-to-point closed loop in polar error coordinates ``(rho, e)``.

@@ -1,0 +1,29 @@
+"""Navigation methods: one module per planner; ``planners/swarm`` holds the pure optimizers.
+
+``get(name, **params)`` returns a planner; :data:`PLANNERS` maps names to classes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hybridnav.errors import HybridnavError
+from hybridnav.planners.apf import APF
+from hybridnav.planners.base import Param, Planner, parse_assignments
+from hybridnav.planners.hapf import HAPF
+from hybridnav.planners.pbpf import PBPF
+
+PLANNERS: dict[str, type[Planner]] = {cls.name: cls for cls in (APF, HAPF, PBPF)}
+
+__all__ = ["PLANNERS", "Param", "Planner", "get", "parse_assignments"]
+
+
+def get(name: str, **params: Any) -> Planner:
+    """The planner ``name`` with parameter overrides (strings are parsed as on the CLI)."""
+    try:
+        cls = PLANNERS[name]
+    except KeyError:
+        raise HybridnavError(
+            f"planner: unknown planner {name!r}; expected one of: {', '.join(sorted(PLANNERS))}"
+        ) from None
+    return cls(**params)

@@ -1,0 +1,84 @@
+"""Artificial potential field (the EFFC paper's eqs. 1-5, after Khatib).
+
+Attractive potential quadratic within ``sigma0`` of the goal and conic beyond it::
+
+    F_att = -xi (q - q_goal)                          if |q - q_goal| <= sigma0
+          = -xi sigma0 (q - q_goal) / |q - q_goal|    otherwise
+
+Repulsive force from every obstacle whose nearest surface point is within ``rho0`` (``rho`` is
+measured from the robot's footprint, i.e. clearance minus the robot radius)::
+
+    F_rep,i = eta (1/rho - 1/rho0) (1/rho^2) (q - q_obst,i) / rho
+
+The robot moves along ``F_att + sum_i F_rep,i`` at ``speed``. Where that force vanishes (a local
+minimum) the robot is ``stuck``; an oscillation in place is caught by the no-progress test.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hybridnav.planners.base import Param
+from hybridnav.planners.field import COMMON, FieldPlanner
+from hybridnav.planners.simulate import Simulation
+
+__all__ = ["APF", "apf_force"]
+
+
+def apf_force(world, P: np.ndarray, goals: np.ndarray, radius, t: float, *,
+              xi, sigma0, eta, rho0) -> np.ndarray:
+    """Total APF force at the points ``P`` (N, 2) for goals (N, 2).
+
+    ``radius`` and the gains are scalars or ``(N,)`` arrays (one set per point: PBPF evaluates a
+    population of gains at once).
+    """
+    xi, sigma0, eta, rho0, radius = (np.broadcast_to(np.asarray(v, dtype=float), (len(P),))
+                                     for v in (xi, sigma0, eta, rho0, radius))
+    D = P - goals
+    dist = np.hypot(D[:, 0], D[:, 1])
+    scale = np.where(dist <= sigma0, xi, xi * sigma0 / np.where(dist > 0, dist, 1.0))
+    F = -scale[:, None] * D
+    if world.obstacles:
+        clear, near = world.nearest_each(P, t=t)
+        rho = np.maximum(clear - radius[:, None], 1e-9)
+        on = rho <= rho0[:, None]
+        mag = np.where(on, eta[:, None] * (1.0 / rho - 1.0 / rho0[:, None]) / rho**2, 0.0)
+        away = P[:, None, :] - near
+        norm = np.hypot(away[..., 0], away[..., 1])
+        away = away / np.where(norm > 0, norm, 1.0)[..., None]
+        F = F + np.sum(mag[..., None] * away, axis=1)
+    return F
+
+
+class APF(FieldPlanner):
+    """Classical artificial potential field; stalls (outcome ``stuck``) in local minima."""
+
+    name = "apf"
+    description = "artificial potential field: quadratic/conic attraction, repulsion within rho0"
+    params: ClassVar[dict[str, Param]] = {
+        "xi": Param(1.0, "attractive gain", lo=0.0),
+        "sigma0": Param(1.0, "distance at which the attraction turns from quadratic to conic",
+                        lo=1e-9),
+        "eta": Param(0.05, "repulsive gain", lo=0.0),
+        "rho0": Param(0.5, "obstacle influence distance", lo=1e-9),
+        "force_tol": Param(1e-6, "a resultant force below this (relative to xi * sigma0) is a "
+                                 "local minimum", lo=0.0),
+        **COMMON,
+    }
+
+    def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
+        """The APF gains of the robots ``idx`` (PBPF tunes them per robot)."""
+        v = self.values
+        return {k: v[k] for k in ("xi", "sigma0", "eta", "rho0")}
+
+    def velocity(self, state, sim: Simulation, idx, P, goals):
+        radius = np.array([sim.models[i].radius for i in idx])
+        g = self.gains(state, idx)
+        F = apf_force(sim.scenario.world, P, goals, radius, sim.t, **g)
+        scale = self.values["force_tol"] * np.asarray(g["xi"]) * np.asarray(g["sigma0"])
+        small = np.hypot(F[:, 0], F[:, 1]) <= scale
+        for j in np.flatnonzero(small):
+            sim.stop(int(idx[j]), "stuck")
+        return F

@@ -1,0 +1,89 @@
+"""Reactive planners that command a velocity every control cycle (potential fields and kin).
+
+A :class:`FieldPlanner` computes, batched over the active robots, a desired velocity from the
+robots' positions, goals and the world at the current time; each robot's model turns it into a
+target (:meth:`hybridnav.models.Model.carrot`) and :func:`hybridnav.planners.simulate.simulate`
+does the rest. Unicycle robots run the rate-limited heading controller at constant ``speed`` (the
+EFFC paper's TurtleBot3: heading change at most ``max_turn`` per control cycle).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from abc import abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.simulate import Simulation, simulate
+from hybridnav.results import Result
+
+__all__ = ["FieldPlanner"]
+
+COMMON = {
+    "speed": Param(0.1, "robot speed along the field (units/s; unicycles: constant speed)",
+                   lo=1e-9),
+    "max_turn": Param(math.pi / 4, "unicycles: largest heading change per control cycle (rad)",
+                      lo=1e-6, hi=math.pi),
+    "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
+                                "(0: off)", lo=0.0),
+    "stuck_radius": Param(2.0, "that disk's radius, in goal radii", lo=0.0),
+}
+
+
+class FieldPlanner(Planner):
+    """Base of the potential-field planners: ``velocity(...)`` each cycle, batched over robots."""
+
+    params: ClassVar[dict[str, Param]] = dict(COMMON)
+    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle", "tractor_trailer")
+
+    def prepare(self, scenario, rng: np.random.Generator) -> Any:
+        """Work done once per run before the loop (a harmonic field, tuned gains, ...)."""
+        return None
+
+    @abstractmethod
+    def velocity(self, state: Any, sim: Simulation, idx: np.ndarray, P: np.ndarray,
+                 goals: np.ndarray) -> np.ndarray:
+        """Desired velocities ``(len(idx), 2)`` of the active robots ``idx`` at ``P``.
+
+        May call ``sim.stop(i, "stuck")`` for a robot whose field vanishes.
+        """
+
+    def model_overrides(self, robot) -> dict[str, Any]:
+        """Model options for a robot (unicycles: the heading controller at ``speed``)."""
+        if robot.model == "unicycle":
+            return {"controller": "heading", "speed": self.values["speed"],
+                    "max_turn": self.values["max_turn"]}
+        return {}
+
+    def run(self, scenario, seed: int | None = None) -> Result:
+        self.check_scenario(scenario)
+        rng = np.random.default_rng(seed)
+        tic = time.perf_counter()
+        state = self.prepare(scenario, rng)
+        prep = time.perf_counter() - tic
+        self.last_state = state
+        models = [scenario.model(r, **self.model_overrides(r)) for r in scenario.robots]
+        speed = self.values["speed"]
+
+        def controller(sim: Simulation) -> np.ndarray:
+            T = np.full((sim.n, 2), np.nan)
+            idx = np.flatnonzero(sim.active)
+            P = sim.positions[idx]
+            V = np.asarray(self.velocity(state, sim, idx, P, sim.goals()[idx]), dtype=float)
+            norm = np.hypot(V[:, 0], V[:, 1])
+            V = V * (speed / np.where(norm > 0, norm, 1.0))[:, None]
+            for j, i in enumerate(idx):
+                T[i] = models[i].carrot(sim.X[i][None], V[j][None])[0]
+            return T
+
+        goal_r = np.array([r.goal_radius for r in scenario.robots])
+        robots, _ = simulate(scenario, models, controller,
+                             stuck_window=self.values["stuck_window"],
+                             stuck_radius=self.values["stuck_radius"] * goal_r)
+        for r in robots:   # offline work (a field solve, a gain search) is part of the cost
+            r.compute_time += prep / len(robots)
+        return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
+                      seed=seed, robots=robots)

@@ -1,0 +1,175 @@
+"""Many copies of single-robot runs in lockstep: one batched model step per control cycle.
+
+Offline tuning (the GA tuner, PBPF's bacterial search) evaluates a population of controllers on
+a few environments. :func:`lockstep_field` simulates every (environment, member) pair at once:
+each control cycle is one vectorized field evaluation per environment and **one** batched model
+step for all robots, never a Python loop per individual per step. Outcomes follow
+:func:`hybridnav.planners.simulate.simulate` (collided, out_of_bounds, reached, stuck, timeout).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+
+__all__ = ["LockstepResult", "lockstep_field"]
+
+OUTCOME_CODES = ("running", "reached", "collided", "out_of_bounds", "stuck", "timeout")
+
+
+@dataclass
+class LockstepResult:
+    """Per (environment, member) outcomes and metrics; arrays of shape ``(n_env, n_members)``."""
+
+    outcome: np.ndarray          # str
+    path_length: np.ndarray
+    time: np.ndarray             # time to goal when reached, else the time the run ended
+    min_clearance: np.ndarray
+    final_distance: np.ndarray
+    paths: list | None = None    # per environment: (n_members, steps + 1, 2), when recorded
+
+
+def lockstep_field(
+    scenarios: Sequence,
+    n_members: int,
+    field: Callable[[int, object, np.ndarray, np.ndarray, np.ndarray, float], np.ndarray],
+    *,
+    model_overrides: dict | None = None,
+    speed: float = 0.1,
+    stuck_window: float = 10.0,
+    stuck_radius: float = 2.0,
+    record_paths: bool = False,
+) -> LockstepResult:
+    """Simulate ``n_members`` controllers on each single-robot scenario, all in lockstep.
+
+    Parameters
+    ----------
+    scenarios : sequence of Scenario
+        Each with exactly one robot and a fixed goal; their robots must share one model (same
+        name, parameters and ``dt``) so that one compiled batched step serves all.
+    n_members : int
+        Copies per scenario (the population).
+    field : callable
+        ``field(env_index, world, members, P, goals, t) -> V``: desired velocities ``(m, 2)`` of
+        the still-running ``members`` (indices into the population) at positions ``P`` (m, 2).
+        Rows that are zero or NaN mean "no direction": the robot is ``stuck``.
+    model_overrides : dict, optional
+        Options for the robot model (e.g. the unicycle heading controller).
+    speed : float
+        The velocity's length (the field gives the direction).
+    stuck_window, stuck_radius :
+        No-progress test: seconds, and a radius in goal radii.
+    """
+    if not scenarios:
+        raise HybridnavError("scenarios: expected at least one training scenario")
+    models = []
+    for s in scenarios:
+        if len(s.robots) != 1 or s.robots[0].goal is None:
+            raise HybridnavError(
+                f"{s.source or s.name}: robots: lockstep training needs exactly one robot with a "
+                "fixed goal")
+        models.append(s.model(s.robots[0], **(model_overrides or {})))
+    model = models[0]
+    if any(m._key() != model._key() for m in models):
+        raise HybridnavError(
+            "scenarios: the training scenarios' robots must share one model, its parameters and "
+            "dt (one batched step serves them all)")
+    E, M = len(scenarios), int(n_members)
+    N = E * M
+    dt = model.dt
+    steps = int(math.ceil(max(s.max_time for s in scenarios) / dt - 1e-9))
+    budget = np.repeat([int(math.ceil(s.max_time / dt - 1e-9)) for s in scenarios], M)
+    env = np.repeat(np.arange(E), M)
+    member = np.tile(np.arange(M), E)
+    goals = np.repeat([s.robots[0].goal for s in scenarios], M, axis=0).astype(float)
+    goal_r = np.repeat([s.robots[0].goal_radius for s in scenarios], M)
+    X = np.vstack([np.tile(model.initial_state(s.robots[0].start, s.robots[0].goal,
+                                               s.robots[0].initial), (M, 1)) for s in scenarios])
+    status = np.zeros(N, dtype=int)              # index into OUTCOME_CODES
+    length = np.zeros(N)
+    t_end = np.full(N, np.nan)
+    min_clear = np.full(N, np.inf)
+    window = int(round(stuck_window / dt)) if stuck_window > 0 else 0
+    ring = np.zeros((window + 1, N, 2)) if window else None
+    paths = np.zeros((N, steps + 1, 2)) if record_paths else None
+    if record_paths:
+        paths[:, 0] = X[:, :2]
+    _check(scenarios, models, env, X, 0.0, status, min_clear, t_end, goals, goal_r)
+    for k in range(steps):
+        run = status == 0
+        if not run.any():
+            break
+        t = k * dt
+        V = np.zeros((N, 2))
+        P = X[:, :2]
+        for e in range(E):
+            sel = np.flatnonzero(run & (env == e))
+            if len(sel):
+                V[sel] = field(e, scenarios[e].world, member[sel], P[sel], goals[sel], t)
+        norm = np.hypot(V[:, 0], V[:, 1])
+        dead = run & ~(norm > 0)                 # zero or NaN field: a local minimum
+        status[dead] = OUTCOME_CODES.index("stuck")
+        t_end[dead] = t
+        V = V * (speed / np.where(norm > 0, norm, 1.0))[:, None]
+        V[~np.isfinite(V)] = 0.0
+        run = status == 0
+        Xn = model.step(X, model.carrot(X, V))
+        step_len = np.hypot(*(Xn[:, :2] - X[:, :2]).T)
+        length[run] += step_len[run]
+        X[run] = Xn[run]
+        tn = (k + 1) * dt
+        if record_paths:
+            paths[:, k + 1] = X[:, :2]
+        _check(scenarios, models, env, X, tn, status, min_clear, t_end, goals, goal_r, run)
+        if window:
+            ring[(k + 1) % (window + 1)] = X[:, :2]
+            if k + 1 >= window:
+                span = np.max(np.hypot(*(ring - ring.mean(axis=0)).transpose(2, 0, 1)), axis=0)
+                stuck = (status == 0) & (span < stuck_radius * goal_r)
+                status[stuck] = OUTCOME_CODES.index("stuck")
+                t_end[stuck] = tn
+        over = (status == 0) & (k + 1 >= budget)
+        status[over] = OUTCOME_CODES.index("timeout")
+        t_end[over] = tn
+    left = status == 0
+    status[left] = OUTCOME_CODES.index("timeout")
+    t_end[left] = steps * dt
+    shape = (E, M)
+    return LockstepResult(
+        outcome=np.array(OUTCOME_CODES, dtype=object)[status].reshape(shape),
+        path_length=length.reshape(shape), time=t_end.reshape(shape),
+        min_clearance=min_clear.reshape(shape),
+        final_distance=np.hypot(*(X[:, :2] - goals).T).reshape(shape),
+        paths=None if paths is None else [paths[env == e] for e in range(E)],
+    )
+
+
+def _check(scenarios, models, env, X, t, status, min_clear, t_end, goals, goal_r, which=None):
+    """Collision / bounds / goal tests at time ``t`` for the robots in ``which``."""
+    which = (status == 0) if which is None else which & (status == 0)
+    for e, s in enumerate(scenarios):
+        sel = np.flatnonzero(which & (env == e))
+        if not len(sel):
+            continue
+        centers, radii = models[e].footprint(X[sel])
+        m = len(radii)
+        flat = centers.reshape(-1, 2)
+        world = s.world
+        if world.obstacles:
+            clear = (world.clearance(flat, t=t).reshape(len(sel), m) - radii[None]).min(axis=1)
+        else:
+            clear = np.full(len(sel), np.inf)
+        min_clear[sel] = np.minimum(min_clear[sel], clear)
+        inside = world.inside_workspace(flat, float(radii.max())).reshape(len(sel), m).all(axis=1)
+        reached = np.hypot(*(X[sel, :2] - goals[sel]).T) <= goal_r[sel]
+        code = np.where(clear < 0, OUTCOME_CODES.index("collided"),
+                        np.where(~inside, OUTCOME_CODES.index("out_of_bounds"),
+                                 np.where(reached, OUTCOME_CODES.index("reached"), 0)))
+        ended = code > 0
+        status[sel[ended]] = code[ended]
+        t_end[sel[ended]] = t

@@ -1,0 +1,125 @@
+"""Pseudo-bacterial potential field (Orozco-Rosas, Montiel & Sepúlveda 2015).
+
+Offline, a pseudo-bacterial genetic algorithm (Nawa & Furuhashi) chooses the APF gains
+``(xi, eta, rho0)`` for each robot of the scenario; then the APF runs with them. A bacterium is a
+gain vector (searched in log space within ``gain_range`` of the APF defaults). Each generation:
+
+* **bacterial mutation**: for every gene, in a random order drawn per generation, each bacterium
+  is cloned ``clones`` times, the clones get that gene re-drawn at random, all clones and the
+  original are evaluated, and the best one's gene is kept;
+* **gene transfer**: the population is sorted; ``infections`` times a random bacterium of the
+  better half copies a random gene into a random bacterium of the worse half.
+
+The fitness of gains is the length of the APF path they produce (simulated in lockstep for the
+whole batch, :func:`hybridnav.planners.lockstep.lockstep_field`), or ``penalty`` times the
+straight-line distance plus the distance left when the robot does not reach the goal. Static
+goals only (the search needs a fixed target).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hybridnav.planners.apf import APF, apf_force
+from hybridnav.planners.base import Param
+from hybridnav.planners.lockstep import lockstep_field
+
+__all__ = ["PBPF"]
+
+GENES = ("xi", "eta", "rho0")
+
+
+class PBPF(APF):
+    """APF whose gains a pseudo-bacterial GA tunes for the scenario first."""
+
+    name = "pbpf"
+    description = "pseudo-bacterial potential field: a bacterial GA tunes the APF gains offline"
+    moving_targets = False
+    stochastic = True
+    params: ClassVar[dict[str, Param]] = {
+        **APF.params,
+        "population": Param(10, "bacteria", lo=2),
+        "generations": Param(8, "generations", lo=1),
+        "clones": Param(3, "clones per bacterium in the bacterial mutation", lo=1),
+        "infections": Param(4, "gene transfers per generation", lo=0),
+        "gain_range": Param(10.0, "search xi, eta, rho0 within [default / r, default * r]",
+                            lo=1.0),
+        "penalty": Param(10.0, "fitness of a run that fails: penalty * start-goal distance + "
+                               "distance left", lo=0.0),
+    }
+
+    def prepare(self, scenario, rng: np.random.Generator) -> Any:
+        """Tune the gains for each robot; returns ``(n_robots, 3)`` gains and the search log."""
+        v = self.values
+        base = np.log([v[g] for g in GENES])
+        span = math.log(v["gain_range"])
+        lo, hi = base - span, base + span
+        tuned, logs = [], []
+        for r in scenario.robots:
+            single = dataclasses.replace(scenario, robots=[r])
+            best, history = self._search(single, rng, lo, hi)
+            tuned.append(np.exp(best))
+            logs.append(history)
+        self.search_log = logs
+        return np.array(tuned)
+
+    def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
+        g = dict(super().gains(state, idx))
+        for j, name in enumerate(GENES):
+            g[name] = state[idx, j]
+        return g
+
+    def _fitness(self, scenario, genomes: np.ndarray) -> np.ndarray:
+        """APF path length per log-gain vector (lockstep), penalized when the goal is missed."""
+        v = self.values
+        gains = np.exp(genomes)
+        radius = scenario.model(scenario.robots[0]).radius
+        r = scenario.robots[0]
+
+        def field(env, world, members, P, goals, t):
+            g = gains[members]
+            return apf_force(world, P, goals, radius, t, xi=g[:, 0], sigma0=v["sigma0"],
+                             eta=g[:, 1], rho0=g[:, 2])
+
+        overrides = self.model_overrides(r)
+        res = lockstep_field([scenario], len(genomes), field, model_overrides=overrides,
+                             speed=v["speed"], stuck_window=v["stuck_window"],
+                             stuck_radius=v["stuck_radius"])
+        d0 = math.dist(r.start, r.goal)
+        ok = res.outcome[0] == "reached"
+        return np.where(ok, res.path_length[0], v["penalty"] * d0 + res.final_distance[0])
+
+    def _search(self, scenario, rng, lo, hi):
+        v = self.values
+        n, nc, ng = v["population"], v["clones"], len(GENES)
+        pop = lo + (hi - lo) * rng.random((n, ng))
+        fit = self._fitness(scenario, pop)
+        history = [float(fit.min())]
+        for _ in range(v["generations"]):
+            # bacterial mutation, gene by gene; all bacteria and their clones in one batch
+            for gene in rng.permutation(ng):
+                clones = np.repeat(pop[:, None, :], nc + 1, axis=1)
+                clones[:, 1:, gene] = lo[gene] + (hi[gene] - lo[gene]) * rng.random((n, nc))
+                cf = self._fitness(scenario, clones.reshape(-1, ng)).reshape(n, nc + 1)
+                cf[:, 0] = fit               # the original keeps its known fitness
+                best = np.argmin(cf, axis=1)
+                pop = clones[np.arange(n), best]
+                fit = cf[np.arange(n), best]
+            # gene transfer from the better half into the worse half
+            if v["infections"] and n >= 2:
+                order = np.argsort(fit, kind="stable")
+                good, bad = order[: n // 2], order[n // 2:]
+                targets = rng.choice(bad, size=v["infections"])
+                sources = rng.choice(good, size=v["infections"])
+                genes = rng.integers(0, ng, size=v["infections"])
+                infected = pop.copy()
+                infected[targets, genes] = pop[sources, genes]
+                touched = np.unique(targets)
+                fit[touched] = self._fitness(scenario, infected[touched])
+                pop = infected
+            history.append(float(fit.min()))
+        return pop[int(np.argmin(fit))], history

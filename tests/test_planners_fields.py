@@ -1,0 +1,174 @@
+"""Potential-field planners, the shared simulation loop and lockstep batches."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from hybridnav import HybridnavError, planners
+from hybridnav.grid import build_grid
+from hybridnav.planners.apf import apf_force
+from hybridnav.planners.hapf import harmonic_field
+from hybridnav.planners.lockstep import lockstep_field
+from hybridnav.planners.simulate import simulate
+from hybridnav.world import Circle, World, load_scenario, scenario_from_dict
+
+
+def small_scenario(obstacles=(), start=(0.0, 0.0), goal=(3.0, 0.0), model="point_mass",
+                   max_time=200.0, extra=None):
+    robot = {"name": "R", "model": model, "start": list(start), "goal": list(goal),
+             "goal_radius": 0.1, "radius": 0.1, **(extra or {})}
+    return scenario_from_dict({
+        "name": "t", "dt": 0.1, "max_time": max_time, "units": "m",
+        "workspace": {"xmin": -1.0, "xmax": 4.0, "ymin": -2.0, "ymax": 2.0},
+        "obstacles": list(obstacles), "robots": [robot]})
+
+
+def test_apf_force_is_minus_the_gradient_of_the_potential():
+    world = World((-5, 5, -5, 5), (Circle((1.0, 0.5), 0.4), Circle((-1.0, -1.0), 0.3)))
+    g = dict(xi=1.3, sigma0=1.0, eta=0.07, rho0=0.8)
+    goal = np.array([2.0, 1.0])
+
+    def potential(p):
+        d = np.linalg.norm(p - goal)
+        u = 0.5 * g["xi"] * d**2 if d <= g["sigma0"] else g["xi"] * (d * g["sigma0"]
+                                                                     - 0.5 * g["sigma0"]**2)
+        for ob in world.obstacles:
+            rho = ob.clearance(p[None])[0] - 0.1
+            if rho <= g["rho0"]:
+                u += 0.5 * g["eta"] * (1 / rho - 1 / g["rho0"]) ** 2
+        return u
+
+    rng = np.random.default_rng(1)
+    P = rng.uniform(-2, 3, (40, 2))
+    P = P[world.clearance(P) > 0.3]
+    F = apf_force(world, P, np.tile(goal, (len(P), 1)), 0.1, 0.0, **g)
+    h = 1e-6
+    for p, f in zip(P, F):
+        grad = [(potential(p + h * e) - potential(p - h * e)) / (2 * h) for e in np.eye(2)]
+        np.testing.assert_allclose(f, -np.array(grad), rtol=1e-5, atol=1e-6)
+
+
+def test_apf_goes_straight_without_obstacles_and_stalls_in_a_trap():
+    free = small_scenario()
+    res = planners.get("apf").run(free)
+    r = res.robots[0]
+    assert r.outcome == "reached" and r.time_to_goal is not None
+    assert r.path_length == pytest.approx(3.0 - 0.1, abs=0.011)   # a straight line to the disk
+    trap = load_scenario("effc-env-a")
+    r = planners.get("apf").run(trap).robots[0]
+    assert r.outcome == "stuck" and r.time_to_goal is None
+    assert math.dist(r.states[-1, :2], trap.robots[0].goal) > 0.5
+
+
+def test_harmonic_field_has_no_local_minimum_and_obeys_the_maximum_principle():
+    s = load_scenario("effc-env-a")
+    grid = build_grid(s, inflate=s.robots[0].radius)
+    centers = grid.to_world(np.argwhere(np.ones(grid.shape, bool))[:, ::-1]).reshape(
+        grid.shape + (2,))
+    goal = np.hypot(*(centers - np.asarray(s.robots[0].goal)).transpose(2, 0, 1)) <= 0.1
+    phi = harmonic_field(grid, goal & ~grid.occ)
+    free = ~grid.occ & ~goal
+    assert phi[free].min() > 0 and phi[free].max() < 1
+    # every free cell has a 4-neighbour with a strictly smaller value: no local minimum
+    padded = np.pad(phi, 1, constant_values=1.0)
+    neigh = np.minimum.reduce([padded[2:, 1:-1], padded[:-2, 1:-1], padded[1:-1, 2:],
+                               padded[1:-1, :-2]])
+    reachable = free & (phi < 1 - 1e-12)
+    assert np.all(neigh[reachable] < phi[reachable])
+    # and it is the mean of its neighbours (the discrete Laplace equation)
+    mean = (padded[2:, 1:-1] + padded[:-2, 1:-1] + padded[1:-1, 2:] + padded[1:-1, :-2]) / 4
+    assert np.abs(mean[free] - phi[free]).max() < 1e-10
+
+
+def test_hapf_escapes_the_trap_that_stops_apf():
+    r = planners.get("hapf").run(load_scenario("effc-env-a")).robots[0]
+    assert r.outcome == "reached" and r.min_clearance > 0
+
+
+def test_pbpf_is_reproducible_and_improves_on_its_starting_gains():
+    s = load_scenario("effc-env-b")
+    a = planners.get("pbpf", population=4, generations=2).run(s, seed=7)
+    b = planners.get("pbpf", population=4, generations=2).run(s, seed=7)
+    assert a.to_dict()["robots"][0]["path_length"] == b.to_dict()["robots"][0]["path_length"]
+    p = planners.get("pbpf", population=4, generations=2)
+    res = p.run(s, seed=7)
+    log = p.search_log[0]
+    assert all(x >= y for x, y in zip(log, log[1:]))          # elitist: never worse
+    assert res.robots[0].outcome == "reached"
+    default = planners.get("apf").run(s).robots[0]
+    assert default.outcome != "reached" or res.robots[0].path_length <= default.path_length
+
+
+def test_lockstep_matches_the_per_robot_simulation():
+    s = load_scenario("effc-train-1")
+    apf = planners.get("apf")
+    one = apf.run(s).robots[0]
+
+    def field(env, world, members, P, goals, t):
+        return apf_force(world, P, goals, 0.1, t, xi=1.0, sigma0=1.0, eta=0.05, rho0=0.5)
+
+    res = lockstep_field([s], 3, field, model_overrides=apf.model_overrides(s.robots[0]))
+    assert list(res.outcome[0]) == [one.outcome] * 3
+    np.testing.assert_allclose(res.path_length[0], one.path_length, rtol=1e-9)
+    np.testing.assert_allclose(res.time[0], one.time_to_goal, rtol=1e-9)
+
+
+def test_simulate_outcomes_collided_out_of_bounds_timeout():
+    s = small_scenario([{"type": "circle", "center": [1.5, 0.0], "radius": 0.3}])
+    model = s.model(s.robots[0])
+    straight = lambda sim: sim.goals()                           # noqa: E731 ignores obstacles
+    (r,), _ = simulate(s, [model], straight)
+    assert r.outcome == "collided" and r.min_clearance < 0
+    away = small_scenario(goal=(3.0, 0.0))
+    (r,), _ = simulate(away, [away.model(away.robots[0])],
+                       lambda sim: sim.positions + np.array([[-5.0, 0.0]]))
+    assert r.outcome == "out_of_bounds"
+    slow = small_scenario(max_time=1.0)
+    (r,), _ = simulate(slow, [slow.model(slow.robots[0])], lambda sim: sim.goals())
+    assert r.outcome == "timeout" and len(r.t) == 11 and r.time_to_goal is None
+    (r,), _ = simulate(slow, [slow.model(slow.robots[0])], lambda sim: sim.positions,
+                       stuck_window=0.5)
+    assert r.outcome == "stuck"
+
+
+def test_planner_parameters_are_validated():
+    with pytest.raises(HybridnavError, match="planner apf: unknown parameter 'rh0'"):
+        planners.get("apf", rh0=1.0)
+    with pytest.raises(HybridnavError, match=r"planner apf: eta: expected a value in \[0.0"):
+        planners.get("apf", eta=-1)
+    with pytest.raises(HybridnavError, match="unknown planner 'apff'"):
+        planners.get("apff")
+    assert planners.get("apf", rho0="0.25").values["rho0"] == 0.25      # parsed from --set
+    with pytest.raises(HybridnavError, match=r"robots\[1\]\.goal_follow: planner hapf does not handle"):
+        planners.get("hapf").run(load_scenario("pso-ba-dynamic"))
+
+
+def test_run_cli_writes_the_result_contract(tmp_path):
+    from hybridnav.cli import main
+
+    out = tmp_path / "r"
+    assert main(["run", "effc-train-2", "--planner", "hapf", "--seed", "3", "--out",
+                 str(out)]) == 0
+    data = json.loads((out / "result.json").read_text())
+    assert data["planner"] == "hapf" and data["seed"] == 3 and data["scenario"] == "effc-train-2"
+    assert data["robots"][0]["outcome"] == "reached"
+    header = (out / "trajectory_robot.csv").read_text().splitlines()[0]
+    assert header == "t,x,y,theta"
+    assert (out / "path.png").read_bytes()[:4] == b"\x89PNG"
+    assert main(["run", "effc-train-2", "--planner", "apf", "--set", "eta=x", "--out",
+                 str(out)]) == 2
+
+
+def test_multi_robot_runs_together_and_robots_are_obstacles_to_each_other():
+    s = load_scenario("aco-three-robots")
+    s = dataclasses.replace(s, max_time=20.0)
+    res = planners.get("apf", speed=1.0, rho0=5.0, sigma0=10.0).run(s)
+    assert [r.name for r in res.robots] == [r.name for r in s.robots]
+    for r in res.robots:
+        assert r.outcome in ("reached", "stuck", "timeout", "collided")
+        assert r.t[-1] <= 20.0 + 1e-9
