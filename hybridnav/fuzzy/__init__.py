@@ -1,0 +1,23 @@
+"""Mamdani fuzzy systems: the ``hybridnav-fis/1`` JSON format, scikit-fuzzy, a fast exact evaluator.
+
+>>> from hybridnav import fuzzy
+>>> fis = fuzzy.builtin("effc-2rule")
+>>> w = fis.evaluate(dtheta=[0.1, 1.4], alpha=[0.2, 1.0])   # batched, any broadcastable shapes
+
+:class:`FuzzySystem` reads and writes the JSON contract of ``DESIGN.md`` (``load``, ``loads``,
+``FuzzySystem.from_dict``, ``to_dict``, ``save``), converts to a scikit-fuzzy ``ControlSystem``
+(``to_skfuzzy``), and evaluates batches with scikit-fuzzy's exact semantics (``evaluate``).
+Plots live in :mod:`hybridnav.fuzzy.plots` (imported on demand: it needs matplotlib).
+This subpackage does not import the tuner, the planners or the CLI.
+"""
+
+from hybridnav.fuzzy.mf import MF_PARAMS
+from hybridnav.fuzzy.spec import (
+    FORMAT, And, Not, Or, OutputVariable, Rule, Term, TermRef, Variable,
+)
+from hybridnav.fuzzy.system import FuzzySystem, builtin, builtin_names, load, loads
+
+__all__ = [
+    "FORMAT", "MF_PARAMS", "FuzzySystem", "load", "loads", "builtin", "builtin_names",
+    "Term", "Variable", "OutputVariable", "Rule", "TermRef", "And", "Or", "Not",
+]

@@ -1,0 +1,158 @@
+"""Plots of fuzzy systems with matplotlib's object API (``Figure``; no pyplot, no backend switch).
+
+- :func:`plot_memberships`: the terms of every variable, as sampled on its universe.
+- :func:`plot_surface`: the control surface, the output over two inputs (the first two unless
+  chosen; other inputs held at mid-range). A one-input system gets the output curve.
+- :func:`save_memberships_png`, :func:`save_surface_png`: the same, written atomically.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import atomic_path
+from hybridnav.fuzzy.engine import universe
+from hybridnav.fuzzy.mf import sample
+from hybridnav.fuzzy.system import FuzzySystem
+
+__all__ = ["plot_memberships", "plot_surface", "save_memberships_png", "save_surface_png"]
+
+log = logging.getLogger(__name__)
+
+
+def plot_memberships(system: FuzzySystem, fig: Figure | None = None) -> Figure:
+    """Draw the membership functions of every input and of the output, one panel each.
+
+    Parameters
+    ----------
+    system : FuzzySystem
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw into (it is cleared); a new one is made otherwise.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Panels in file order (inputs, then the output). Curves are the sampled terms joined by
+        straight lines, which is exactly the membership the evaluator interpolates; the output
+        panel marks ``default`` with a dotted line.
+    """
+    variables = [*system.inputs, system.output]
+    if fig is None:
+        fig = Figure(figsize=(6.4, 2.2 * len(variables)), layout="constrained")
+    else:
+        fig.clear()
+    axes = fig.subplots(len(variables), 1, squeeze=False)[:, 0]
+    for ax, v in zip(axes, variables):
+        x = universe(v)
+        for t in v.terms:
+            ax.plot(x, sample(t.mf, t.params, x), label=f"{t.name} ({t.mf})")
+        if v is system.output:
+            ax.axvline(system.output.default, color="0.4", linestyle=":", linewidth=1.0,
+                       label="default")
+            ax.set_title(f"output {v.name}")
+        else:
+            ax.set_title(f"input {v.name}")
+        ax.set_xlim(*v.range)
+        ax.set_ylim(-0.03, 1.05)
+        ax.set_ylabel("membership")
+        ax.legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("universe")
+    fig.suptitle(system.name)
+    return fig
+
+
+def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[str, str] | None = None,
+                 fixed: Mapping[str, float] | None = None, resolution: int = 41) -> Figure:
+    """Draw the control surface: the output over two inputs.
+
+    Parameters
+    ----------
+    system : FuzzySystem
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw into (it is cleared); a new one is made otherwise.
+    inputs : (str, str), optional
+        The two inputs on the axes; default the first two. Ignored for a one-input system, which
+        is drawn as the output curve over its input.
+    fixed : mapping, optional
+        Values for the other inputs; default the middle of their ranges.
+    resolution : int
+        Grid points per axis.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    HybridnavError
+        Unknown input names, the same input twice, or ``resolution < 2``.
+    """
+    if resolution < 2:
+        raise HybridnavError(f"resolution: expected an integer >= 2, got {resolution}")
+    names = system.input_names
+    by_name = {v.name: v for v in system.inputs}
+    fixed = dict(fixed or {})
+    for k in fixed:
+        if k not in by_name:
+            raise HybridnavError(f"fixed: no input named {k!r} (inputs: {', '.join(names)})")
+    if fig is None:
+        fig = Figure(figsize=(6.4, 5.2), layout="constrained")
+    else:
+        fig.clear()
+    out = system.output
+    if len(names) == 1:
+        v = system.inputs[0]
+        x = np.linspace(*v.range, max(resolution, 201))
+        ax = fig.add_subplot()
+        ax.plot(x, system.evaluate(**{v.name: x}))
+        ax.set_xlabel(v.name)
+        ax.set_ylabel(out.name)
+        ax.set_ylim(*out.range)
+        ax.set_title(f"{system.name}: {out.name}({v.name})")
+        return fig
+    pair = tuple(inputs) if inputs is not None else names[:2]
+    if len(pair) != 2 or pair[0] == pair[1] or any(p not in by_name for p in pair):
+        raise HybridnavError(f"inputs: expected two different input names out of "
+                             f"{', '.join(names)}, got {inputs!r}")
+    vx, vy = by_name[pair[0]], by_name[pair[1]]
+    gx, gy = np.meshgrid(np.linspace(*vx.range, resolution), np.linspace(*vy.range, resolution))
+    args = {n: float(fixed.get(n, 0.5 * (v.range[0] + v.range[1])))
+            for n, v in by_name.items() if n not in pair}
+    z = system.evaluate(**{vx.name: gx, vy.name: gy}, **args)
+    ax = fig.add_subplot(projection="3d")
+    ax.plot_surface(gx, gy, z, cmap="viridis", linewidth=0.2, edgecolor="0.3", antialiased=True)
+    ax.set_xlabel(vx.name)
+    ax.set_ylabel(vy.name)
+    ax.set_zlabel(out.name)
+    ax.set_zlim(*out.range)
+    held = ", ".join(f"{k} = {v:g}" for k, v in args.items())
+    ax.set_title(f"{system.name}: control surface" + (f" ({held})" if held else ""))
+    return fig
+
+
+def _save(fig: Figure, path: str | os.PathLike[str], dpi: int) -> Path:
+    path = Path(path)
+    FigureCanvasAgg(fig)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format="png")
+    log.debug("wrote %s", path)
+    return path
+
+
+def save_memberships_png(system: FuzzySystem, path: str | os.PathLike[str], dpi: int = 120) -> Path:
+    """Write :func:`plot_memberships` to a PNG file atomically and return the path."""
+    return _save(plot_memberships(system), path, dpi)
+
+
+def save_surface_png(system: FuzzySystem, path: str | os.PathLike[str], dpi: int = 120,
+                     **kwargs: object) -> Path:
+    """Write :func:`plot_surface` (``kwargs`` passed on) to a PNG file atomically."""
+    return _save(plot_surface(system, **kwargs), path, dpi)  # type: ignore[arg-type]

@@ -1,0 +1,378 @@
+"""The ``hybridnav-fis/1`` data model: plain frozen dataclasses and a validating reader.
+
+Every validation error is a :class:`hybridnav.HybridnavError` whose message is
+``"<file>: <key path>: <what was expected>"`` (the file part only when there is one), e.g.
+``sys.json: inputs[0].terms[1].params: expected 2 numbers for zmf, got 3``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from hybridnav.errors import HybridnavError, where
+from hybridnav.fuzzy.mf import MF_PARAMS, check_params
+
+__all__ = [
+    "FORMAT", "Term", "Variable", "OutputVariable", "TermRef", "And", "Or", "Not", "Antecedent",
+    "Rule", "parse_system", "antecedent_to_json",
+]
+
+#: The format string this module reads and writes.
+FORMAT = "hybridnav-fis/1"
+
+DEFUZZ_METHODS = ("centroid",)
+
+
+@dataclass(frozen=True)
+class Term:
+    """A linguistic term: a name and a membership function with scikit-fuzzy's parameters."""
+
+    name: str
+    mf: str
+    params: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """An input variable: ``points`` evenly spaced universe samples over ``range``, and terms."""
+
+    name: str
+    range: tuple[float, float]
+    points: int
+    terms: tuple[Term, ...]
+
+    def term_names(self) -> tuple[str, ...]:
+        """Names of the terms, in file order."""
+        return tuple(t.name for t in self.terms)
+
+
+@dataclass(frozen=True)
+class OutputVariable(Variable):
+    """The output variable: a :class:`Variable` plus the defuzzifier and the no-rule-fired value."""
+
+    defuzz: str = "centroid"
+    default: float = 0.0
+
+
+@dataclass(frozen=True)
+class TermRef:
+    """Antecedent leaf ``[input, term]``: the membership of ``input`` in ``term``."""
+
+    input: str
+    term: str
+
+
+@dataclass(frozen=True)
+class And:
+    """Antecedent ``{"and": [...]}``: minimum of the items."""
+
+    items: tuple[Antecedent, ...]
+
+
+@dataclass(frozen=True)
+class Or:
+    """Antecedent ``{"or": [...]}``: maximum of the items."""
+
+    items: tuple[Antecedent, ...]
+
+
+@dataclass(frozen=True)
+class Not:
+    """Antecedent ``{"not": x}``: ``1 - x``."""
+
+    item: Antecedent
+
+
+Antecedent = TermRef | And | Or | Not
+
+
+@dataclass(frozen=True)
+class Rule:
+    """``if`` antecedent ``then`` output term, with a weight scaling the firing strength."""
+
+    antecedent: Antecedent
+    then: str
+    weight: float = 1.0
+    description: str | None = None
+
+
+# --------------------------------------------------------------------------------------- reading
+
+class _Reader:
+    """Validation helpers that know the source file for error messages."""
+
+    def __init__(self, source: str | None) -> None:
+        self.source = source
+
+    def fail(self, key: str, msg: str) -> HybridnavError:
+        prefix = where(self.source, key) if key else (self.source or "")
+        return HybridnavError(f"{prefix}: {msg}" if prefix else msg)
+
+    def mapping(self, value: Any, key: str) -> Mapping[str, Any]:
+        if not isinstance(value, Mapping):
+            raise self.fail(key, f"expected an object, got {_typename(value)}")
+        for k in value:
+            if not isinstance(k, str):
+                raise self.fail(key, f"expected string keys, got {k!r}")
+        return value
+
+    def keys(self, value: Mapping[str, Any], key: str, required: Sequence[str],
+             optional: Sequence[str] = ()) -> None:
+        for k in required:
+            if k not in value:
+                raise self.fail(_join(key, k), "missing required key")
+        allowed = set(required) | set(optional)
+        for k in value:
+            if k not in allowed:
+                raise self.fail(_join(key, k), f"unknown key (allowed here: "
+                                f"{', '.join(sorted(allowed))})")
+
+    def string(self, value: Any, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"expected a string, got {_typename(value)}")
+        if not value.strip():
+            raise self.fail(key, "expected a non-empty string")
+        return value
+
+    def number(self, value: Any, key: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, f"expected a number, got {_typename(value)}")
+        if not math.isfinite(value):
+            raise self.fail(key, f"expected a finite number, got {value!r}")
+        return float(value)
+
+    def integer(self, value: Any, key: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"expected an integer, got {_typename(value)}")
+        return int(value)
+
+    def array(self, value: Any, key: str) -> Sequence[Any]:
+        if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+            raise self.fail(key, f"expected an array, got {_typename(value)}")
+        return value
+
+
+def _join(key: str, k: str) -> str:
+    return f"{key}.{k}" if key else k
+
+
+def _typename(value: Any) -> str:
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return f"boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f"string {value!r}"
+    if isinstance(value, (int, float)):
+        return f"number {value!r}"
+    if isinstance(value, Mapping):
+        return "an object"
+    if isinstance(value, Sequence):
+        return "an array"
+    return type(value).__name__
+
+
+def _read_terms(r: _Reader, value: Any, key: str) -> tuple[Term, ...]:
+    items = r.array(value, key)
+    if len(items) == 0:
+        raise r.fail(key, "expected at least one term")
+    terms: list[Term] = []
+    seen: set[str] = set()
+    for j, item in enumerate(items):
+        k = f"{key}[{j}]"
+        d = r.mapping(item, k)
+        r.keys(d, k, ("name", "mf", "params"))
+        name = r.string(d["name"], f"{k}.name")
+        if name in seen:
+            raise r.fail(f"{k}.name", f"duplicate term name '{name}'")
+        seen.add(name)
+        mf = r.string(d["mf"], f"{k}.mf")
+        if mf not in MF_PARAMS:
+            raise r.fail(f"{k}.mf", f"unknown membership function '{mf}' (expected one of "
+                         f"{', '.join(MF_PARAMS)})")
+        praw = r.array(d["params"], f"{k}.params")
+        want = MF_PARAMS[mf]
+        if len(praw) != len(want):
+            raise r.fail(f"{k}.params", f"expected {len(want)} numbers for {mf}, got "
+                         f"{len(praw)} ({mf} takes {', '.join(want)})")
+        params = tuple(r.number(v, f"{k}.params[{i}]") for i, v in enumerate(praw))
+        problem = check_params(mf, params)
+        if problem:
+            raise r.fail(f"{k}.params", problem)
+        terms.append(Term(name, mf, params))
+    return tuple(terms)
+
+
+def _read_variable_fields(r: _Reader, d: Mapping[str, Any], key: str) -> dict[str, Any]:
+    name = r.string(d["name"], f"{key}.name")
+    rng = r.array(d["range"], f"{key}.range")
+    if len(rng) != 2:
+        raise r.fail(f"{key}.range", f"expected 2 numbers [lo, hi], got {len(rng)}")
+    lo = r.number(rng[0], f"{key}.range[0]")
+    hi = r.number(rng[1], f"{key}.range[1]")
+    if not lo < hi:
+        raise r.fail(f"{key}.range", f"expected lo < hi, got [{lo!r}, {hi!r}]")
+    points = r.integer(d["points"], f"{key}.points")
+    if points < 2:
+        raise r.fail(f"{key}.points", f"expected an integer >= 2, got {points}")
+    terms = _read_terms(r, d["terms"], f"{key}.terms")
+    return {"name": name, "range": (lo, hi), "points": points, "terms": terms}
+
+
+def _read_antecedent(r: _Reader, value: Any, key: str, inputs: Mapping[str, Variable]) -> Antecedent:
+    if isinstance(value, Mapping):
+        d = r.mapping(value, key)
+        if len(d) != 1 or next(iter(d)) not in ("and", "or", "not"):
+            raise r.fail(key, "expected [input, term] or an object with exactly one key "
+                         f"'and', 'or' or 'not', got keys {sorted(d)}")
+        op = next(iter(d))
+        k = f"{key}.{op}"
+        if op == "not":
+            return Not(_read_antecedent(r, d[op], k, inputs))
+        items = r.array(d[op], k)
+        if len(items) == 0:
+            raise r.fail(k, "expected a non-empty array of antecedents")
+        parsed = tuple(_read_antecedent(r, it, f"{k}[{i}]", inputs) for i, it in enumerate(items))
+        return And(parsed) if op == "and" else Or(parsed)
+    if isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
+        if len(value) != 2 or not all(isinstance(v, str) for v in value):
+            raise r.fail(key, "expected [input, term] (two strings), or an object "
+                         "{\"and\": [...]}, {\"or\": [...]} or {\"not\": ...}")
+        inp, term = value
+        if inp not in inputs:
+            raise r.fail(key, f"no input named '{inp}' (inputs: {', '.join(inputs)})")
+        if term not in inputs[inp].term_names():
+            raise r.fail(key, f"input '{inp}' has no term '{term}' "
+                         f"(terms: {', '.join(inputs[inp].term_names())})")
+        return TermRef(inp, term)
+    raise r.fail(key, f"expected [input, term] or an object with 'and', 'or' or 'not', "
+                 f"got {_typename(value)}")
+
+
+def parse_system(d: Any, source: str | None = None) -> dict[str, Any]:
+    """Validate a ``hybridnav-fis/1`` document and return its parts.
+
+    Parameters
+    ----------
+    d : mapping
+        The decoded JSON document.
+    source : str, optional
+        File name for error messages.
+
+    Returns
+    -------
+    dict
+        Keys ``name``, ``description``, ``inputs`` (tuple of :class:`Variable`), ``output``
+        (:class:`OutputVariable`) and ``rules`` (tuple of :class:`Rule`).
+
+    Raises
+    ------
+    HybridnavError
+        On anything that is not a valid ``hybridnav-fis/1`` system.
+    """
+    r = _Reader(source)
+    doc = r.mapping(d, "")
+    if "format" not in doc:
+        raise r.fail("format", f"missing required key (expected \"{FORMAT}\")")
+    fmt = doc["format"]
+    if fmt != FORMAT:
+        if isinstance(fmt, str) and fmt.startswith("hybridnav-fis/"):
+            raise r.fail("format", f"unsupported format version {fmt!r}: this hybridnav reads "
+                         f"\"{FORMAT}\" (a newer hybridnav may read it)")
+        raise r.fail("format", f"expected \"{FORMAT}\", got {_typename(fmt)}")
+    r.keys(doc, "", ("format", "name", "inputs", "output", "rules"), ("description",))
+    name = r.string(doc["name"], "name")
+    description = None
+    if "description" in doc:
+        if not isinstance(doc["description"], str):
+            raise r.fail("description", f"expected a string, got {_typename(doc['description'])}")
+        description = doc["description"]
+
+    raw_inputs = r.array(doc["inputs"], "inputs")
+    if len(raw_inputs) == 0:
+        raise r.fail("inputs", "expected at least one input")
+    inputs: dict[str, Variable] = {}
+    for i, item in enumerate(raw_inputs):
+        k = f"inputs[{i}]"
+        dd = r.mapping(item, k)
+        r.keys(dd, k, ("name", "range", "points", "terms"))
+        var = Variable(**_read_variable_fields(r, dd, k))
+        if var.name in inputs:
+            raise r.fail(f"{k}.name", f"duplicate input name '{var.name}'")
+        inputs[var.name] = var
+
+    k = "output"
+    dd = r.mapping(doc["output"], k)
+    r.keys(dd, k, ("name", "range", "points", "terms", "defuzz", "default"))
+    fields = _read_variable_fields(r, dd, k)
+    if fields["name"] in inputs:
+        raise r.fail(f"{k}.name", f"output name '{fields['name']}' is also an input name")
+    defuzz = r.string(dd["defuzz"], f"{k}.defuzz")
+    if defuzz not in DEFUZZ_METHODS:
+        raise r.fail(f"{k}.defuzz", f"unknown defuzzification '{defuzz}' (expected one of "
+                     f"{', '.join(DEFUZZ_METHODS)})")
+    default = r.number(dd["default"], f"{k}.default")
+    lo, hi = fields["range"]
+    if not lo <= default <= hi:
+        raise r.fail(f"{k}.default", f"expected a value inside the output range [{lo!r}, {hi!r}], "
+                     f"got {default!r}")
+    output = OutputVariable(**fields, defuzz=defuzz, default=default)
+
+    raw_rules = r.array(doc["rules"], "rules")
+    if len(raw_rules) == 0:
+        raise r.fail("rules", "expected at least one rule")
+    rules: list[Rule] = []
+    for i, item in enumerate(raw_rules):
+        k = f"rules[{i}]"
+        dd = r.mapping(item, k)
+        r.keys(dd, k, ("if", "then"), ("weight", "description"))
+        ante = _read_antecedent(r, dd["if"], f"{k}.if", inputs)
+        then = r.string(dd["then"], f"{k}.then")
+        if then not in output.term_names():
+            raise r.fail(f"{k}.then", f"output '{output.name}' has no term '{then}' "
+                         f"(terms: {', '.join(output.term_names())})")
+        weight = 1.0
+        if "weight" in dd:
+            weight = r.number(dd["weight"], f"{k}.weight")
+            if not 0.0 <= weight <= 1.0:
+                raise r.fail(f"{k}.weight", f"expected a number in [0, 1], got {weight!r}")
+        desc = None
+        if "description" in dd:
+            if not isinstance(dd["description"], str):
+                raise r.fail(f"{k}.description",
+                             f"expected a string, got {_typename(dd['description'])}")
+            desc = dd["description"]
+        rules.append(Rule(ante, then, weight, desc))
+
+    return {"name": name, "description": description, "inputs": tuple(inputs.values()),
+            "output": output, "rules": tuple(rules)}
+
+
+# --------------------------------------------------------------------------------------- writing
+
+def antecedent_to_json(a: Antecedent) -> Any:
+    """The JSON form of an antecedent (``[input, term]`` or a one-key object)."""
+    if isinstance(a, TermRef):
+        return [a.input, a.term]
+    if isinstance(a, And):
+        return {"and": [antecedent_to_json(x) for x in a.items]}
+    if isinstance(a, Or):
+        return {"or": [antecedent_to_json(x) for x in a.items]}
+    if isinstance(a, Not):
+        return {"not": antecedent_to_json(a.item)}
+    raise TypeError(f"not an antecedent: {a!r}")
+
+
+def variable_to_json(v: Variable) -> dict[str, Any]:
+    """The JSON form of an input or output variable."""
+    d: dict[str, Any] = {
+        "name": v.name, "range": [v.range[0], v.range[1]], "points": v.points,
+        "terms": [{"name": t.name, "mf": t.mf, "params": list(t.params)} for t in v.terms],
+    }
+    if isinstance(v, OutputVariable):
+        d["defuzz"] = v.defuzz
+        d["default"] = v.default
+    return d

@@ -1,0 +1,389 @@
+"""The :class:`FuzzySystem` type: ``hybridnav-fis/1`` JSON <-> scikit-fuzzy <-> fast evaluation."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from collections.abc import Mapping, Sequence
+from functools import reduce
+from importlib import resources
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import atomic_write_text
+from hybridnav.fuzzy.engine import CompiledSystem, universe
+from hybridnav.fuzzy.spec import (
+    FORMAT, And, Antecedent, Not, OutputVariable, Rule, TermRef, Variable,
+    antecedent_to_json, parse_system, variable_to_json,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from skfuzzy.control import ControlSystem
+
+__all__ = ["FuzzySystem", "load", "loads", "builtin", "builtin_names"]
+
+log = logging.getLogger(__name__)
+
+_SYSTEMS_PACKAGE = "hybridnav.fuzzy.systems"
+
+
+class FuzzySystem:
+    """A Mamdani fuzzy system with one output, in scikit-fuzzy's semantics.
+
+    Build one with :func:`load`, :func:`loads`, :func:`builtin` or :meth:`from_dict`; the
+    constructor takes the already-parsed parts and validates them the same way (it builds the
+    JSON form and reads it back). Construction precompiles the evaluator, so
+    :meth:`evaluate` does no set-up work.
+
+    Parameters
+    ----------
+    name : str
+    inputs : sequence of Variable
+    output : OutputVariable
+    rules : sequence of Rule
+    description : str, optional
+    source : str, optional
+        Where the system came from (file name), used in error messages.
+
+    Attributes
+    ----------
+    name, description, inputs, output, rules, source
+        As given (``inputs`` and ``rules`` as tuples).
+    input_names : tuple of str
+        The keyword names :meth:`evaluate` takes, in file order.
+    """
+
+    def __init__(self, name: str, inputs: Sequence[Variable], output: OutputVariable,
+                 rules: Sequence[Rule], description: str | None = None,
+                 source: str | None = None) -> None:
+        doc = _to_dict(name, description, tuple(inputs), output, tuple(rules))
+        parts = parse_system(doc, source)
+        self._init(parts, source)
+
+    def _init(self, parts: Mapping[str, Any], source: str | None) -> None:
+        self.name: str = parts["name"]
+        self.description: str | None = parts["description"]
+        self.inputs: tuple[Variable, ...] = parts["inputs"]
+        self.output: OutputVariable = parts["output"]
+        self.rules: tuple[Rule, ...] = parts["rules"]
+        self.source = source
+        self.input_names = tuple(v.name for v in self.inputs)
+        self._names = frozenset(self.input_names)
+        self._engine = CompiledSystem(self.inputs, self.output, self.rules)
+
+    # -------------------------------------------------------------------------------- I/O
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], source: str | None = None) -> FuzzySystem:
+        """Validate a decoded ``hybridnav-fis/1`` document and build the system.
+
+        Parameters
+        ----------
+        d : mapping
+            The JSON document as Python objects.
+        source : str, optional
+            File name named in error messages.
+
+        Returns
+        -------
+        FuzzySystem
+
+        Raises
+        ------
+        HybridnavError
+            The message names the file (if ``source``), the key path (``inputs[0].terms[1].params``)
+            and what was expected.
+        """
+        self = cls.__new__(cls)
+        self._init(parse_system(d, source), source)
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``hybridnav-fis/1`` document (JSON-ready Python objects)."""
+        return _to_dict(self.name, self.description, self.inputs, self.output, self.rules)
+
+    def to_json(self) -> str:
+        """The ``hybridnav-fis/1`` document as indented JSON text (ends with a newline)."""
+        return _format_json(self.to_dict()) + "\n"
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the system as JSON to ``path`` atomically (temporary file, then ``os.replace``).
+
+        Parameters
+        ----------
+        path : str or path-like
+
+        Returns
+        -------
+        pathlib.Path
+            The written path.
+        """
+        path = Path(path)
+        atomic_write_text(path, self.to_json())
+        log.debug("wrote fuzzy system %r to %s", self.name, path)
+        return path
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, FuzzySystem):
+            return NotImplemented
+        return self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # rebuilt from the JSON form (so worker processes get a freshly compiled evaluator);
+        # hybridnav never writes pickles to files: the file format is JSON
+        return (FuzzySystem.from_dict, (self.to_dict(), self.source))
+
+    def __repr__(self) -> str:
+        ins = ", ".join(f"{v.name}[{len(v.terms)}]" for v in self.inputs)
+        return (f"<FuzzySystem {self.name!r}: {ins} -> {self.output.name}"
+                f"[{len(self.output.terms)}], {len(self.rules)} rules>")
+
+    # ------------------------------------------------------------------------- scikit-fuzzy
+
+    def to_skfuzzy(self) -> ControlSystem:
+        """The equivalent scikit-fuzzy ``ControlSystem``.
+
+        Universes are ``np.linspace(lo, hi, points)``; terms are sampled with scikit-fuzzy's own
+        membership functions; rules are ``Rule(antecedent, output[then] % weight)`` with ``&``,
+        ``|`` and ``~`` for and/or/not, labelled ``rule0``, ``rule1``, ... The consequent uses
+        centroid defuzzification. Inputs that no rule mentions are not part of a scikit-fuzzy
+        control system (its graph is built from the rules), so they are absent from the result.
+
+        Returns
+        -------
+        skfuzzy.control.ControlSystem
+            Compute with ``ControlSystemSimulation(cs)``; when no rule fires it leaves the output
+            unset (or raises), where :meth:`evaluate` returns ``output.default``.
+        """
+        import skfuzzy
+        from skfuzzy import control as ctrl
+
+        def sk_mf(x: NDArray[np.float64], mf: str, p: Sequence[float]) -> NDArray[np.float64]:
+            if mf == "trimf":
+                return skfuzzy.trimf(x, list(p))
+            if mf == "trapmf":
+                return skfuzzy.trapmf(x, list(p))
+            return getattr(skfuzzy, mf)(x, *p)
+
+        ants: dict[str, Any] = {}
+        for v in self.inputs:
+            a = ctrl.Antecedent(universe(v), v.name)
+            for t in v.terms:
+                a[t.name] = sk_mf(a.universe, t.mf, t.params)
+            ants[v.name] = a
+        o = self.output
+        cons = ctrl.Consequent(universe(o), o.name, defuzzify_method=o.defuzz)
+        for t in o.terms:
+            cons[t.name] = sk_mf(cons.universe, t.mf, t.params)
+
+        def build(a: Antecedent) -> Any:
+            if isinstance(a, TermRef):
+                return ants[a.input][a.term]
+            if isinstance(a, Not):
+                return ~build(a.item)
+            parts = [build(x) for x in a.items]
+            if isinstance(a, And):
+                return reduce(lambda u, w: u & w, parts)
+            return reduce(lambda u, w: u | w, parts)
+
+        rules = [ctrl.Rule(build(r.antecedent), cons[r.then] % float(r.weight), label=f"rule{i}")
+                 for i, r in enumerate(self.rules)]
+        return ctrl.ControlSystem(rules)
+
+    # --------------------------------------------------------------------------- evaluation
+
+    def evaluate(self, **inputs: ArrayLike) -> NDArray[np.float64] | np.float64:
+        """Crisp output for crisp inputs, batched, exactly as scikit-fuzzy computes it.
+
+        Parameters
+        ----------
+        **inputs : array_like
+            One keyword per input variable (see :attr:`input_names`), each a number or an array;
+            the shapes must broadcast together. Values outside an input's range are clipped to it
+            (as scikit-fuzzy does); NaN gives NaN.
+
+        Returns
+        -------
+        ndarray or numpy.float64
+            The output, with the broadcast shape of the inputs (a ``numpy.float64`` when every
+            input is a scalar). Where no rule fires (zero aggregated area) the value is
+            ``output.default``.
+
+        Raises
+        ------
+        TypeError
+            Missing or unexpected keyword.
+        ValueError
+            Shapes that do not broadcast, or non-numeric values.
+        """
+        names = self.input_names
+        if inputs.keys() != self._names:
+            missing = [n for n in names if n not in inputs]
+            extra = [n for n in inputs if n not in self._names]
+            raise TypeError(f"evaluate() of fuzzy system {self.name!r} takes the inputs "
+                            f"{', '.join(names)}"
+                            + (f"; missing {', '.join(missing)}" if missing else "")
+                            + (f"; unexpected {', '.join(extra)}" if extra else ""))
+        vals = [inputs[n] for n in names]
+        if all(isinstance(v, (float, int)) for v in vals):
+            return np.float64(self._engine.evaluate_scalar([float(v) for v in vals]))
+        arrs = [np.asarray(v, dtype=np.float64) for v in vals]
+        shape = np.broadcast_shapes(*(a.shape for a in arrs))
+        size = math.prod(shape)
+        if size == 1:
+            r = self._engine.evaluate_scalar([float(a.reshape(-1)[0]) for a in arrs])
+            return np.float64(r) if shape == () else np.full(shape, r)
+        if size == 0:
+            return np.empty(shape)
+        flat = [np.broadcast_to(a, shape).reshape(-1) for a in arrs]
+        return self._engine.evaluate_batch(flat).reshape(shape)
+
+
+# ------------------------------------------------------------------------------- helpers
+
+def _to_dict(name: str, description: str | None, inputs: Sequence[Variable],
+             output: OutputVariable, rules: Sequence[Rule]) -> dict[str, Any]:
+    d: dict[str, Any] = {"format": FORMAT, "name": name}
+    if description is not None:
+        d["description"] = description
+    d["inputs"] = [variable_to_json(v) for v in inputs]
+    d["output"] = variable_to_json(output)
+    rs = []
+    for r in rules:
+        rd: dict[str, Any] = {"if": antecedent_to_json(r.antecedent), "then": r.then,
+                              "weight": r.weight}
+        if r.description is not None:
+            rd["description"] = r.description
+        rs.append(rd)
+    d["rules"] = rs
+    return d
+
+
+def _format_json(obj: Any, indent: int = 0, width: int = 100) -> str:
+    """Indented JSON that keeps short arrays and objects (terms, ranges, antecedents) on one line."""
+    flat = json.dumps(obj, allow_nan=False, ensure_ascii=False)
+    if not isinstance(obj, (dict, list)) or len(flat) + indent <= width and not (
+            isinstance(obj, dict) and any(isinstance(v, list) and v and isinstance(v[0], dict)
+                                          for v in obj.values())):
+        return flat
+    pad = " " * (indent + 2)
+    if isinstance(obj, list):
+        if not obj:
+            return "[]"
+        items = [pad + _format_json(v, indent + 2, width) for v in obj]
+        return "[\n" + ",\n".join(items) + "\n" + " " * indent + "]"
+    if not obj:
+        return "{}"
+    items = [pad + json.dumps(k, ensure_ascii=False) + ": " + _format_json(v, indent + 2, width)
+             for k, v in obj.items()]
+    return "{\n" + ",\n".join(items) + "\n" + " " * indent + "}"
+
+
+def _no_duplicate_keys(source: str | None):
+    def hook(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        d: dict[str, Any] = {}
+        for k, v in pairs:
+            if k in d:
+                raise HybridnavError(f"{source + ': ' if source else ''}duplicate key {k!r} in "
+                                     "a JSON object")
+            d[k] = v
+        return d
+    return hook
+
+
+def loads(text: str, source: str | None = None) -> FuzzySystem:
+    """Read a system from JSON text.
+
+    Parameters
+    ----------
+    text : str
+        A ``hybridnav-fis/1`` JSON document.
+    source : str, optional
+        Name used in error messages.
+
+    Returns
+    -------
+    FuzzySystem
+
+    Raises
+    ------
+    HybridnavError
+        JSON syntax errors (with line and column), duplicate keys, or invalid content.
+    """
+    try:
+        d = json.loads(text, object_pairs_hook=_no_duplicate_keys(source))
+    except json.JSONDecodeError as exc:
+        prefix = f"{source}: " if source else ""
+        raise HybridnavError(f"{prefix}line {exc.lineno} column {exc.colno}: invalid JSON "
+                             f"({exc.msg})") from None
+    return FuzzySystem.from_dict(d, source)
+
+
+def load(name_or_path: str | os.PathLike[str]) -> FuzzySystem:
+    """Load a fuzzy system from a ``hybridnav-fis/1`` JSON file, or a built-in one by name.
+
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        A path, or a built-in name (:func:`builtin_names`). Strings ending in ``.json`` or
+        containing a path separator are paths.
+
+    Returns
+    -------
+    FuzzySystem
+
+    Raises
+    ------
+    HybridnavError
+        Unreadable file, unknown built-in name, JSON syntax error (the message gives the file and
+        the line), or invalid content (the message gives the file and the key path).
+    """
+    s = os.fspath(name_or_path)
+    if isinstance(name_or_path, os.PathLike) or s.endswith(".json") or "/" in s or os.sep in s:
+        try:
+            text = Path(s).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            raise HybridnavError(f"{s}: cannot read fuzzy system file ({why})") from None
+        log.debug("loading fuzzy system from %s", s)
+        return loads(text, s)
+    return builtin(s)
+
+
+def builtin_names() -> list[str]:
+    """Names of the built-in fuzzy systems (``hybridnav/fuzzy/systems/*.json``), sorted."""
+    root = resources.files(_SYSTEMS_PACKAGE)
+    return sorted(e.name[:-5] for e in root.iterdir() if e.name.endswith(".json"))
+
+
+def builtin(name: str) -> FuzzySystem:
+    """A built-in fuzzy system.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`builtin_names`: ``effc-5rule`` (the EFFC paper's Table 1) or ``effc-2rule``
+        (its reduced Table 2).
+
+    Returns
+    -------
+    FuzzySystem
+
+    Raises
+    ------
+    HybridnavError
+        Unknown name.
+    """
+    entry = resources.files(_SYSTEMS_PACKAGE).joinpath(f"{name}.json")
+    if not entry.is_file():
+        raise HybridnavError(f"fuzzy system {name!r}: expected a built-in name "
+                             f"({', '.join(builtin_names())}) or a path to a .json file")
+    return loads(entry.read_text(encoding="utf-8"), f"{name}.json")

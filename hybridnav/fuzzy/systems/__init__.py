@@ -1,0 +1,1 @@
+"""Built-in fuzzy systems as ``hybridnav-fis/1`` JSON files (``NAME.json`` is built-in ``NAME``)."""
