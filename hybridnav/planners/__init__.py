@@ -10,10 +10,11 @@ from typing import Any
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.apf import APF
 from hybridnav.planners.base import Param, Planner, parse_assignments
+from hybridnav.planners.effc import EFFC
 from hybridnav.planners.hapf import HAPF
 from hybridnav.planners.pbpf import PBPF
 
-PLANNERS: dict[str, type[Planner]] = {cls.name: cls for cls in (APF, HAPF, PBPF)}
+PLANNERS: dict[str, type[Planner]] = {cls.name: cls for cls in (APF, EFFC, HAPF, PBPF)}
 
 __all__ = ["PLANNERS", "Param", "Planner", "get", "parse_assignments"]
 

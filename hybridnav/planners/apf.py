@@ -78,6 +78,7 @@ class APF(FieldPlanner):
         g = self.gains(state, idx)
         F = apf_force(sim.scenario.world, P, goals, radius, sim.t, **g)
         scale = self.values["force_tol"] * np.asarray(g["xi"]) * np.asarray(g["sigma0"])
+        self.trace(sim, idx, force=np.hypot(F[:, 0], F[:, 1]))
         small = np.hypot(F[:, 0], F[:, 1]) <= scale
         for j in np.flatnonzero(small):
             sim.stop(int(idx[j]), "stuck")

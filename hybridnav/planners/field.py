@@ -51,6 +51,33 @@ class FieldPlanner(Planner):
         May call ``sim.stop(i, "stuck")`` for a robot whose field vanishes.
         """
 
+    def trace(self, sim: Simulation, idx: np.ndarray, **signals: np.ndarray) -> None:
+        """Record per-robot signals of this cycle (plotted and written by ``hybridnav run``)."""
+        for j, i in enumerate(idx):
+            rec = self.traces.setdefault(sim.scenario.robots[i].name, {"t": []})
+            rec["t"].append(sim.t)
+            for key, values in signals.items():
+                rec.setdefault(key, []).append(float(values[j]))
+
+    def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
+        """``signals.png``: the traced signals of every robot over time."""
+        if not self.traces:
+            return {}
+        from matplotlib.figure import Figure
+
+        keys = sorted({k for rec in self.traces.values() for k in rec if k != "t"})
+        fig = Figure(figsize=(7.0, 2.0 + 1.6 * len(keys)), layout="constrained")
+        axes = fig.subplots(len(keys), 1, sharex=True, squeeze=False)[:, 0]
+        for name, rec in self.traces.items():
+            for ax, key in zip(axes, keys):
+                if key in rec:
+                    ax.plot(rec["t"], rec[key], label=name, linewidth=1.0)
+                    ax.set_ylabel(key)
+        axes[0].legend(fontsize=8)
+        axes[-1].set_xlabel("t [s]")
+        axes[0].set_title(f"{self.name}: signals along the run")
+        return {"signals.png": fig}
+
     def model_overrides(self, robot) -> dict[str, Any]:
         """Model options for a robot (unicycles: the heading controller at ``speed``)."""
         if robot.model == "unicycle":
@@ -61,12 +88,14 @@ class FieldPlanner(Planner):
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
         rng = np.random.default_rng(seed)
+        self.traces: dict[str, dict[str, list[float]]] = {}
         tic = time.perf_counter()
         state = self.prepare(scenario, rng)
         prep = time.perf_counter() - tic
         self.last_state = state
         models = [scenario.model(r, **self.model_overrides(r)) for r in scenario.robots]
         speed = self.values["speed"]
+        last = np.zeros((len(models), 2))       # the last non-zero command of each robot
 
         def controller(sim: Simulation) -> np.ndarray:
             T = np.full((sim.n, 2), np.nan)
@@ -75,6 +104,10 @@ class FieldPlanner(Planner):
             V = np.asarray(self.velocity(state, sim, idx, P, sim.goals()[idx]), dtype=float)
             norm = np.hypot(V[:, 0], V[:, 1])
             V = V * (speed / np.where(norm > 0, norm, 1.0))[:, None]
+            # a resultant of exactly zero (balanced forces) keeps the previous command
+            zero = ~(norm > 0)
+            V[zero] = last[idx[zero]]
+            last[idx[~zero]] = V[~zero]
             for j, i in enumerate(idx):
                 T[i] = models[i].carrot(sim.X[i][None], V[j][None])[0]
             return T

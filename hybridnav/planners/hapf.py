@@ -114,6 +114,25 @@ class HAPF(FieldPlanner):
             ))
         return fields
 
+    def diagnostics(self, scenario, result):
+        """``signals.png`` and ``harmonic_field.png`` (the potential of the first robot)."""
+        from matplotlib.figure import Figure
+
+        from hybridnav.plotting import plot_result
+
+        out = dict(super().diagnostics(scenario, result))
+        _, _, phi, grid = self.last_state[0]
+        fig = Figure(figsize=(6.6, 6.0), layout="constrained")
+        ax = fig.add_subplot()
+        x0, x1, y0, y1 = grid.extent
+        im = ax.imshow(np.log10(np.maximum(1.0 - phi, 1e-16)), origin="lower",
+                       extent=(x0, x1, y0, y1), cmap="magma", zorder=0)
+        fig.colorbar(im, ax=ax, label="log10(1 - phi)")
+        plot_result(scenario, result, ax=ax)
+        ax.set_title(f"{scenario.name}: harmonic potential")
+        out["harmonic_field.png"] = fig
+        return out
+
     def velocity(self, state, sim: Simulation, idx, P, goals):
         V = np.zeros((len(idx), 2))
         for j, i in enumerate(idx):

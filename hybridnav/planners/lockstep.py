@@ -57,7 +57,9 @@ def lockstep_field(
     field : callable
         ``field(env_index, world, members, P, goals, t) -> V``: desired velocities ``(m, 2)`` of
         the still-running ``members`` (indices into the population) at positions ``P`` (m, 2).
-        Rows that are zero or NaN mean "no direction": the robot is ``stuck``.
+        A NaN row means "local minimum": the robot is ``stuck``; a zero row (balanced forces)
+        keeps the robot's previous command, as :class:`hybridnav.planners.field.FieldPlanner`
+        does.
     model_overrides : dict, optional
         Options for the robot model (e.g. the unicycle heading controller).
     speed : float
@@ -91,6 +93,7 @@ def lockstep_field(
     X = np.vstack([np.tile(model.initial_state(s.robots[0].start, s.robots[0].goal,
                                                s.robots[0].initial), (M, 1)) for s in scenarios])
     status = np.zeros(N, dtype=int)              # index into OUTCOME_CODES
+    last = np.zeros((N, 2))                      # last non-zero command per robot
     length = np.zeros(N)
     t_end = np.full(N, np.nan)
     min_clear = np.full(N, np.inf)
@@ -112,11 +115,13 @@ def lockstep_field(
             if len(sel):
                 V[sel] = field(e, scenarios[e].world, member[sel], P[sel], goals[sel], t)
         norm = np.hypot(V[:, 0], V[:, 1])
-        dead = run & ~(norm > 0)                 # zero or NaN field: a local minimum
+        dead = run & np.isnan(norm)              # NaN: the field says "local minimum"
         status[dead] = OUTCOME_CODES.index("stuck")
         t_end[dead] = t
         V = V * (speed / np.where(norm > 0, norm, 1.0))[:, None]
-        V[~np.isfinite(V)] = 0.0
+        zero = ~(norm > 0)                       # balanced forces keep the previous command
+        V[zero] = last[zero]
+        last[~zero] = V[~zero]
         run = status == 0
         Xn = model.step(X, model.carrot(X, V))
         step_len = np.hypot(*(Xn[:, :2] - X[:, :2]).T)

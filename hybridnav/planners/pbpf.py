@@ -67,6 +67,22 @@ class PBPF(APF):
         self.search_log = logs
         return np.array(tuned)
 
+    def diagnostics(self, scenario, result):
+        """``signals.png`` and ``pbpf_search.png`` (best fitness per generation, per robot)."""
+        from matplotlib.figure import Figure
+
+        out = dict(super().diagnostics(scenario, result))
+        fig = Figure(figsize=(6.0, 3.6), layout="constrained")
+        ax = fig.add_subplot()
+        for r, history in zip(scenario.robots, self.search_log):
+            ax.plot(range(len(history)), history, marker="o", label=r.name)
+        ax.set_xlabel("generation")
+        ax.set_ylabel("best fitness (path length, penalized)")
+        ax.set_title("pseudo-bacterial gain search")
+        ax.legend(fontsize=8)
+        out["pbpf_search.png"] = fig
+        return out
+
     def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
         g = dict(super().gains(state, idx))
         for j, name in enumerate(GENES):
@@ -82,8 +98,11 @@ class PBPF(APF):
 
         def field(env, world, members, P, goals, t):
             g = gains[members]
-            return apf_force(world, P, goals, radius, t, xi=g[:, 0], sigma0=v["sigma0"],
-                             eta=g[:, 1], rho0=g[:, 2])
+            F = apf_force(world, P, goals, radius, t, xi=g[:, 0], sigma0=v["sigma0"],
+                          eta=g[:, 1], rho0=g[:, 2])
+            small = np.hypot(F[:, 0], F[:, 1]) <= v["force_tol"] * g[:, 0] * v["sigma0"]
+            F[small] = np.nan                  # a local minimum: stuck, as APF.velocity says
+            return F
 
         overrides = self.model_overrides(r)
         res = lockstep_field([scenario], len(genomes), field, model_overrides=overrides,

@@ -1,0 +1,103 @@
+"""Evolutionary fuzzy force control (EFFC; Golkhatib, Shahmansoorian & Davoudi 2025).
+
+Each control cycle, per robot (batched over robots):
+
+* ``F_att``: unit vector from the robot to its target; ``F_rep``: unit vector from the nearest
+  obstacle point to the robot (the paper's Section 3);
+* the fuzzy system's inputs: ``dtheta = |direction to target - direction to nearest obstacle|``
+  (wrapped to [0, pi]; the system clips it to its range) and ``alpha = d_obstacle / d_target``,
+  with ``d_obstacle`` measured from the robot's footprint;
+* ``w = FIS(dtheta, alpha)`` through the compiled batched evaluator, and
+  ``F_w = w F_rep + (1 - w) F_att`` (eq. 8);
+* the unicycle turns towards ``F_w`` by at most ``max_turn`` (pi/4) per cycle at constant
+  ``speed`` (0.1 m/s), eq. 9.
+
+Any :class:`hybridnav.fuzzy.FuzzySystem` with inputs ``dtheta`` and ``alpha`` can be plugged in
+(``fis=`` a built-in name, a JSON file, or a ``FuzzySystem``); the default is the paper's reduced
+2-rule system. Without obstacles ``F_w = F_att``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+from hybridnav.planners.base import Param
+from hybridnav.planners.field import COMMON, FieldPlanner
+from hybridnav.planners.simulate import Simulation
+
+__all__ = ["EFFC", "effc_inputs", "effc_force"]
+
+
+def effc_inputs(world, P: np.ndarray, goals: np.ndarray, radius, t: float):
+    """The fuzzy inputs and the two unit forces at the points ``P`` (N, 2).
+
+    Returns
+    -------
+    dtheta, alpha : ndarray, shape (N,)
+    f_att, f_rep : ndarray, shape (N, 2)
+    """
+    to_goal = goals - P
+    d_goal = np.hypot(to_goal[:, 0], to_goal[:, 1])
+    f_att = to_goal / np.where(d_goal > 0, d_goal, 1.0)[:, None]
+    n = len(P)
+    if not world.obstacles:
+        return np.full(n, np.pi), np.full(n, np.inf), f_att, np.zeros((n, 2))
+    clear, near, _ = world.nearest(P, t=t)
+    away = P - near
+    d_near = np.hypot(away[:, 0], away[:, 1])
+    f_rep = away / np.where(d_near > 0, d_near, 1.0)[:, None]
+    inside = clear < 0                       # inside an obstacle: push out through the surface
+    f_rep[inside] *= -1.0
+    ang = np.arctan2(to_goal[:, 1], to_goal[:, 0]) - np.arctan2(-f_rep[:, 1], -f_rep[:, 0])
+    dtheta = np.abs(np.arctan2(np.sin(ang), np.cos(ang)))
+    d_obs = np.maximum(clear - np.asarray(radius, dtype=float), 0.0)
+    alpha = d_obs / np.where(d_goal > 0, d_goal, np.finfo(float).tiny)
+    return dtheta, alpha, f_att, f_rep
+
+
+def effc_force(w: np.ndarray, f_att: np.ndarray, f_rep: np.ndarray) -> np.ndarray:
+    """``F_w = w F_rep + (1 - w) F_att`` (rows)."""
+    w = np.asarray(w, dtype=float)[:, None]
+    return w * f_rep + (1.0 - w) * f_att
+
+
+class EFFC(FieldPlanner):
+    """Potential field whose repulsive/attractive blend weight comes from a fuzzy system."""
+
+    name = "effc"
+    description = "evolutionary fuzzy force control: fuzzy-weighted blend of unit APF forces"
+    params: ClassVar[dict[str, Param]] = {
+        "fis": Param("effc-2rule", "fuzzy system: a built-in name or a hybridnav-fis/1 JSON file"),
+        **COMMON,
+    }
+
+    def __init__(self, **params: Any) -> None:
+        from hybridnav import fuzzy
+
+        system = params.get("fis")
+        if isinstance(system, fuzzy.FuzzySystem):
+            params["fis"] = system.name
+        super().__init__(**params)
+        if not isinstance(system, fuzzy.FuzzySystem):
+            system = fuzzy.load(self.values["fis"])
+        missing = {"dtheta", "alpha"} - set(system.input_names)
+        if missing or len(system.input_names) != 2:
+            raise HybridnavError(
+                f"planner effc: fis: expected a fuzzy system with the inputs dtheta and alpha, "
+                f"{system.name!r} has {', '.join(system.input_names)}")
+        self.fis = system
+
+    def velocity(self, state, sim: Simulation, idx, P, goals):
+        radius = np.array([sim.models[i].radius for i in idx])
+        dtheta, alpha, f_att, f_rep = effc_inputs(sim.scenario.world, P, goals, radius, sim.t)
+        if not sim.scenario.world.obstacles:
+            return f_att
+        w = self.fis.evaluate(dtheta=dtheta, alpha=alpha)
+        self.trace(sim, idx, w=w, dtheta=dtheta, alpha=np.minimum(alpha, 1e3))
+        return effc_force(w, f_att, f_rep)
+
+    def describe(self):
+        return {**self.values, "fis": self.values["fis"]}
