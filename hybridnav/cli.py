@@ -90,7 +90,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from hybridnav.world import load_scenario
 
     scenario = load_scenario(args.scenario)
-    planner = planners.get(args.planner, **planners.parse_assignments(args.set or []))
+    settings = planners.parse_assignments(args.set or [])
+    if args.fis is not None:
+        if args.planner != "effc":
+            raise HybridnavError(f"--fis: only the effc planner takes a fuzzy system, not "
+                                 f"{args.planner}")
+        settings["fis"] = args.fis
+    planner = planners.get(args.planner, **settings)
     result = planner.run(scenario, seed=args.seed)
     out = Path(args.out)
     result.write(out)
@@ -145,6 +151,30 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_fis(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hybridnav import fuzzy
+    from hybridnav.fuzzy import plots
+
+    system = fuzzy.load(args.fis)
+    print(f"{system.name}: {len(system.inputs)} inputs, {len(system.rules)} rules, output "
+          f"{system.output.name} in {list(system.output.range)} (default {system.output.default})")
+    for v in system.inputs:
+        terms = ", ".join(f"{t.name} {t.mf}{list(t.params)}" for t in v.terms)
+        print(f"  input {v.name} in {list(v.range)}: {terms}")
+    terms = ", ".join(f"{t.name} {t.mf}{list(t.params)}" for t in system.output.terms)
+    print(f"  output {system.output.name}: {terms}")
+    for i, r in enumerate(system.to_dict()["rules"], 1):
+        print(f"  rule {i}: if {r['if']} then {r['then']} (weight {r.get('weight', 1.0)})")
+    if args.out:
+        out = Path(args.out)
+        plots.save_memberships_png(system, out / "mfs.png")
+        plots.save_surface_png(system, out / "surface.png")
+        print(f"wrote {out}/: mfs.png, surface.png")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
     parser = argparse.ArgumentParser(
@@ -187,6 +217,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the planner's randomness")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="set a planner parameter (repeatable)")
+    p.add_argument("--fis", metavar="FILE.json", help="effc: the fuzzy system (a built-in name or "
+                                                      "a hybridnav-fis/1 file)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
@@ -204,6 +236,12 @@ def build_parser() -> argparse.ArgumentParser:
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the tables and plots")
     p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser("fis", help="describe a fuzzy system; plot its membership functions and "
+                                   "control surface")
+    p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule) or a hybridnav-fis/1 file")
+    p.add_argument("--out", metavar="DIR", help="folder for mfs.png and surface.png")
+    p.set_defaults(func=_cmd_fis)
 
     p = sub.add_parser("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)
