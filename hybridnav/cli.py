@@ -175,6 +175,38 @@ def _cmd_fis(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_tune(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from hybridnav.tuner.job import load_job, quick
+    from hybridnav.tuner.run import run_job
+
+    job = load_job(args.job).with_seed(args.seed)
+    if args.quick:
+        job = quick(job)
+    job = job.with_backend(workers=args.workers, dask=args.dask)
+    total = job["ga"]["generations"] + 1
+    bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
+    evals = {"n": 0, "t": 0.0}
+
+    def progress(row):
+        evals["n"] += row["evals"]
+        rate = evals["n"] / row["wall_time"] if row["wall_time"] > 0 else 0.0
+        bar.set_postfix(gen=row["gen"], best=f"{row['min']:.4g}", mean=f"{row['mean']:.4g}",
+                        evals_s=f"{rate:.0f}")
+        bar.update(row["gen"] + 1 - bar.n)
+
+    try:
+        result, files = run_job(job, args.out, resume=args.resume, progress=progress)
+    finally:
+        bar.close()
+    best = result.best.fitness.values[0]
+    print(f"{job.name}: training reward start {result.start_fitness:.4f} -> tuned {best:.4f} "
+          f"({len(result.system.rules)} rules kept)")
+    print(f"wrote {args.out}/: {', '.join(files)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
     parser = argparse.ArgumentParser(
@@ -242,6 +274,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule) or a hybridnav-fis/1 file")
     p.add_argument("--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
+
+    p = sub.add_parser("tune", help="tune a fuzzy system with the GA (default: the built-in EFFC "
+                                    "job)")
+    p.add_argument("job", nargs="?", help="job file (TOML); omitted: the built-in EFFC job")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the tuned system, "
+                                                              "report, plots and checkpoint")
+    p.add_argument("--seed", type=int, help="override the job's seed")
+    p.add_argument("--quick", action="store_true", help="small smoke run (population 12, "
+                                                        "3 generations)")
+    backend = p.add_mutually_exclusive_group()
+    backend.add_argument("--workers", type=int, help="local worker processes")
+    backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address ('local': a "
+                                                           "LocalCluster)")
+    p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.json")
+    p.set_defaults(func=_cmd_tune)
 
     p = sub.add_parser("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)

@@ -109,8 +109,8 @@ def test_lockstep_matches_the_per_robot_simulation():
     apf = planners.get("apf")
     one = apf.run(s).robots[0]
 
-    def field(env, world, members, P, goals, t):
-        return apf_force(world, P, goals, 0.1, t, xi=1.0, sigma0=1.0, eta=0.05, rho0=0.5)
+    def field(env, members, P, goals, t):
+        return apf_force(s.world, P, goals, 0.1, t, xi=1.0, sigma0=1.0, eta=0.05, rho0=0.5)
 
     res = lockstep_field([s], 3, field, model_overrides=apf.model_overrides(s.robots[0]))
     assert list(res.outcome[0]) == [one.outcome] * 3

@@ -55,8 +55,10 @@ def lockstep_field(
     n_members : int
         Copies per scenario (the population).
     field : callable
-        ``field(env_index, world, members, P, goals, t) -> V``: desired velocities ``(m, 2)`` of
-        the still-running ``members`` (indices into the population) at positions ``P`` (m, 2).
+        ``field(env, members, P, goals, t) -> V``: desired velocities ``(m, 2)`` of the
+        still-running robots, given their environment indices ``env`` (m,), their members
+        (indices into the population) and positions ``P`` (m, 2) — one call per control cycle
+        for the whole batch.
         A NaN row means "local minimum": the robot is ``stuck``; a zero row (balanced forces)
         keeps the robot's previous command, as :class:`hybridnav.planners.field.FieldPlanner`
         does.
@@ -109,11 +111,8 @@ def lockstep_field(
             break
         t = k * dt
         V = np.zeros((N, 2))
-        P = X[:, :2]
-        for e in range(E):
-            sel = np.flatnonzero(run & (env == e))
-            if len(sel):
-                V[sel] = field(e, scenarios[e].world, member[sel], P[sel], goals[sel], t)
+        sel = np.flatnonzero(run)
+        V[sel] = field(env[sel], member[sel], X[sel, :2], goals[sel], t)
         norm = np.hypot(V[:, 0], V[:, 1])
         dead = run & np.isnan(norm)              # NaN: the field says "local minimum"
         status[dead] = OUTCOME_CODES.index("stuck")

@@ -96,9 +96,9 @@ class PBPF(APF):
         radius = scenario.model(scenario.robots[0]).radius
         r = scenario.robots[0]
 
-        def field(env, world, members, P, goals, t):
+        def field(env, members, P, goals, t):
             g = gains[members]
-            F = apf_force(world, P, goals, radius, t, xi=g[:, 0], sigma0=v["sigma0"],
+            F = apf_force(scenario.world, P, goals, radius, t, xi=g[:, 0], sigma0=v["sigma0"],
                           eta=g[:, 1], rho0=g[:, 2])
             small = np.hypot(F[:, 0], F[:, 1]) <= v["force_tol"] * g[:, 0] * v["sigma0"]
             F[small] = np.nan                  # a local minimum: stuck, as APF.velocity says

@@ -1,0 +1,263 @@
+"""The genetic algorithm (DEAP operators), with checkpoints after every generation.
+
+Classes are defined here at import time (no ``creator.create`` at run time), so individuals
+pickle to any worker. Each generation: tournament selection, SBX (bounded) or blend crossover,
+polynomial (bounded) or Gaussian mutation, repair, evaluation of the changed individuals in
+chunks on the backend, and elitism through a hall of fame whose best ``elite`` members enter the
+next generation unchanged. Generation 0 is the initial population: the starting system's genome
+plus random ones.
+
+After every generation ``checkpoint.json`` is written atomically with the population, the hall of
+fame, the logbook, the records, the *next* generation's number, Python's ``random`` state (DEAP's
+operators draw from it), the NumPy generator state and the job's configuration hash. ``resume``
+continues from it — refusing a checkpoint of a different configuration — and ends with exactly
+the result an uninterrupted run gives.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import random
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from deap import base, tools
+
+from hybridnav import __version__
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import atomic_write_text, dumps_json
+from hybridnav.tuner.backends import Backend, SerialBackend
+from hybridnav.tuner.evaluate import evaluate_chunk
+from hybridnav.tuner.genome import GenomeSpace
+from hybridnav.tuner.job import Job
+
+log = logging.getLogger(__name__)
+
+__all__ = ["CHECKPOINT_FORMAT", "FitnessMax", "FitnessMin", "Individual", "TuneResult", "tune"]
+
+CHECKPOINT_FORMAT = "hybridnav-tune-checkpoint/1"
+
+
+class FitnessMin(base.Fitness):
+    """Smaller reward is better (``reward.sense = "minimize"``)."""
+
+    weights = (-1.0,)
+
+
+class FitnessMax(base.Fitness):
+    """Larger reward is better (``reward.sense = "maximize"``)."""
+
+    weights = (1.0,)
+
+
+class Individual(list):
+    """A genome (list of floats) with a ``fitness`` and its per-environment ``records``."""
+
+    def __init__(self, genes=(), fitness_class: type = FitnessMin) -> None:
+        super().__init__(float(g) for g in genes)
+        self.fitness = fitness_class()
+        self.records: list[dict[str, Any]] = []
+
+
+@dataclass
+class TuneResult:
+    """What a tuning run leaves: the best genome and system, the logbook, every evaluation."""
+
+    best: Individual
+    system: Any
+    start_fitness: float
+    logbook: list[dict[str, Any]]
+    records: list[dict[str, Any]] = field(default_factory=list)
+    hall_of_fame: list[Individual] = field(default_factory=list)
+
+
+def _job_json(job: Job) -> str:
+    return json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
+
+
+def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: bool = False,
+         progress: Callable[[dict[str, Any]], None] | None = None,
+         stop_after: int | None = None) -> TuneResult:
+    """Run the GA of ``job``, checkpointing into ``out``.
+
+    Parameters
+    ----------
+    job : Job
+    out : path
+        Folder for ``checkpoint.json`` (created).
+    backend : Backend, optional
+        Where chunks are evaluated (default: this process).
+    resume : bool
+        Continue from ``out/checkpoint.json``.
+    progress : callable, optional
+        Called after every generation with that generation's logbook row.
+    stop_after : int, optional
+        Stop after this generation (for tests of interruption; the checkpoint stays).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    backend = backend or SerialBackend()
+    ga, rw = job["ga"], job["reward"]
+    fit_cls = FitnessMin if rw["sense"] == "minimize" else FitnessMax
+    space = GenomeSpace(job.start_system(), job["free"])
+    jj = _job_json(job)
+    chash = job.config_hash()
+    ckpt_path = out / "checkpoint.json"
+    low, up = space.lower.tolist(), space.upper.tolist()
+    sigma = (ga["gaussian_sigma"] * (space.upper - space.lower)).tolist()
+    chunk = job["backend"]["chunk"]
+    elite = ga["elite"]
+
+    def evaluate(inds: list[Individual], generation: int, indices: list[int]) -> int:
+        """Evaluate ``inds`` in chunks on the backend; returns the number of evaluations."""
+        if not inds:
+            return 0
+        args = []
+        for s in range(0, len(inds), chunk):
+            part = inds[s:s + chunk]
+            args.append((jj, np.array(part, dtype=float), generation, indices[s:s + chunk]))
+        results = [r for res in backend.map(evaluate_chunk, args) for r in res]
+        for ind, idx, rec in zip(inds, indices, results):
+            ind.fitness.values = (rec["fitness"],)
+            ind.records = [dict(e, generation=generation, individual=idx) for e in rec["envs"]]
+        return len(inds)
+
+    if resume:
+        state = _load_checkpoint(ckpt_path, chash)
+        pop = [_ind(d, fit_cls) for d in state["population"]]
+        hof = tools.HallOfFame(max(1, elite))
+        hof.update([_ind(d, fit_cls) for d in state["hall_of_fame"]])
+        logbook = state["logbook"]
+        records = state["records"]
+        start_gen = state["generation"]
+        start_fitness = state["start_fitness"]
+        random.setstate(_tuplify(state["python_random"]))
+        rng = np.random.default_rng()
+        rng.bit_generator.state = state["numpy_random"]
+        elapsed = state["elapsed"]
+        log.info("resuming %s at generation %d", job.name, start_gen)
+    else:
+        random.seed(job.seed)
+        rng = np.random.default_rng(job.seed)
+        genomes = np.vstack([space.encode()[None], space.random(ga["population"] - 1, rng)])
+        pop = [Individual(g, fit_cls) for g in genomes]
+        tic = time.perf_counter()
+        nevals = evaluate(pop, 0, list(range(len(pop))))
+        start_fitness = pop[0].fitness.values[0]
+        hof = tools.HallOfFame(max(1, elite))
+        hof.update(pop)
+        records = [r for ind in pop for r in ind.records]
+        elapsed = time.perf_counter() - tic
+        logbook = [_row(0, nevals, pop, elapsed)]
+        start_gen = 1
+        _save_checkpoint(ckpt_path, job, chash, 1, pop, hof, logbook, records, rng,
+                         start_fitness, elapsed)
+        if progress:
+            progress(logbook[-1])
+    for gen in range(start_gen, ga["generations"] + 1):
+        if stop_after is not None and gen > stop_after:
+            break
+        tic = time.perf_counter()
+        offspring = [_clone(i, fit_cls) for i in tools.selTournament(
+            pop, len(pop) - elite, ga["tournament"])]
+        for a, b in zip(offspring[::2], offspring[1::2]):
+            if random.random() < ga["crossover_prob"]:
+                if ga["crossover"] == "sbx":
+                    tools.cxSimulatedBinaryBounded(a, b, ga["sbx_eta"], low, up)
+                else:
+                    tools.cxBlend(a, b, ga["blend_alpha"])
+                del a.fitness.values, b.fitness.values
+        for ind in offspring:
+            if random.random() < ga["mutation_prob"]:
+                if ga["mutation"] == "polynomial":
+                    tools.mutPolynomialBounded(ind, ga["polynomial_eta"], low, up,
+                                               ga["gene_prob"])
+                else:
+                    tools.mutGaussian(ind, 0.0, sigma, ga["gene_prob"])
+                del ind.fitness.values
+        changed = [i for i in offspring if not i.fitness.valid]
+        if changed:
+            fixed = space.repair(np.array(changed, dtype=float))
+            for ind, row in zip(changed, fixed):
+                ind[:] = row.tolist()
+        n_ev = evaluate(changed, gen, list(range(len(changed))))
+        pop = [_clone(h, fit_cls) for h in hof[:elite]] + offspring
+        hof.update(pop)
+        records += [r for ind in changed for r in ind.records]
+        elapsed += time.perf_counter() - tic
+        logbook.append(_row(gen, n_ev, pop, elapsed))
+        _save_checkpoint(ckpt_path, job, chash, gen + 1, pop, hof, logbook, records, rng,
+                         start_fitness, elapsed)
+        if progress:
+            progress(logbook[-1])
+    best = hof[0]
+    system = space.system(np.array(best), name=f"{job.name}-tuned")
+    return TuneResult(best=best, system=system, start_fitness=start_fitness, logbook=logbook,
+                      records=records, hall_of_fame=list(hof))
+
+
+def _row(gen: int, nevals: int, pop: list[Individual], wall: float) -> dict[str, Any]:
+    f = np.array([i.fitness.values[0] for i in pop])
+    return {"gen": gen, "evals": nevals, "min": float(f.min()), "mean": float(f.mean()),
+            "max": float(f.max()), "std": float(f.std()), "wall_time": wall}
+
+
+def _clone(ind: Individual, fit_cls) -> Individual:
+    new = Individual(ind, fit_cls)
+    if ind.fitness.valid:
+        new.fitness.values = ind.fitness.values
+    new.records = list(ind.records)
+    return new
+
+
+def _ind(d: dict[str, Any], fit_cls) -> Individual:
+    ind = Individual(d["genes"], fit_cls)
+    if d.get("fitness") is not None:
+        ind.fitness.values = (float(d["fitness"]),)
+    ind.records = d.get("records", [])
+    return ind
+
+
+def _tuplify(obj):
+    return tuple(_tuplify(v) for v in obj) if isinstance(obj, list) else obj
+
+
+def _save_checkpoint(path: Path, job: Job, chash: str, next_gen: int, pop, hof, logbook,
+                     records, rng, start_fitness, elapsed) -> None:
+    def dump(ind):
+        return {"genes": list(ind), "fitness": ind.fitness.values[0] if ind.fitness.valid
+                else None, "records": ind.records}
+
+    state = {
+        "format": CHECKPOINT_FORMAT, "version": __version__, "job": job.name,
+        "config_hash": chash, "generation": next_gen,
+        "population": [dump(i) for i in pop], "hall_of_fame": [dump(i) for i in hof],
+        "logbook": logbook, "records": records, "start_fitness": start_fitness,
+        "python_random": random.getstate(), "numpy_random": rng.bit_generator.state,
+        "elapsed": elapsed,
+    }
+    atomic_write_text(path, dumps_json(state))
+
+
+def _load_checkpoint(path: Path, chash: str) -> dict[str, Any]:
+    try:
+        state = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HybridnavError(f"{path}: no checkpoint to resume from (run without --resume "
+                             "first)") from None
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise HybridnavError(f"{path}: unreadable checkpoint ({exc})") from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise HybridnavError(f"{path}: format: expected {CHECKPOINT_FORMAT!r}, got "
+                             f"{state.get('format') if isinstance(state, dict) else state!r}")
+    if state.get("config_hash") != chash:
+        raise HybridnavError(
+            f"{path}: config_hash: this checkpoint was written by a different job configuration "
+            f"(checkpoint {str(state.get('config_hash'))[:12]}, job {chash[:12]}); resume with "
+            "the same job file and seed, or start a new run in another folder")
+    return state
