@@ -7,15 +7,21 @@ chunks on the backend, and elitism through a hall of fame whose best ``elite`` m
 next generation unchanged. Generation 0 is the initial population: the starting system's genome
 plus random ones.
 
+DEAP's operators draw from Python's ``random`` module. So that nothing else in the process (a Dask
+client's threads, user code) can shift that stream, the run gives them a private
+``random.Random`` seeded from the job (:func:`_deap_random` swaps it into DEAP's operator
+modules for the duration of the run).
+
 After every generation ``checkpoint.json`` is written atomically with the population, the hall of
-fame, the logbook, the records, the *next* generation's number, Python's ``random`` state (DEAP's
-operators draw from it), the NumPy generator state and the job's configuration hash. ``resume``
+fame, the logbook, the records, the *next* generation's number, that ``random`` state, the NumPy
+generator state and the job's configuration hash. ``resume``
 continues from it — refusing a checkpoint of a different configuration — and ends with exactly
 the result an uninterrupted run gives.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import random
@@ -80,6 +86,22 @@ def _job_json(job: Job) -> str:
     return json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
 
 
+@contextlib.contextmanager
+def _deap_random(rnd: random.Random):
+    """Make DEAP's selection, crossover and mutation operators draw from ``rnd``."""
+    from deap.tools import crossover, mutation, selection
+
+    modules = (selection, crossover, mutation)
+    saved = [m.random for m in modules]
+    for m in modules:
+        m.random = rnd
+    try:
+        yield
+    finally:
+        for m, r in zip(modules, saved):
+            m.random = r
+
+
 def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: bool = False,
          progress: Callable[[dict[str, Any]], None] | None = None,
          stop_after: int | None = None) -> TuneResult:
@@ -136,13 +158,14 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         records = state["records"]
         start_gen = state["generation"]
         start_fitness = state["start_fitness"]
-        random.setstate(_tuplify(state["python_random"]))
+        rnd = random.Random()
+        rnd.setstate(_tuplify(state["python_random"]))
         rng = np.random.default_rng()
         rng.bit_generator.state = state["numpy_random"]
         elapsed = state["elapsed"]
         log.info("resuming %s at generation %d", job.name, start_gen)
     else:
-        random.seed(job.seed)
+        rnd = random.Random(job.seed)
         rng = np.random.default_rng(job.seed)
         genomes = np.vstack([space.encode()[None], space.random(ga["population"] - 1, rng)])
         pop = [Individual(g, fit_cls) for g in genomes]
@@ -155,7 +178,7 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         elapsed = time.perf_counter() - tic
         logbook = [_row(0, nevals, pop, elapsed)]
         start_gen = 1
-        _save_checkpoint(ckpt_path, job, chash, 1, pop, hof, logbook, records, rng,
+        _save_checkpoint(ckpt_path, job, chash, 1, pop, hof, logbook, records, rnd, rng,
                          start_fitness, elapsed)
         if progress:
             progress(logbook[-1])
@@ -163,23 +186,24 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         if stop_after is not None and gen > stop_after:
             break
         tic = time.perf_counter()
-        offspring = [_clone(i, fit_cls) for i in tools.selTournament(
-            pop, len(pop) - elite, ga["tournament"])]
-        for a, b in zip(offspring[::2], offspring[1::2]):
-            if random.random() < ga["crossover_prob"]:
-                if ga["crossover"] == "sbx":
-                    tools.cxSimulatedBinaryBounded(a, b, ga["sbx_eta"], low, up)
-                else:
-                    tools.cxBlend(a, b, ga["blend_alpha"])
-                del a.fitness.values, b.fitness.values
-        for ind in offspring:
-            if random.random() < ga["mutation_prob"]:
-                if ga["mutation"] == "polynomial":
-                    tools.mutPolynomialBounded(ind, ga["polynomial_eta"], low, up,
-                                               ga["gene_prob"])
-                else:
-                    tools.mutGaussian(ind, 0.0, sigma, ga["gene_prob"])
-                del ind.fitness.values
+        with _deap_random(rnd):
+            offspring = [_clone(i, fit_cls) for i in tools.selTournament(
+                pop, len(pop) - elite, ga["tournament"])]
+            for a, b in zip(offspring[::2], offspring[1::2]):
+                if rnd.random() < ga["crossover_prob"]:
+                    if ga["crossover"] == "sbx":
+                        tools.cxSimulatedBinaryBounded(a, b, ga["sbx_eta"], low, up)
+                    else:
+                        tools.cxBlend(a, b, ga["blend_alpha"])
+                    del a.fitness.values, b.fitness.values
+            for ind in offspring:
+                if rnd.random() < ga["mutation_prob"]:
+                    if ga["mutation"] == "polynomial":
+                        tools.mutPolynomialBounded(ind, ga["polynomial_eta"], low, up,
+                                                   ga["gene_prob"])
+                    else:
+                        tools.mutGaussian(ind, 0.0, sigma, ga["gene_prob"])
+                    del ind.fitness.values
         changed = [i for i in offspring if not i.fitness.valid]
         if changed:
             fixed = space.repair(np.array(changed, dtype=float))
@@ -191,7 +215,7 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         records += [r for ind in changed for r in ind.records]
         elapsed += time.perf_counter() - tic
         logbook.append(_row(gen, n_ev, pop, elapsed))
-        _save_checkpoint(ckpt_path, job, chash, gen + 1, pop, hof, logbook, records, rng,
+        _save_checkpoint(ckpt_path, job, chash, gen + 1, pop, hof, logbook, records, rnd, rng,
                          start_fitness, elapsed)
         if progress:
             progress(logbook[-1])
@@ -228,7 +252,7 @@ def _tuplify(obj):
 
 
 def _save_checkpoint(path: Path, job: Job, chash: str, next_gen: int, pop, hof, logbook,
-                     records, rng, start_fitness, elapsed) -> None:
+                     records, rnd: random.Random, rng, start_fitness, elapsed) -> None:
     def dump(ind):
         return {"genes": list(ind), "fitness": ind.fitness.values[0] if ind.fitness.valid
                 else None, "records": ind.records}
@@ -238,7 +262,7 @@ def _save_checkpoint(path: Path, job: Job, chash: str, next_gen: int, pop, hof, 
         "config_hash": chash, "generation": next_gen,
         "population": [dump(i) for i in pop], "hall_of_fame": [dump(i) for i in hof],
         "logbook": logbook, "records": records, "start_fitness": start_fitness,
-        "python_random": random.getstate(), "numpy_random": rng.bit_generator.state,
+        "python_random": rnd.getstate(), "numpy_random": rng.bit_generator.state,
         "elapsed": elapsed,
     }
     atomic_write_text(path, dumps_json(state))

@@ -1,0 +1,308 @@
+"""The GA tuner: batched population evaluation, genomes, jobs, backends, checkpoints."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from hybridnav import HybridnavError, fuzzy, planners
+from hybridnav.fuzzy.family import SystemFamily
+from hybridnav.tuner.backends import DaskBackend, ProcessBackend, SerialBackend
+from hybridnav.tuner.evaluate import evaluate_chunk
+from hybridnav.tuner.ga import tune
+from hybridnav.tuner.genome import GenomeSpace
+from hybridnav.tuner.job import load_job, validate_job
+
+SMALL = """
+name = "small"
+seed = 3
+[ga]
+population = 6
+generations = 2
+elite = 1
+tournament = 2
+[backend]
+chunk = 2
+"""
+
+
+def small_job(tmp_path, extra=""):
+    p = tmp_path / "job.toml"
+    p.write_text(SMALL + extra)
+    return load_job(p)
+
+
+def job_json(job):
+    return json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
+
+
+def variants(template, n, rng):
+    out = []
+    for _ in range(n):
+        d = template.to_dict()
+        for v in d["inputs"] + [d["output"]]:
+            lo, hi = v["range"]
+            for t in v["terms"]:
+                t["params"] = sorted(float(x) for x in rng.uniform(lo, hi, len(t["params"])))
+        for r in d["rules"]:
+            r["weight"] = float(rng.choice([0.0, rng.uniform(), 1.0]))
+            r["then"] = str(rng.choice([t["name"] for t in d["output"]["terms"]]))
+        out.append(fuzzy.FuzzySystem.from_dict(d))
+    return out
+
+
+@pytest.mark.parametrize("name", ["effc-2rule", "effc-5rule"])
+def test_family_evaluation_matches_each_system(name):
+    rng = np.random.default_rng(1)
+    tpl = fuzzy.builtin(name)
+    systems = variants(tpl, 15, rng)
+    fam = SystemFamily(tpl)
+    tables = fam.tables_of(systems)
+    B = 3000
+    member = rng.integers(0, len(systems), B)
+    d = rng.uniform(-0.3, 1.9, B)
+    a = rng.uniform(-0.2, 2.3, B)
+    got = fam.evaluate(tables, member, {"dtheta": d, "alpha": a})
+    ref = np.array([systems[m].evaluate(dtheta=x, alpha=y) for m, x, y in zip(member, d, a)])
+    assert np.abs(got - ref).max() <= 1e-9
+
+
+def test_family_handles_other_shapes_and_nested_rules():
+    rng = np.random.default_rng(2)
+    tpl = fuzzy.FuzzySystem.from_dict({
+        "format": "hybridnav-fis/1", "name": "shapes",
+        "inputs": [
+            {"name": "u", "range": [-1.0, 1.0], "points": 41,
+             "terms": [{"name": "n", "mf": "trapmf", "params": [-1, -1, -0.4, 0.1]},
+                       {"name": "p", "mf": "gaussmf", "params": [0.5, 0.3]}]},
+            {"name": "v", "range": [0.0, 5.0], "points": 77,
+             "terms": [{"name": "s", "mf": "trimf", "params": [0, 1, 3]},
+                       {"name": "b", "mf": "sigmf", "params": [2.5, 3.0]}]},
+            {"name": "z", "range": [0.0, 1.0], "points": 11,
+             "terms": [{"name": "lo", "mf": "gbellmf", "params": [0.2, 2.0, 0.1]}]}],
+        "output": {"name": "y", "range": [-2.0, 2.0], "points": 61,
+                   "terms": [{"name": "a", "mf": "trimf", "params": [-2, -1, 0.5]},
+                             {"name": "b", "mf": "gaussmf", "params": [0.5, 0.4]},
+                             {"name": "c", "mf": "smf", "params": [0.0, 1.8]}],
+                   "defuzz": "centroid", "default": 0.25},
+        "rules": [
+            {"if": {"and": [["u", "n"], {"not": ["v", "b"]}]}, "then": "a"},
+            {"if": {"or": [["u", "p"], {"and": [["v", "s"], ["z", "lo"]]}]}, "then": "c",
+             "weight": 0.7},
+            {"if": {"not": {"or": [["u", "n"], ["z", "lo"]]}}, "then": "b"}]})
+    fam = SystemFamily(tpl)
+    systems = [tpl]
+    for k in range(6):          # weights and consequents vary; MF shapes as in the template
+        d = tpl.to_dict()
+        for r in d["rules"]:
+            r["weight"] = float(rng.choice([0.0, rng.uniform(), 1.0]))
+            r["then"] = str(rng.choice(["a", "b", "c"]))
+        systems.append(fuzzy.FuzzySystem.from_dict(d))
+    tables = fam.tables_of(systems)
+    B = 2000
+    member = rng.integers(0, len(systems), B)
+    X = {"u": rng.uniform(-1.2, 1.2, B), "v": rng.uniform(-0.5, 5.5, B), "z": rng.random(B)}
+    got = fam.evaluate(tables, member, X)
+    ref = np.array([systems[m].evaluate(u=X["u"][i], v=X["v"][i], z=X["z"][i])
+                    for i, m in enumerate(member)])
+    assert np.abs(got - ref).max() <= 1e-9
+
+
+def test_genome_round_trip_repair_and_switches():
+    tpl = fuzzy.builtin("effc-5rule")
+    space = GenomeSpace(tpl, {"mf": ["dtheta", "alpha", "w"], "rule_switches": True,
+                              "rule_weights": True, "rule_consequents": True, "bounds": {}})
+    x = space.encode()
+    assert space.system(x).to_dict()["rules"] == tpl.to_dict()["rules"]
+    assert space.system(x).inputs == tpl.inputs and space.system(x).output == tpl.output
+    bad = x.copy()
+    i, j = space.labels.index("dtheta.low.zmf[0]"), space.labels.index("dtheta.low.zmf[1]")
+    bad[i], bad[j] = 1.0, 0.3                       # a > b: repair swaps
+    fixed = space.repair(bad[None])[0]
+    assert fixed[i] < fixed[j]
+    off = x.copy()
+    for k, lab in enumerate(space.labels):
+        if lab.endswith(".on"):
+            off[k] = 0.1 if lab != "rule3.on" else 0.2
+    kept = space.system(off)
+    assert len(kept.rules) == 1 and kept.rules[0].description == tpl.rules[2].description
+    rng = np.random.default_rng(0)
+    X = space.random(50, rng)
+    assert np.all(X >= space.lower) and np.all(X <= space.upper)
+    for row in X[:10]:
+        space.system(row)             # every repaired genome decodes to a valid system
+
+
+def test_chunk_reward_equals_the_planner_run(tmp_path):
+    job = small_job(tmp_path)
+    space = GenomeSpace(job.start_system(), job["free"])
+    rec = evaluate_chunk(job_json(job), space.encode()[None], 0, [0])[0]
+    total = 0.0
+    for s, env in zip(job.scenarios(), rec["envs"]):
+        r = planners.get("effc", fis=job.start_system()).run(s).robots[0]
+        assert env["outcome"] == r.outcome
+        assert env["length"] == pytest.approx(r.path_length, rel=1e-9)
+        total += r.path_length if r.outcome == "reached" else 100.0
+    assert rec["fitness"] == pytest.approx(total, rel=1e-9)
+
+
+def test_penalty_and_the_maximize_convention(tmp_path):
+    job = small_job(tmp_path, '[reward]\nsense = "maximize"\npenalty = 7.0\n')
+    space = GenomeSpace(job.start_system(), job["free"])
+    x = space.encode()
+    x[space.labels.index("w.high.smf[0]")] = 0.0          # always repel: the robot backs off
+    x[space.labels.index("w.high.smf[1]")] = 0.01
+    x[space.labels.index("w.low.zmf[0]")] = 0.99
+    x[space.labels.index("w.low.zmf[1]")] = 1.0
+    rec = evaluate_chunk(job_json(job), space.repair(x[None]), 0, [0])[0]
+    for env in rec["envs"]:
+        assert env["reward"] == (env["length"] if env["outcome"] == "reached" else -7.0)
+
+
+def test_noise_does_not_depend_on_the_chunking(tmp_path):
+    job = small_job(tmp_path, "[reward]\nheading_noise = 0.05\nrepeats = 2\n")
+    space = GenomeSpace(job.start_system(), job["free"])
+    X = space.random(4, np.random.default_rng(5))
+    whole = evaluate_chunk(job_json(job), X, 2, [0, 1, 2, 3])
+    parts = evaluate_chunk(job_json(job), X[:1], 2, [0]) + evaluate_chunk(job_json(job), X[1:], 2,
+                                                                          [1, 2, 3])
+    assert [r["fitness"] for r in whole] == [r["fitness"] for r in parts]
+    quiet = evaluate_chunk(job_json(small_job(tmp_path)), X, 2, [0, 1, 2, 3])
+    assert [r["fitness"] for r in whole] != [r["fitness"] for r in quiet]
+
+
+@pytest.mark.parametrize("extra, key, text", [
+    ("[ga]\npopulation = 2\nelite = 2\n", "ga.elite", "expected fewer elites"),
+    ("[ga]\ncrossover = \"uniform\"\n", "ga.crossover", "expected one of sbx, blend"),
+    ("[gaa]\n", "gaa", "unknown key"),
+    ("[free]\nmf = [\"speed\"]\n", "free.mf", "expected variable names"),
+    ("[free.bounds]\nalpha = [1.0, 0.5]\n", "free.bounds.alpha", "expected [lo, hi]"),
+    ("[system]\nstart = \"missing.json\"\n", "system.start", "cannot read"),
+    ("[scenarios]\ntrain = [\"aco-three-robots\"]\n", "scenarios.train[0]", "exactly one"),
+    ("[reward]\nrepeats = 3\n", "reward.repeats", "heading_noise > 0"),
+    ("[reward]\npenalty = \"big\"\n", "reward.penalty", "expected float"),
+])
+def test_bad_jobs_fail_before_any_work(tmp_path, extra, key, text):
+    p = tmp_path / "bad.toml"
+    p.write_text(extra)
+    with pytest.raises(HybridnavError) as info:
+        load_job(p)
+    msg = str(info.value)
+    assert "bad.toml" in msg and f": {key}: " in msg and text in msg
+
+
+def _strip(logbook):
+    return [{k: v for k, v in row.items() if k != "wall_time"} for row in logbook]
+
+
+def test_checkpoint_resume_equals_an_uninterrupted_run(tmp_path):
+    job = small_job(tmp_path)
+    full = tune(job, tmp_path / "full")
+    tune(job, tmp_path / "part", stop_after=1)
+    state = json.loads((tmp_path / "part" / "checkpoint.json").read_text())
+    assert state["generation"] == 2                 # the next generation, not the saved one
+    resumed = tune(job, tmp_path / "part", resume=True)
+    assert list(resumed.best) == list(full.best)
+    assert _strip(resumed.logbook) == _strip(full.logbook)
+    other = job.with_seed(4)
+    with pytest.raises(HybridnavError, match="config_hash: this checkpoint was written by a "
+                                             "different job configuration"):
+        tune(other, tmp_path / "part", resume=True)
+
+
+def test_two_local_processes_give_the_same_run(tmp_path):
+    job = small_job(tmp_path)
+    serial = tune(job, tmp_path / "s", backend=SerialBackend())
+    with ProcessBackend(2) as be:
+        par = tune(job, tmp_path / "p", backend=be)
+    assert list(par.best) == list(serial.best) and _strip(par.logbook) == _strip(serial.logbook)
+
+
+@pytest.mark.slow
+def test_dask_local_cluster_and_a_killed_worker_give_the_same_run(tmp_path):
+    job = small_job(tmp_path)
+    serial = tune(job, tmp_path / "s")
+    with DaskBackend("", workers=2) as be:
+        assert _strip(tune(job, tmp_path / "d", backend=be).logbook) == _strip(serial.logbook)
+        pids = be.client.run(os.getpid)
+        victim = next(iter(pids.values()))
+
+        timer = threading.Timer(0.3, os.kill, (victim, signal.SIGKILL))
+
+        def kill_soon(row):
+            if row["gen"] == 0:       # 0.3 s into generation 1's evaluation
+                timer.start()
+
+        again = tune(job, tmp_path / "k", backend=be, progress=kill_soon)
+        timer.join()
+        assert victim not in be.client.run(os.getpid).values()   # that worker really died
+    assert list(again.best) == list(serial.best)
+    assert _strip(again.logbook) == _strip(serial.logbook)
+
+
+@pytest.mark.slow
+def test_sigkill_and_resume_from_the_command_line(tmp_path):
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(SMALL.replace("generations = 2", "generations = 4"))
+    cmd = [sys.executable, "-m", "hybridnav.cli", "tune", str(job_file), "--out"]
+    ref = subprocess.run(cmd + [str(tmp_path / "ref")], capture_output=True, text=True,
+                         timeout=300)
+    assert ref.returncode == 0, ref.stderr
+    out = tmp_path / "run"
+    proc = subprocess.Popen(cmd + [str(out)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    ckpt = out / "checkpoint.json"
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        if ckpt.exists() and json.loads(ckpt.read_text())["generation"] >= 2:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    gen = json.loads(ckpt.read_text())["generation"]
+    assert 2 <= gen <= 5
+    done = subprocess.run(cmd + [str(out), "--resume"], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    a = json.loads((out / "fis.json").read_text())
+    b = json.loads((tmp_path / "ref" / "fis.json").read_text())
+    b["name"] = a["name"]
+    assert a == b
+    import pandas as pd
+    la = pd.read_csv(out / "logbook.csv").drop(columns="wall_time")
+    lb = pd.read_csv(tmp_path / "ref" / "logbook.csv").drop(columns="wall_time")
+    pd.testing.assert_frame_equal(la, lb)
+
+
+def test_tune_cli_quick_writes_every_output(tmp_path):
+    from hybridnav.cli import main
+
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(SMALL)
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
+    for name in ("fis.json", "logbook.csv", "evaluations.csv", "convergence.png", "mfs.png",
+                 "surface.png", "paths.png", "report.md", "checkpoint.json"):
+        assert (tmp_path / "o" / name).exists(), name
+    tuned = fuzzy.load(str(tmp_path / "o" / "fis.json"))
+    assert tuned.input_names == ("dtheta", "alpha")
+    report = (tmp_path / "o" / "report.md").read_text()
+    assert "Training reward: start" in report and "effc-env-a" in report
+    import pandas as pd
+    ev = pd.read_csv(tmp_path / "o" / "evaluations.csv")
+    assert set(ev.columns) >= {"generation", "individual", "scenario", "outcome", "length",
+                               "time", "reward"}
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "x"), "--resume"]) == 2
+
+
+def test_validate_job_defaults_are_the_papers():
+    job = validate_job({}, None, __import__("pathlib").Path.cwd())
+    assert job["ga"]["population"] == 100 and job["ga"]["generations"] == 25
+    assert job["scenarios"]["train"] == ["effc-train-1", "effc-train-2"]
