@@ -130,16 +130,20 @@ class SystemFamily:
         for i, v in enumerate(self.inputs):
             x = np.asarray(inputs[v.name], dtype=float).ravel()
             xs = self.x_in[i]
-            xc = np.clip(x, xs[0], xs[-1])
-            idx = np.clip(np.searchsorted(xs, xc, side="right") - 1, 0, len(xs) - 2)
-            x0, x1 = xs[idx], xs[idx + 1]
+            xc = np.minimum(np.maximum(x, xs[0]), xs[-1])
+            idx = np.searchsorted(xs, xc, side="right") - 1
+            np.minimum(idx, len(xs) - 2, out=idx)
+            x0 = xs[idx]
+            frac = (xc - x0) / (xs[idx + 1] - x0)
             table = tables.inputs[i]
+            y0 = table[member, :, idx]                            # (B, terms)
+            y1 = table[member, :, idx + 1]
+            vals = y0 + (y1 - y0) * frac[:, None]                 # np.interp's formula
+            nan = np.isnan(x)
+            if nan.any():
+                vals[nan] = np.nan
             for j in range(len(v.terms)):
-                y0 = table[member, j, idx]
-                y1 = table[member, j, idx + 1]
-                val = y0 + (y1 - y0) / (x1 - x0) * (xc - x0)     # np.interp's formula
-                val[np.isnan(x)] = np.nan
-                mu[(i, j)] = val
+                mu[(i, j)] = vals[:, j]
         R = len(self.rules)
         T = len(self.output.terms)
         strength = np.empty((B, R))
@@ -182,10 +186,15 @@ class SystemFamily:
         B, T, M = F.shape
         x0, x1, dx = xs[:-1], xs[1:], np.diff(xs)
         cut = np.where(used, cuts, 0.0)
-        A = np.max(np.minimum(cut[:, :, None], F), axis=1)        # (B, M) on the grid
-        ya, yb = A[:, :-1], A[:, 1:]
-        area = 0.5 * dx * (ya + yb)
-        moment = dx * (x0 * (ya + yb) / 2.0 + dx * (ya + 2.0 * yb) / 6.0)
+        A = np.minimum(cut[:, 0, None], F[:, 0])                 # (B, M) on the grid
+        for t in range(1, T):
+            np.maximum(A, np.minimum(cut[:, t, None], F[:, t]), out=A)
+        # trapezoid sums on the grid as matrix-vector products: per interval
+        # area = dx (ya + yb) / 2 and moment = (ya + yb) dx x0 / 2 + (ya + 2 yb) dx^2 / 6
+        ssum = A[:, :-1] + A[:, 1:]
+        c1, c2 = dx * x0 / 2.0, dx * dx / 6.0
+        total = ssum @ (dx / 2.0)
+        moment_total = ssum @ c1 + (ssum + A[:, 1:]) @ c2
         # scikit-fuzzy's _interp_universe_fast: where "F >= cut" changes between neighbouring
         # samples it adds the linear crossing point. For a zero cut ("F > 0" changes) those
         # points coincide with universe samples up to rounding and change nothing: skipped.
@@ -212,8 +221,10 @@ class SystemFamily:
             w = xb - xa
             fine_area = (0.5 * w * (ga + gb)).sum(axis=1)
             fine_moment = (w * (xa * (ga + gb) / 2.0 + w * (ga + 2.0 * gb) / 6.0)).sum(axis=1)
-            area[ub, ui] = fine_area
-            moment[ub, ui] = fine_moment
-        total = area.sum(axis=1)
-        crisp = moment.sum(axis=1) / np.fmax(total, _EPS)
+            s_u = ssum[ub, ui]
+            base_area = s_u * dx[ui] / 2.0
+            base_moment = s_u * c1[ui] + (s_u + A[ub, ui + 1]) * c2[ui]
+            total = total + np.bincount(ub, fine_area - base_area, minlength=B)
+            moment_total = moment_total + np.bincount(ub, fine_moment - base_moment, minlength=B)
+        crisp = moment_total / np.fmax(total, _EPS)
         return np.where(A.max(axis=1) > 0, crisp, self.output.default)

@@ -133,10 +133,17 @@ def lockstep_field(
         if window:
             ring[(k + 1) % (window + 1)] = X[:, :2]
             if k + 1 >= window:
-                span = np.max(np.hypot(*(ring - ring.mean(axis=0)).transpose(2, 0, 1)), axis=0)
-                stuck = (status == 0) & (span < stuck_radius * goal_r)
-                status[stuck] = OUTCOME_CODES.index("stuck")
-                t_end[stuck] = tn
+                # the full test only where it can hold: a window that fits in a disk of radius
+                # r starts and ends within 2 r of each other
+                oldest = ring[(k + 2) % (window + 1)]
+                cand = np.flatnonzero((status == 0) & (np.hypot(*(X[:, :2] - oldest).T)
+                                                       < 2 * stuck_radius * goal_r))
+                if len(cand):
+                    w = ring[:, cand]
+                    span = np.max(np.hypot(*(w - w.mean(axis=0)).transpose(2, 0, 1)), axis=0)
+                    stuck = cand[span < stuck_radius * goal_r[cand]]
+                    status[stuck] = OUTCOME_CODES.index("stuck")
+                    t_end[stuck] = tn
         over = (status == 0) & (k + 1 >= budget)
         status[over] = OUTCOME_CODES.index("timeout")
         t_end[over] = tn
