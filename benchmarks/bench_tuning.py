@@ -1,0 +1,126 @@
+"""Tuning speed: the paper-scale job's wall time, and the lockstep reward vs the straightforward one.
+
+1. The built-in EFFC job at the paper's scale (population 100, 25 generations, 2 environments) on
+   this machine with ``--workers`` local processes (default 2). Target: <= 30 s wall.
+2. The same reward computed the straightforward way — a scikit-fuzzy ``ControlSystemSimulation``
+   per individual, one robot stepped at a time — on a reduced job, against the lockstep chunk
+   evaluation of the same genomes: seconds per (individual, environment) evaluation and their
+   ratio. Target: >= 100x. The two rewards are also compared (they must agree).
+
+Run: ``python benchmarks/bench_tuning.py [--workers 2] [--reduced 6] [--skip-full]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import tempfile
+import time
+
+import numpy as np
+
+from hybridnav.planners.effc import effc_force, effc_inputs
+from hybridnav.tuner.backends import make_backend
+from hybridnav.tuner.evaluate import evaluate_chunk
+from hybridnav.tuner.ga import tune
+from hybridnav.tuner.genome import GenomeSpace
+from hybridnav.tuner.job import load_job
+
+
+def straightforward_reward(job, system, scenarios) -> float:
+    """One ControlSystemSimulation, one robot at a time, one step at a time."""
+    from skfuzzy import control as ctrl
+
+    sim = ctrl.ControlSystemSimulation(system.to_skfuzzy(), cache=False)
+    pl, rw = job["planner"], job["reward"]
+    total = 0.0
+    for s in scenarios:
+        r = s.robots[0]
+        m = s.model(r, controller="heading", speed=pl["speed"], max_turn=pl["max_turn"])
+        x = m.initial_state(r.start, r.goal, r.initial)
+        goal = np.asarray(r.goal, dtype=float)
+        length, outcome = 0.0, "timeout"
+        V = np.zeros(2)
+        hist = [x[:2].copy()]
+        window = int(round(pl["stuck_window"] / s.dt))
+        for k in range(int(math.ceil(s.max_time / s.dt))):
+            t = k * s.dt
+            d, a, fa, fr = effc_inputs(s.world, x[None, :2], goal[None], m.radius, t)
+            sim.input["dtheta"], sim.input["alpha"] = float(d[0]), float(a[0])
+            try:
+                sim.compute()
+                w = sim.output.get("w", system.output.default)
+            except Exception:           # scikit-fuzzy raises where no rule fires
+                w = system.output.default
+            F = effc_force(np.array([w]), fa, fr)[0]
+            if np.hypot(*F) > 0:          # balanced forces keep the previous command
+                V = F / np.hypot(*F) * pl["speed"]
+            xn = m.step(x[None], m.carrot(x[None], V[None]))[0]
+            length += float(np.hypot(*(xn[:2] - x[:2])))
+            x = xn
+            hist.append(x[:2].copy())
+            centers, radii = m.footprint(x[None])
+            if np.any(s.world.clearance(centers[0], t=t + s.dt) < radii):
+                outcome = "collided"
+                break
+            if not np.all(s.world.inside_workspace(centers[0], radii.max())):
+                outcome = "out_of_bounds"
+                break
+            if np.hypot(*(x[:2] - goal)) <= r.goal_radius:
+                outcome = "reached"
+                break
+            if len(hist) > window:
+                w_ = np.array(hist[-window - 1:])
+                if np.max(np.hypot(*(w_ - w_.mean(axis=0)).T)) < pl["stuck_radius"] * r.goal_radius:
+                    outcome = "stuck"
+                    break
+        total += length if outcome == "reached" else rw["penalty"]
+    return total
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--reduced", type=int, default=6, help="individuals in the reduced job")
+    ap.add_argument("--skip-full", action="store_true")
+    args = ap.parse_args()
+    job = load_job()
+    if not args.skip_full:
+        job2 = job.with_backend(workers=args.workers)
+        with tempfile.TemporaryDirectory() as out, make_backend(args.workers) as be:
+            tic = time.perf_counter()
+            res = tune(job2, out, backend=be)
+            wall = time.perf_counter() - tic
+        evals = sum(r["evals"] for r in res.logbook)
+        print(f"paper-scale job: population {job['ga']['population']}, "
+              f"{job['ga']['generations']} generations, 2 environments, {args.workers} workers: "
+              f"{wall:.1f} s wall for {evals} individuals ({evals * 2 / wall:.0f} "
+              f"(individual, environment) evaluations/s); best reward {res.logbook[-1]['min']:.4f}"
+              f"   (target <= 30 s)")
+    space = GenomeSpace(job.start_system(), job["free"])
+    X = np.vstack([space.encode()[None], space.random(args.reduced - 1,
+                                                      np.random.default_rng(0))])
+    js = json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
+    # the lockstep path evaluates a whole generation's chunk at once: time a full population
+    # (the reduced job's genomes first) and take the time per (individual, environment)
+    P = np.vstack([X, space.random(job["ga"]["population"] - len(X),
+                                   np.random.default_rng(1))])
+    evaluate_chunk(js, P[:1], 0, [0])                  # build and compile once
+    tic = time.perf_counter()
+    fast_all = evaluate_chunk(js, P, 0, list(range(len(P))))
+    t_fast = (time.perf_counter() - tic) / (len(P) * 2)
+    fast = [r["fitness"] for r in fast_all[:len(X)]]
+    scenarios = job.scenarios()
+    tic = time.perf_counter()
+    slow = [straightforward_reward(job, space.system(x), scenarios) for x in X]
+    t_slow = (time.perf_counter() - tic) / (len(X) * 2)
+    print(f"per (individual, environment) evaluation: lockstep (a generation of {len(P)} in one "
+          f"chunk) {t_fast * 1e3:.2f} ms, straightforward (reduced job, {len(X)} individuals) "
+          f"{t_slow * 1e3:.1f} ms; "
+          f"ratio {t_slow / t_fast:.0f}x (target >= 100x); max reward difference "
+          f"{max(abs(a - b) for a, b in zip(fast, slow)):.2e}")
+
+
+if __name__ == "__main__":
+    main()
