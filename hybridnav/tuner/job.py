@@ -42,7 +42,7 @@ DEFAULT_JOB: dict[str, Any] = {
     "reward": {"sense": "minimize", "penalty": 100.0, "repeats": 1, "heading_noise": 0.0},
     "planner": {"speed": 0.1, "max_turn": math.pi / 4, "stuck_window": 10.0,
                 "stuck_radius": 2.0},
-    "backend": {"workers": 1, "dask": "", "chunk": 25},
+    "backend": {"workers": 1, "dask": "", "chunk": 50},
 }
 
 _QUICK = {"population": 12, "generations": 3}
