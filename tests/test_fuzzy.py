@@ -192,7 +192,7 @@ ERRORS = [
     (_set(["inputs", 1, "range"], [2.0, 2.0]), "inputs[1].range", "expected lo < hi"),
     (_set(["inputs", 1, "range"], [2.0, 0.0]), "inputs[1].range", "expected lo < hi"),
     (_set(["inputs", 1, "range"], [0.0]), "inputs[1].range", "expected 2 numbers"),
-    (_set(["output", "points"], 1), "output.points", "expected an integer >= 2, got 1"),
+    (_set(["output", "points"], 1), "output.points", "expected an integer from 2 to 1000000, got 1"),
     (_set(["inputs", 0, "range", 1], math.nan), "inputs[0].range[1]", "expected a finite number"),
     (_set(["inputs", 0, "terms", 0, "params", 0], math.inf), "inputs[0].terms[0].params[0]",
      "expected a finite number"),

@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fuzzy.mf import sample
-from hybridnav.fuzzy.spec import And, Not, Or, TermRef
+from hybridnav.fuzzy.spec import And, Not, TermRef
 
 __all__ = ["FamilyTables", "SystemFamily"]
 

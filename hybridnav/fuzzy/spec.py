@@ -22,6 +22,8 @@ __all__ = [
 
 #: The format string this module reads and writes.
 FORMAT = "hybridnav-fis/1"
+#: Most universe samples a variable may have (a file from elsewhere cannot exhaust memory).
+MAX_POINTS = 1_000_000
 
 DEFUZZ_METHODS = ("centroid",)
 
@@ -216,8 +218,8 @@ def _read_variable_fields(r: _Reader, d: Mapping[str, Any], key: str) -> dict[st
     if not lo < hi:
         raise r.fail(f"{key}.range", f"expected lo < hi, got [{lo!r}, {hi!r}]")
     points = r.integer(d["points"], f"{key}.points")
-    if points < 2:
-        raise r.fail(f"{key}.points", f"expected an integer >= 2, got {points}")
+    if not 2 <= points <= MAX_POINTS:
+        raise r.fail(f"{key}.points", f"expected an integer from 2 to {MAX_POINTS}, got {points}")
     terms = _read_terms(r, d["terms"], f"{key}.terms")
     return {"name": name, "range": (lo, hi), "points": points, "terms": terms}
 

@@ -100,8 +100,15 @@ class FuzzySystem:
             The message names the file (if ``source``), the key path (``inputs[0].terms[1].params``)
             and what was expected.
         """
+        prefix = f"{source}: " if source else ""
         self = cls.__new__(cls)
-        self._init(parse_system(d, source), source)
+        try:
+            self._init(parse_system(d, source), source)
+        except RecursionError:
+            raise HybridnavError(f"{prefix}rules: antecedents nested too deeply") from None
+        except FloatingPointError as exc:
+            raise HybridnavError(f"{prefix}a membership function has no finite values "
+                                 f"({exc})") from None
         return self
 
     def to_dict(self) -> dict[str, Any]:
@@ -318,12 +325,14 @@ def loads(text: str, source: str | None = None) -> FuzzySystem:
     HybridnavError
         JSON syntax errors (with line and column), duplicate keys, or invalid content.
     """
+    prefix = f"{source}: " if source else ""
     try:
         d = json.loads(text, object_pairs_hook=_no_duplicate_keys(source))
     except json.JSONDecodeError as exc:
-        prefix = f"{source}: " if source else ""
         raise HybridnavError(f"{prefix}line {exc.lineno} column {exc.colno}: invalid JSON "
                              f"({exc.msg})") from None
+    except RecursionError:
+        raise HybridnavError(f"{prefix}JSON nested too deeply") from None
     return FuzzySystem.from_dict(d, source)
 
 
