@@ -157,7 +157,7 @@ def _cmd_fis(args: argparse.Namespace) -> int:
     from hybridnav import fuzzy
     from hybridnav.fuzzy import plots
 
-    system = fuzzy.load(args.fis)
+    system = fuzzy.load_any(args.fis)
     print(f"{system.name}: {len(system.inputs)} inputs, {len(system.rules)} rules, output "
           f"{system.output.name} in {list(system.output.range)} (default {system.output.default})")
     for v in system.inputs:
@@ -204,6 +204,20 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     print(f"{job.name}: training reward start {result.start_fitness:.4f} -> tuned {best:.4f} "
           f"({len(result.system.rules)} rules kept)")
     print(f"wrote {args.out}/: {', '.join(files)}")
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from hybridnav import fuzzy
+
+    system = fuzzy.load_any(args.fis, points=args.points)
+    opts: dict[str, object] = {}
+    if args.sampled:
+        opts["sampled"] = True
+    if args.float:
+        opts["real"] = "float"
+    for path in fuzzy.export_to_file(system, args.format, args.out, **opts):
+        print(path)
     return 0
 
 
@@ -289,6 +303,20 @@ def build_parser() -> argparse.ArgumentParser:
                                                            "LocalCluster)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.json")
     p.set_defaults(func=_cmd_tune)
+
+    p = sub.add_parser("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
+                                      "IEC 61131-7 FCL or standalone C")
+    p.add_argument("fis", metavar="FIS", help="built-in name or a .json/.fll/.fis file")
+    p.add_argument("--format", required=True, choices=["json", "fll", "fis", "fcl", "c"])
+    p.add_argument("-o", "--out", metavar="PATH", help="output file; for c a prefix (PATH.h, "
+                                                       "PATH.c); default <name>.<ext>")
+    p.add_argument("--sampled", action="store_true", help="fll/fcl: terms as their sampled "
+                                                          "polylines (exactly hybridnav's "
+                                                          "membership)")
+    p.add_argument("--float", action="store_true", help="c: single precision by default")
+    p.add_argument("--points", type=int, default=101, help="universe points for .fll/.fis files "
+                                                           "without hybridnav metadata")
+    p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)

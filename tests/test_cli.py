@@ -79,3 +79,26 @@ def test_analyze_with_a_bad_scenario_exits_2(tmp_path):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert "fastep-s3.toml: obstacles[0]: the LbCS model takes circle obstacles only" in proc.stderr
+
+
+def test_export_every_format_and_back(tmp_path, capsys):
+    src = tmp_path / "sys.json"
+    assert main(["export", "effc-5rule", "--format", "json", "-o", str(src)]) == 0
+    for fmt in ("fll", "fis", "fcl"):
+        out = tmp_path / f"sys.{fmt}"
+        assert main(["export", str(src), "--format", fmt, "-o", str(out)]) == 0
+        assert out.read_text().strip()
+    assert main(["export", str(src), "--format", "c", "-o", str(tmp_path / "c" / "effc")]) == 0
+    assert (tmp_path / "c" / "effc.h").exists() and (tmp_path / "c" / "effc.c").exists()
+    back = tmp_path / "back.json"
+    assert main(["export", str(tmp_path / "sys.fll"), "--format", "json", "-o", str(back)]) == 0
+    import json as _json
+    a, b = _json.loads(back.read_text()), _json.loads(src.read_text())
+    assert a["inputs"] == b["inputs"] and a["output"] == b["output"]
+
+
+def test_export_bad_file_exits_2(tmp_path):
+    bad = tmp_path / "bad.fis"
+    bad.write_text("[System]\nName='x'\nType='sugeno'\n")
+    proc = run("export", str(bad), "--format", "json")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and "bad.fis" in proc.stderr

@@ -70,7 +70,7 @@ class EFFC(FieldPlanner):
     name = "effc"
     description = "evolutionary fuzzy force control: fuzzy-weighted blend of unit APF forces"
     params: ClassVar[dict[str, Param]] = {
-        "fis": Param("effc-2rule", "fuzzy system: a built-in name or a hybridnav-fis/1 JSON file"),
+        "fis": Param("effc-2rule", "fuzzy system: a built-in name or a .json, .fll or .fis file"),
         **COMMON,
     }
 
@@ -82,7 +82,7 @@ class EFFC(FieldPlanner):
             params["fis"] = system.name
         super().__init__(**params)
         if not isinstance(system, fuzzy.FuzzySystem):
-            system = fuzzy.load(self.values["fis"])
+            system = fuzzy.load_any(self.values["fis"])
         missing = {"dtheta", "alpha"} - set(system.input_names)
         if missing or len(system.input_names) != 2:
             raise HybridnavError(

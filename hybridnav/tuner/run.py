@@ -4,7 +4,8 @@
 std, wall_time), ``evaluations.csv`` (every individual's outcome, length and time per training
 environment), ``convergence.png``, ``mfs.png`` (start and tuned), ``surface.png``, ``paths.png``
 (the starting and the tuned controller on the training and held-out scenarios), ``report.md``,
-and the deployment exports when :mod:`hybridnav.fuzzy.export` is available.
+and the deployment exports: ``fis.fll`` (fuzzylite), ``fis.fis`` (MATLAB), ``fis.fcl``
+(IEC 61131-7) and ``effc_fis.h``/``effc_fis.c`` (standalone C).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.plotting import plot_result, save_figure
 from hybridnav.tuner.backends import make_backend
@@ -98,10 +100,15 @@ def _exports(system, out: Path) -> list[str]:
     except ImportError:
         return []
     names = []
-    for fmt in ("fll", "fis", "fcl", "c"):
-        suffix = {"c": ""}.get(fmt, f".{fmt}")
-        written = export_to_file(system, fmt, out / f"fis{suffix}" if fmt != "c"
-                                 else out / "effc_fis")
+    # FLL and FCL carry the sampled terms: exactly the membership the GA tuned, whatever the
+    # universe resolution (formula terms can differ where a narrow term spans few samples)
+    for fmt, target, opts in (("fll", "fis.fll", {"sampled": True}), ("fis", "fis.fis", {}),
+                              ("fcl", "fis.fcl", {"sampled": True}), ("c", "effc_fis", {})):
+        try:
+            written = export_to_file(system, fmt, out / target, **opts)
+        except HybridnavError as exc:       # e.g. a rule MATLAB's .fis cannot express
+            log.warning("no %s export: %s", fmt, exc)
+            continue
         names += [Path(p).name for p in written]
     return names
 
