@@ -358,3 +358,14 @@ def build_system(doc: Mapping[str, Any], source: str | None) -> FuzzySystem:
 def terms_json(terms: Iterable[tuple[str, str, Sequence[float]]]) -> list[dict[str, Any]]:
     """``[{"name", "mf", "params"}]`` from ``(name, mf, params)`` triples."""
     return [{"name": n, "mf": mf, "params": list(p)} for n, mf, p in terms]
+
+
+def parse_number(err: LineError, line: int, text: str, what: str) -> float:
+    """A finite float from a text file (``nan``/``inf`` are rejected), or a line error."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise err(line, f"{what}: expected a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise err(line, f"{what}: expected a finite number, got {text!r}")
+    return v

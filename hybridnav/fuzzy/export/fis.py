@@ -39,12 +39,12 @@ indices) or Sugeno system is a :class:`HybridnavError` naming the file and line.
 from __future__ import annotations
 
 import logging
-import math
 import re
 from typing import Any
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fuzzy.export._common import (
+    parse_number,
     DEFAULT_POINTS, LineError, build_system, check_names, check_points, check_range, check_term,
     fnum, metadata_json, normalize, parse_metadata, version,
 )
@@ -202,18 +202,8 @@ def _string(err: LineError, n: int, key: str, value: str) -> str:
     return v
 
 
-def _num(err: LineError, n: int, key: str, text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise err(n, f"{key}: expected a number, got {text!r}") from None
-    if not math.isfinite(v):
-        raise err(n, f"{key}: expected a finite number, got {text!r}")
-    return v
-
-
 def _int(err: LineError, n: int, key: str, text: str) -> int:
-    v = _num(err, n, key, text)
+    v = parse_number(err, n, text, key)
     if v != int(v):
         raise err(n, f"{key}: expected an integer, got {text!r}")
     if abs(v) > 1e9:
@@ -222,7 +212,7 @@ def _int(err: LineError, n: int, key: str, text: str) -> int:
 
 
 def _numbers(err: LineError, n: int, key: str, text: str) -> list[float]:
-    return [_num(err, n, key, t) for t in text.replace(",", " ").split()]
+    return [parse_number(err, n, t, key) for t in text.replace(",", " ").split()]
 
 
 class _Section:
@@ -465,7 +455,7 @@ def _read_rule(err: LineError, n: int, line: str, in_docs: list[dict[str, Any]],
         raise err(n, f"rule: expected {len(in_docs)} input codes, got {len(ins)}")
     if len(outs) != 1:
         raise err(n, f"rule: expected 1 output code, got {len(outs)}")
-    weight = _num(err, n, "rule weight", m.group("w").strip())
+    weight = parse_number(err, n, m.group("w").strip(), "rule weight")
     if not 0.0 <= weight <= 1.0:
         raise err(n, f"rule weight: expected a number in [0, 1], got {weight!r}")
     conn = m.group("conn")
@@ -473,7 +463,7 @@ def _read_rule(err: LineError, n: int, line: str, in_docs: list[dict[str, Any]],
         raise err(n, f"rule connector: expected 1 (AND) or 2 (OR), got {conn!r}")
     leaves: list[Antecedent] = []
     for d, code_s in zip(in_docs, ins):
-        code = _num(err, n, "rule input code", code_s)
+        code = parse_number(err, n, code_s, "rule input code")
         if code != int(code):
             raise err(n, f"rule: input code {code_s} has a hedge (fractional part); hedges are "
                       "not supported")
@@ -486,7 +476,7 @@ def _read_rule(err: LineError, n: int, line: str, in_docs: list[dict[str, Any]],
         leaves.append(Not(leaf) if c < 0 else leaf)
     if not leaves:
         raise err(n, "rule: every input code is 0 (a rule needs at least one condition)")
-    oc = _num(err, n, "rule output code", outs[0])
+    oc = parse_number(err, n, outs[0], "rule output code")
     if oc != int(oc) or not 1 <= oc <= len(out_doc["terms"]):
         raise err(n, f"rule: output code must be a term index 1..{len(out_doc['terms'])} "
                   f"(negated or hedged consequents are not supported), got {outs[0]}")

@@ -43,6 +43,7 @@ import re
 from typing import Any
 
 from hybridnav.fuzzy.export._common import (
+    parse_number,
     DEFAULT_POINTS, LineError, build_system, check_names, check_points, check_range, check_term,
     fnum, metadata_json, normalize, one_line, parse_metadata, sampled_polyline, version,
 )
@@ -167,17 +168,6 @@ def to_fll(system: FuzzySystem, *, sampled: bool = False) -> str:
 
 _TOKEN = re.compile(r"\(|\)|[^\s()]+")
 _MAX_DEPTH = 100
-
-
-def parse_number(err: LineError, line: int, text: str, what: str) -> float:
-    """A finite float (fuzzylite's ``nan``/``inf`` are rejected here)."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise err(line, f"{what}: expected a number, got {text!r}") from None
-    if not math.isfinite(v):
-        raise err(line, f"{what}: expected a finite number, got {text!r}")
-    return v
 
 
 def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]],
