@@ -141,3 +141,20 @@ def test_crossing_table_is_skfuzzys_interp_universe(f, ys):
         want = np.nonzero(np.diff(f >= y))[0]  # skfuzzy's _interp_universe_fast for y > 0
         row = table[np.searchsorted(levels, y)]
         assert row[row >= 0].tolist() == want.tolist()
+
+
+def test_tiny_activations_match_skfuzzy_batch_and_scalar():
+    """All activations ~1e-177: the centroid is moment / eps, tiny, not rounding noise."""
+    fs = FuzzySystem.from_dict({
+        "format": "hybridnav-fis/1", "name": "tiny",
+        "inputs": [{"name": "x0", "range": [0.0, 1.0], "points": 11,
+                    "terms": [{"name": "t0", "mf": "zmf", "params": [0.0, 0.3]}]}],
+        "output": {"name": "y", "range": [1.0, 3.5], "points": 29,
+                   "terms": [{"name": "t2", "mf": "trapmf",
+                              "params": [1.0, 1.0, 1.0, 1.4464285714285714]}],
+                   "defuzz": "centroid", "default": 1.0},
+        "rules": [{"if": ["x0", "t0"], "then": "t2", "weight": 6.681712657784575e-177}]})
+    x = np.linspace(0.0, 0.25, 9)
+    ref = reference(fs, [x])
+    assert np.abs(fs.evaluate(x0=x) - ref).max() <= 1e-170
+    assert abs(fs.evaluate(x0=float(x[1])) - ref[1]) <= 1e-170

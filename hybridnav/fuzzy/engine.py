@@ -227,6 +227,8 @@ class CompiledSystem:
         Fo = np.stack([sample(t.mf, t.params, xs) for t in used])  # (T, M)
         So = _interp_slopes(xs, Fo)
         self.out_F = Fo
+        # below this aggregated area the table identities' rounding matters: direct centroid
+        self._tiny_area = 1e-6 * float(xs[-1] - xs[0])
         self.out_positive = [bool(np.any(f > 0)) for f in Fo]
         self._out_positive = np.array(self.out_positive)
         dx = np.diff(xs)
@@ -357,7 +359,23 @@ class CompiledSystem:
         fired = ((cuts > 0.0) & self._out_positive[:, None]).any(axis=0)
         if not fired.all():
             out[~fired] = self.default
+        tiny = fired & (area < self._tiny_area)
+        if tiny.any():
+            out[tiny] = self._direct(cuts[:, tiny].T)
         return out
+
+    def _direct(self, cuts: FloatArray) -> FloatArray:
+        """The centroid computed directly from ``min(cut, F)`` for samples ``cuts`` (B, T).
+
+        The table identities above subtract quantities of the size of the output range, which
+        leaves rounding noise of about 1e-16 of it in the area; where the whole aggregated area
+        is that small (all activations tiny) the direct computation keeps the result exact.
+        """
+        from hybridnav.fuzzy.family import upsampled_centroid
+
+        B, T = cuts.shape
+        F = np.broadcast_to(self.out_F, (B,) + self.out_F.shape)
+        return upsampled_centroid(self.out_x, F, cuts, np.ones((B, T), dtype=bool), self.default)
 
     def _dense(self, cuts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``W @ A`` with ``A = max_t min(c_t, f_t)`` formed as an ``(M, B)`` array."""
@@ -490,6 +508,8 @@ class CompiledSystem:
                 area += da
                 mom += da * (lx + p + x1) * (1.0 / 3.0)
                 lx, ly = p, ap
+        if area < self._tiny_area:       # all activations tiny: see _direct
+            return float(self._direct(np.array([cuts], dtype=float))[0])
         return mom / max(area, _EPS)
 
 

@@ -26,7 +26,7 @@ from hybridnav.errors import HybridnavError
 from hybridnav.fuzzy.mf import sample
 from hybridnav.fuzzy.spec import And, Not, TermRef
 
-__all__ = ["FamilyTables", "SystemFamily"]
+__all__ = ["FamilyTables", "SystemFamily", "upsampled_centroid"]
 
 FloatArray = NDArray[np.float64]
 _EPS = np.finfo(float).eps
@@ -157,7 +157,8 @@ class SystemFamily:
             sel = cons == t
             used[:, t] = sel.any(axis=1)
             cuts[:, t] = np.max(np.where(sel, strength, 0.0), axis=1, initial=0.0)
-        out = self._defuzz(tables.output[member], cuts, used)
+        out = upsampled_centroid(self.x_out, tables.output[member], cuts, used,
+                                 self.output.default)
         out[np.isnan(strength).any(axis=1)] = np.nan
         return out
 
@@ -173,58 +174,61 @@ class SystemFamily:
             acc = op(acc, p)
         return acc
 
-    def _defuzz(self, F: FloatArray, cuts: FloatArray, used: NDArray[np.bool_]) -> FloatArray:
-        """Centroid of ``max_t min(cut_t, F_t)`` on the universe upsampled at the crossings.
 
-        ``F`` is (B, T, M) per-sample output tables, ``cuts`` (B, T); terms not used by any rule
-        of the sample's member are left out. scikit-fuzzy adds only each term's crossings of its
-        own cut level to the universe, so between grid points without a crossing its aggregated
-        curve is the straight line between the grid values: the integral is the trapezoid sum on
-        the grid, corrected on the few intervals that contain crossings.
-        """
-        xs = self.x_out
-        B, T, M = F.shape
-        x0, x1, dx = xs[:-1], xs[1:], np.diff(xs)
-        cut = np.where(used, cuts, 0.0)
-        A = np.minimum(cut[:, 0, None], F[:, 0])                 # (B, M) on the grid
-        for t in range(1, T):
-            np.maximum(A, np.minimum(cut[:, t, None], F[:, t]), out=A)
-        # trapezoid sums on the grid as matrix-vector products: per interval
-        # area = dx (ya + yb) / 2 and moment = (ya + yb) dx x0 / 2 + (ya + 2 yb) dx^2 / 6
-        ssum = A[:, :-1] + A[:, 1:]
-        c1, c2 = dx * x0 / 2.0, dx * dx / 6.0
-        total = ssum @ (dx / 2.0)
-        moment_total = ssum @ c1 + (ssum + A[:, 1:]) @ c2
-        # scikit-fuzzy's _interp_universe_fast: where "F >= cut" changes between neighbouring
-        # samples it adds the linear crossing point. For a zero cut ("F > 0" changes) those
-        # points coincide with universe samples up to rounding and change nothing: skipped.
-        c3 = np.where(used & (cuts > 0), cuts, np.inf)[:, :, None]
-        above = F >= c3
-        cross = above[:, :, :-1] != above[:, :, 1:]
-        bi, ti, ii = np.nonzero(cross)
-        if len(bi):
-            key = bi * (M - 1) + ii
-            uk, inv = np.unique(key, return_inverse=True)
-            ub, ui = uk // (M - 1), uk % (M - 1)
-            Fl, Fr = F[bi, ti, ii], F[bi, ti, ii + 1]
-            p = x0[ii] + (cuts[bi, ti] - Fl) * dx[ii] / (Fr - Fl)
-            pts = np.repeat(x0[ui][:, None], T + 2, axis=1)        # (U, T+2)
-            pts[:, -1] = x1[ui]
-            pts[inv, 1 + ti] = p
-            pts = np.sort(pts, axis=1)
-            frac = (pts - x0[ui][:, None]) / dx[ui][:, None]
-            G0 = F[ub, :, ui]                                     # (U, T)
-            G1 = F[ub, :, ui + 1]
-            lerp = G0[:, :, None] + (G1 - G0)[:, :, None] * frac[:, None, :]
-            agg = np.max(np.minimum(cut[ub][:, :, None], lerp), axis=1)   # (U, T+2)
-            xa, xb, ga, gb = pts[:, :-1], pts[:, 1:], agg[:, :-1], agg[:, 1:]
-            w = xb - xa
-            fine_area = (0.5 * w * (ga + gb)).sum(axis=1)
-            fine_moment = (w * (xa * (ga + gb) / 2.0 + w * (ga + 2.0 * gb) / 6.0)).sum(axis=1)
-            s_u = ssum[ub, ui]
-            base_area = s_u * dx[ui] / 2.0
-            base_moment = s_u * c1[ui] + (s_u + A[ub, ui + 1]) * c2[ui]
-            total = total + np.bincount(ub, fine_area - base_area, minlength=B)
-            moment_total = moment_total + np.bincount(ub, fine_moment - base_moment, minlength=B)
-        crisp = moment_total / np.fmax(total, _EPS)
-        return np.where(A.max(axis=1) > 0, crisp, self.output.default)
+def upsampled_centroid(xs: FloatArray, F: FloatArray, cuts: FloatArray,
+                       used: NDArray[np.bool_], default: float) -> FloatArray:
+    """Centroid of ``max_t min(cut_t, F_t)`` on the universe upsampled at the crossings.
+
+    ``xs`` is the output universe (M,), ``F`` (B, T, M) the output term samples of each sample,
+    ``cuts`` (B, T) their cut levels; terms not used by any rule of the sample's system
+    (``used`` False) are left out; ``default`` where nothing fires. Computed directly from
+    ``min(cut, F)``, so it stays exact however small the cuts are. scikit-fuzzy adds only each term's crossings of its
+    own cut level to the universe, so between grid points without a crossing its aggregated
+    curve is the straight line between the grid values: the integral is the trapezoid sum on
+    the grid, corrected on the few intervals that contain crossings.
+    """
+    B, T, M = F.shape
+    x0, x1, dx = xs[:-1], xs[1:], np.diff(xs)
+    cut = np.where(used, cuts, 0.0)
+    A = np.minimum(cut[:, 0, None], F[:, 0])                 # (B, M) on the grid
+    for t in range(1, T):
+        np.maximum(A, np.minimum(cut[:, t, None], F[:, t]), out=A)
+    # trapezoid sums on the grid as matrix-vector products: per interval
+    # area = dx (ya + yb) / 2 and moment = (ya + yb) dx x0 / 2 + (ya + 2 yb) dx^2 / 6
+    ssum = A[:, :-1] + A[:, 1:]
+    c1, c2 = dx * x0 / 2.0, dx * dx / 6.0
+    total = ssum @ (dx / 2.0)
+    moment_total = ssum @ c1 + (ssum + A[:, 1:]) @ c2
+    # scikit-fuzzy's _interp_universe_fast: where "F >= cut" changes between neighbouring
+    # samples it adds the linear crossing point. For a zero cut ("F > 0" changes) those
+    # points coincide with universe samples up to rounding and change nothing: skipped.
+    c3 = np.where(used & (cuts > 0), cuts, np.inf)[:, :, None]
+    above = F >= c3
+    cross = above[:, :, :-1] != above[:, :, 1:]
+    bi, ti, ii = np.nonzero(cross)
+    if len(bi):
+        key = bi * (M - 1) + ii
+        uk, inv = np.unique(key, return_inverse=True)
+        ub, ui = uk // (M - 1), uk % (M - 1)
+        Fl, Fr = F[bi, ti, ii], F[bi, ti, ii + 1]
+        p = x0[ii] + (cuts[bi, ti] - Fl) * dx[ii] / (Fr - Fl)
+        pts = np.repeat(x0[ui][:, None], T + 2, axis=1)        # (U, T+2)
+        pts[:, -1] = x1[ui]
+        pts[inv, 1 + ti] = p
+        pts = np.sort(pts, axis=1)
+        frac = (pts - x0[ui][:, None]) / dx[ui][:, None]
+        G0 = F[ub, :, ui]                                     # (U, T)
+        G1 = F[ub, :, ui + 1]
+        lerp = G0[:, :, None] + (G1 - G0)[:, :, None] * frac[:, None, :]
+        agg = np.max(np.minimum(cut[ub][:, :, None], lerp), axis=1)   # (U, T+2)
+        xa, xb, ga, gb = pts[:, :-1], pts[:, 1:], agg[:, :-1], agg[:, 1:]
+        w = xb - xa
+        fine_area = (0.5 * w * (ga + gb)).sum(axis=1)
+        fine_moment = (w * (xa * (ga + gb) / 2.0 + w * (ga + 2.0 * gb) / 6.0)).sum(axis=1)
+        s_u = ssum[ub, ui]
+        base_area = s_u * dx[ui] / 2.0
+        base_moment = s_u * c1[ui] + (s_u + A[ub, ui + 1]) * c2[ui]
+        total = total + np.bincount(ub, fine_area - base_area, minlength=B)
+        moment_total = moment_total + np.bincount(ub, fine_moment - base_moment, minlength=B)
+    crisp = moment_total / np.fmax(total, _EPS)
+    return np.where(A.max(axis=1) > 0, crisp, default)
