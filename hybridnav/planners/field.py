@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybridnav.planners.base import Param, Planner
-from hybridnav.planners.simulate import Simulation, simulate
+from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.results import Result
 
 __all__ = ["FieldPlanner"]
@@ -96,6 +96,7 @@ class FieldPlanner(Planner):
         models = [scenario.model(r, **self.model_overrides(r)) for r in scenario.robots]
         speed = self.values["speed"]
         last = np.zeros((len(models), 2))       # the last non-zero command of each robot
+        groups = model_groups(models)
 
         def controller(sim: Simulation) -> np.ndarray:
             T = np.full((sim.n, 2), np.nan)
@@ -108,8 +109,12 @@ class FieldPlanner(Planner):
             zero = ~(norm > 0)
             V[zero] = last[idx[zero]]
             last[idx[~zero]] = V[~zero]
-            for j, i in enumerate(idx):
-                T[i] = models[i].carrot(sim.X[i][None], V[j][None])[0]
+            Vall = np.zeros((sim.n, 2))
+            Vall[idx] = V
+            for model, members in groups:          # one carrot call per model group
+                act = members[sim.active[members]]
+                if len(act):
+                    T[act] = model.carrot(np.array([sim.X[i] for i in act]), Vall[act])
             return T
 
         goal_r = np.array([r.goal_radius for r in scenario.robots])

@@ -29,7 +29,7 @@ import numpy as np
 
 from hybridnav.results import RobotResult
 
-__all__ = ["Simulation", "simulate"]
+__all__ = ["Simulation", "model_groups", "simulate"]
 
 
 @dataclass
@@ -71,7 +71,7 @@ class Simulation:
             self.outcome[i] = outcome
 
 
-def _groups(models) -> list[tuple[Any, np.ndarray]]:
+def model_groups(models) -> list[tuple[Any, np.ndarray]]:
     """Robots whose models are equal share one batched step."""
     groups: dict[tuple, list[int]] = {}
     first: dict[tuple, Any] = {}
@@ -125,7 +125,7 @@ def simulate(
         X.append(m.initial_state(r.start, goal, r.initial))
     sim = Simulation(scenario, models, X, active=np.ones(n, dtype=bool), outcome=[None] * n,
                      time_to_goal=[None] * n)
-    groups = _groups(models)
+    groups = model_groups(models)
     world = scenario.world
     goal_r = np.array([r.goal_radius for r in robots])
     if stuck_radius is None:
