@@ -84,12 +84,34 @@ def test_evaluate_matches_skfuzzy(d, seed):
     got = fs.evaluate(**dict(zip(fs.input_names, cols)))
     fired = ~np.isnan(ref)
     if fired.any():
-        assert np.max(np.abs(got[fired] - ref[fired])) <= TOL
+        # Where the strongest activation c is tiny, the crossing points (where a term falls to
+        # c) carry rounding of about 1e-16 of the term's scale, i.e. 1e-16 / c relative to the
+        # clipped area: both implementations are only that accurate there (a derandomized run
+        # found c = 1.7e-11 giving 3e-9 apart, ours the closer to the exact integral).
+        act = max_activation(fs, cols)
+        width = fs.output.range[1] - fs.output.range[0]
+        tol = TOL + width * 1e-15 / np.maximum(act, 1e-300)
+        assert np.all(np.abs(got[fired] - ref[fired]) <= tol[fired])
     assert np.all(got[~fired] == fs.output.default)
     # the scalar (batch-of-one) path agrees with the batch path
     one = np.array([fs.evaluate(**{nm: float(c[k]) for nm, c in zip(fs.input_names, cols)})
                     for k in range(n)])
     np.testing.assert_allclose(one, got, rtol=0, atol=1e-12)
+
+
+def max_activation(fs: FuzzySystem, cols: list[np.ndarray]) -> np.ndarray:
+    """The strongest rule activation (firing strength x weight) of each sample."""
+    from hybridnav.fuzzy.family import SystemFamily
+
+    fam = SystemFamily(fs)
+    tables = fam.tables_of([fs])
+    member = np.zeros(len(cols[0]), dtype=np.intp)
+    mu = {}
+    for i, (v, x) in enumerate(zip(fs.inputs, cols)):
+        xs = np.linspace(v.range[0], v.range[1], v.points)
+        for j in range(len(v.terms)):
+            mu[(i, j)] = np.interp(x, xs, tables.inputs[i][0, j])
+    return np.max([fam._fire(r.antecedent, mu) * r.weight for r in fs.rules], axis=0)
 
 
 @pytest.mark.parametrize("n_terms", [4, 5, 7])
