@@ -105,7 +105,6 @@ def max_activation(fs: FuzzySystem, cols: list[np.ndarray]) -> np.ndarray:
 
     fam = SystemFamily(fs)
     tables = fam.tables_of([fs])
-    member = np.zeros(len(cols[0]), dtype=np.intp)
     mu = {}
     for i, (v, x) in enumerate(zip(fs.inputs, cols)):
         xs = np.linspace(v.range[0], v.range[1], v.points)
