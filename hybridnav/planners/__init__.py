@@ -12,9 +12,12 @@ from hybridnav.planners.apf import APF
 from hybridnav.planners.base import Param, Planner, parse_assignments
 from hybridnav.planners.effc import EFFC
 from hybridnav.planners.hapf import HAPF
+from hybridnav.planners.lbcs import LbCSPlanner
 from hybridnav.planners.pbpf import PBPF
 
-PLANNERS: dict[str, type[Planner]] = {cls.name: cls for cls in (APF, EFFC, HAPF, PBPF)}
+PLANNERS: dict[str, type[Planner]] = {
+    cls.name: cls for cls in (APF, EFFC, HAPF, LbCSPlanner, PBPF)
+}
 
 __all__ = ["PLANNERS", "Param", "Planner", "get", "parse_assignments"]
 
