@@ -843,6 +843,14 @@ class World:
                 hit |= np.any(inner, axis=1)
         return hit
 
+    def circles(self, t: float = 0.0) -> tuple[FloatArray, FloatArray]:
+        """Centres ``(C, 2)`` at time ``t`` and radii ``(C,)`` of the circles and moving circles."""
+        return self._centers(float(t), 0)[0].copy(), self._cr.copy()
+
+    def edges(self) -> tuple[FloatArray, FloatArray]:
+        """End points ``A, B`` ``(E, 2)`` of every segment obstacle and polygon/rectangle edge."""
+        return self._eA.copy(), self._eB.copy()
+
     # -- views --------------------------------------------------------------------------------
 
     def static(self) -> World:

@@ -46,6 +46,9 @@ log = logging.getLogger(__name__)
 __all__ = ["Model", "wrap_angle", "jit_available"]
 
 
+#: Largest batch one compiled rollout function takes (larger batches run in chunks).
+_ROLLOUT_CHUNK = 4096
+
 def wrap_angle(a):
     """Wrap an angle (CasADi expression) to ``(-pi, pi]`` via ``atan2(sin a, cos a)``."""
     return cs.atan2(cs.sin(a), cs.cos(a))
@@ -500,11 +503,21 @@ class Model(ABC):
         traj[:, 0] = X0
         if n == 0 or steps == 0:
             return traj
-        b = self._buffered("rollout", n, steps)
-        b.ins[0][...] = X0
-        b.ins[1][...] = targets
-        b()
-        traj[:, 1:] = b.outs[0]
+        # Batches of varying size (swarm planners filter their candidates) share compiled
+        # functions: sizes above 8 are padded to the next power of two, and very large batches
+        # run in chunks of _ROLLOUT_CHUNK. Every robot is integrated independently, so padding
+        # and chunking change no result.
+        size = n if n <= 8 else min(1 << (n - 1).bit_length(), _ROLLOUT_CHUNK)
+        b = self._buffered("rollout", size, steps)
+        for lo in range(0, n, size):
+            hi = min(n, lo + size)
+            b.ins[0][: hi - lo] = X0[lo:hi]
+            b.ins[1][: hi - lo] = targets[lo:hi]
+            if hi - lo < size:
+                b.ins[0][hi - lo:] = X0[lo]
+                b.ins[1][hi - lo:] = targets[lo]
+            b()
+            traj[lo:hi, 1:] = b.outs[0][: hi - lo]
         return traj
 
     # ---- states, targets, footprints -------------------------------------------------------------
