@@ -4,8 +4,9 @@ A planner run that writes to a folder leaves there
 
 * ``result.json``: ``scenario``, ``planner``, ``params``, ``seed``, ``version`` and ``robots``, a
   list of objects with ``name``, ``outcome`` (one of :data:`OUTCOMES`), ``path_length``,
-  ``time_to_goal`` (null unless reached), ``min_clearance`` (null when there was nothing to be
-  near), ``compute_time`` and any extra per-robot metrics a planner adds;
+  ``smoothness`` (see :func:`smoothness`), ``time_to_goal`` (null unless reached),
+  ``min_clearance`` (null when there was nothing to be near), ``compute_time`` and any extra
+  per-robot metrics a planner adds;
 * ``trajectory_<robot name>.csv`` per robot, header ``t,x,y`` then the model's other state names.
 
 Both are written atomically. :func:`read_result` reads a folder back.
@@ -27,7 +28,15 @@ import numpy as np
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, dumps_json, json_ready
 
-__all__ = ["OUTCOMES", "RobotResult", "Result", "path_length", "read_result", "write_result"]
+__all__ = [
+    "OUTCOMES",
+    "Result",
+    "RobotResult",
+    "path_length",
+    "read_result",
+    "smoothness",
+    "write_result",
+]
 
 #: The outcome of each robot. A planner that runs out of its step or time budget reports
 #: ``timeout``; it never loops forever and never raises for it.
@@ -42,6 +51,40 @@ def path_length(xy: np.ndarray) -> float:
     if len(xy) < 2:
         return 0.0
     return float(np.hypot(*np.diff(xy, axis=0).T).sum())
+
+
+def smoothness(xy: np.ndarray) -> float:
+    """Total turning of a polyline: the sum of absolute heading changes, in radians.
+
+    Headings are taken between consecutive *distinct* points (repeated points, e.g. a robot
+    standing still, are skipped); each change between consecutive headings is wrapped to
+    ``(-pi, pi]`` before its absolute value is summed. A straight line gives 0, a right-angle
+    corner ``pi / 2``, a reversal ``pi``; inserting points along a straight piece changes nothing.
+
+    Parameters
+    ----------
+    xy : array_like, shape (T, 2)
+        The points of the path, in order.
+
+    Returns
+    -------
+    float
+        0 for fewer than three distinct points.
+
+    Examples
+    --------
+    >>> round(smoothness([[0, 0], [1, 0], [1, 0], [1, 1], [2, 1]]), 12) == round(np.pi, 12)
+    True
+    """
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    d = np.diff(xy, axis=0)
+    d = d[np.any(d != 0.0, axis=1)]
+    if len(d) < 2:
+        return 0.0
+    turn = np.diff(np.arctan2(d[:, 1], d[:, 0]))
+    turn = np.mod(turn + np.pi, 2.0 * np.pi) - np.pi      # [-pi, pi)
+    turn = np.where(turn <= -np.pi, turn + 2.0 * np.pi, turn)  # (-pi, pi]
+    return float(np.abs(turn).sum())
 
 
 @dataclass
@@ -109,12 +152,18 @@ class RobotResult:
         """Length of the travelled ``(x, y)`` polyline."""
         return path_length(self.states[:, :2])
 
+    @property
+    def smoothness(self) -> float:
+        """Sum of absolute heading changes along the travelled path (:func:`smoothness`)."""
+        return smoothness(self.states[:, :2])
+
     def summary(self) -> dict[str, Any]:
         """The robot's entry in ``result.json``."""
         out = {
             "name": self.name,
             "outcome": self.outcome,
             "path_length": self.path_length,
+            "smoothness": self.smoothness,
             "time_to_goal": self.time_to_goal,
             "min_clearance": self.min_clearance,
             "compute_time": self.compute_time,
@@ -199,7 +248,8 @@ def read_result(folder: str | Path) -> Result:
         if key not in data:
             raise HybridnavError(f"{path}: {key}: missing (expected a hybridnav result.json)")
     robots = []
-    standard = {"name", "outcome", "path_length", "time_to_goal", "min_clearance", "compute_time"}
+    standard = {"name", "outcome", "path_length", "smoothness", "time_to_goal", "min_clearance",
+                "compute_time"}
     for i, entry in enumerate(data["robots"]):
         if not isinstance(entry, dict) or "name" not in entry or "outcome" not in entry:
             raise HybridnavError(f"{path}: robots[{i}]: expected an object with name and outcome")

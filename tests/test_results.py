@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 
@@ -10,7 +11,14 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, __version__
-from hybridnav.results import OUTCOMES, Result, RobotResult, path_length, read_result
+from hybridnav.results import (
+    OUTCOMES,
+    Result,
+    RobotResult,
+    path_length,
+    read_result,
+    smoothness,
+)
 
 
 def make_result():
@@ -20,7 +28,7 @@ def make_result():
     b = RobotResult("tt-2", "collided", t[:2], np.array([[1, 1, 0.1, 0.2, 0.0],
                                                          [2, 1, 0.1, 0.2, 0.3]]),
                     ("x", "y", "theta0", "theta1", "xi"), min_clearance=math.inf,
-                    compute_time=0.5, metrics={"smoothness": 0.25})
+                    compute_time=0.5, metrics={"planned_length": 0.25})
     return Result("fastep-s1", "demo", {"a": 0.18, "n": 50}, 7, [a, b])
 
 
@@ -31,10 +39,13 @@ def test_write_and_read_back(tmp_path):
     assert set(data) == {"scenario", "planner", "params", "seed", "version", "robots"}
     assert data["version"] == __version__
     r1, r2 = data["robots"]
-    assert r1 == {"name": "R1", "outcome": "reached", "path_length": 14.0, "time_to_goal": 1.5,
+    # R1 turns from atan2(4, 3) to +y and back: twice the angle between (3, 4) and (0, 1)
+    turn = 2 * math.acos(4 / 5)
+    assert r1 == {"name": "R1", "outcome": "reached", "path_length": 14.0,
+                  "smoothness": pytest.approx(turn, abs=1e-15), "time_to_goal": 1.5,
                   "min_clearance": 0.25, "compute_time": 0.01}
     assert r2["time_to_goal"] is None and r2["min_clearance"] is None  # inf is not JSON
-    assert r2["smoothness"] == 0.25
+    assert r2["planned_length"] == 0.25 and r2["smoothness"] == 0.0
     with open(tmp_path / "out" / "trajectory_tt-2.csv", newline="") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["t", "x", "y", "theta0", "theta1", "xi"]
@@ -48,6 +59,61 @@ def test_write_and_read_back(tmp_path):
 def test_path_length_is_polyline_length():
     assert path_length(np.array([[0, 0], [3, 4], [3, 8]])) == 9.0
     assert path_length(np.zeros((1, 2))) == 0.0
+
+
+def _turning_reference(xy):
+    """Independent reference: turning angles from dot and cross products (no heading wrap)."""
+    pts = [np.asarray(p, dtype=float) for p in xy]
+    pts = [p for i, p in enumerate(pts) if i == 0 or not np.array_equal(p, pts[i - 1])]
+    total = 0.0
+    for a, b, c in zip(pts, pts[1:], pts[2:]):
+        u, v = b - a, c - b
+        total += abs(math.atan2(u[0] * v[1] - u[1] * v[0], u @ v))
+    return total
+
+
+def test_smoothness_straight_line_is_zero():
+    assert smoothness(np.column_stack([np.linspace(-3, 5, 17), np.linspace(2, -1, 17)])) == 0.0
+    assert smoothness(np.zeros((1, 2))) == 0.0 and smoothness(np.zeros((0, 2))) == 0.0
+    assert smoothness([[0, 0], [1, 1]]) == 0.0
+
+
+def test_smoothness_right_angle_and_reversal():
+    assert smoothness([[0, 0], [2, 0], [2, 3]]) == pytest.approx(math.pi / 2, abs=1e-15)
+    assert smoothness([[0, 0], [2, 0], [2, -3]]) == pytest.approx(math.pi / 2, abs=1e-15)
+    # a reversal is a change of exactly pi (the wrap is to (-pi, pi], either sign is pi)
+    assert smoothness([[0, 0], [1, 0], [0, 0]]) == pytest.approx(math.pi, abs=1e-15)
+    # headings on both sides of the -x axis: +179 deg to -179 deg is a 2 deg change, not 358
+    a = math.radians(1.0)
+    xy = [[0, 0], [-math.cos(a), math.sin(a)], [-2 * math.cos(a), 0.0]]
+    assert smoothness(xy) == pytest.approx(2 * a, rel=1e-12)
+
+
+def test_smoothness_zig_zag():
+    # n teeth of +-45 degrees: the first corner turns 90 degrees, and so does every other one
+    xy = np.array([[i, i % 2] for i in range(9)], dtype=float)
+    assert smoothness(xy) == pytest.approx(7 * math.pi / 2, rel=1e-14)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        P = rng.normal(size=(12, 2))
+        assert smoothness(P) == pytest.approx(_turning_reference(P), rel=1e-12, abs=1e-12)
+
+
+def test_smoothness_ignores_resampling_of_straight_pieces_and_repeats():
+    corners = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [1.0, 7.0], [6.0, 9.0]])
+    dense = [corners[0]]
+    for a, b in itertools.pairwise(corners):
+        for s in np.linspace(0, 1, 7)[1:]:
+            dense.append(a + s * (b - a))
+    dense = np.array(dense)
+    ref = smoothness(corners)
+    assert ref == pytest.approx(_turning_reference(corners), rel=1e-14)
+    assert smoothness(dense) == pytest.approx(ref, rel=1e-12)
+    # a robot standing still repeats its point: no heading, no change
+    stalled = np.repeat(dense, 3, axis=0)
+    assert smoothness(stalled) == pytest.approx(ref, rel=1e-12)
+    r = RobotResult("R", "timeout", np.arange(len(stalled)), stalled, ("x", "y"))
+    assert r.summary()["smoothness"] == pytest.approx(ref, rel=1e-12)
 
 
 @pytest.mark.parametrize(

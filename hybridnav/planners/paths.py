@@ -1,0 +1,725 @@
+"""Plan once, then track: grid A*/Dijkstra, river formation dynamics, PSO and RFD-PSO.
+
+Every planner here plans, for each robot in turn, one path from its start to its goal around the
+scenario's *static* obstacles, then the robot follows that path in the shared closed loop
+(:func:`hybridnav.planners.simulate.simulate`) with a pure-pursuit tracking controller. Nothing is
+replanned: moving obstacles and moving targets are refused (``moving_obstacles`` and
+``moving_targets`` are False), and the other robots are left to the shared collision check.
+
+Obstacles and units
+-------------------
+The obstacle model is the scenario's static obstacles, plus, for a scenario with a ``[grid] map``
+(e.g. ``arena``, whose map is its only obstacle model), one axis-aligned rectangle per run of
+blocked map cells (:func:`obstacle_world`). The tracking run is simulated against that same model,
+so ``collided`` and ``min_clearance`` also count the map's cells.
+
+The *cell* is the scenario's grid resolution (``[grid] resolution``; without ``[grid]``, 1/100 of
+the shorter workspace side, as :func:`hybridnav.grid.build_grid` rasterizes): ``speed``,
+``lookahead`` and ``margin`` are given in cells, so one set of defaults suits the 700 cm
+``rfd-pso-700`` (10 cm cells) and the 49-cell ``arena``.
+
+Planners
+--------
+``astar``, ``dijkstra``
+    Optimal 8-connected octile search (:mod:`hybridnav.planners.gridsearch`) on
+    ``build_grid(scenario, inflate=radius + margin)``: cells whose centre is closer than the robot
+    radius plus ``margin`` to an obstacle are blocked.
+``rfd``
+    River formation dynamics (:func:`hybridnav.planners.rfd_core.rfd`) on the same grid.
+``pso``
+    Particle swarm optimization (:func:`hybridnav.planners.swarm.pso`) over ``waypoints`` (K)
+    intermediate points in the continuous workspace; a particle is the ``2K`` vector
+    ``(x1, y1, ..., xK, yK)`` inside the workspace shrunk by the robot radius plus ``margin``, and
+    its cost is the length of the polyline ``start, w1, ..., wK, goal`` plus ``penalty`` workspace
+    diagonals for every one of its ``K + 1`` segments along which a disk of the robot radius plus
+    ``margin`` would meet an obstacle (:meth:`hybridnav.world.World.segment_collides`). Velocity
+    clamping (``vmax``) and reflection at the box are :func:`~hybridnav.planners.swarm.pso`'s.
+    The swarm starts uniformly at random in the box, each particle's waypoints sorted by their
+    projection on the start -> goal direction (the same random points, visited without needless
+    back-and-forth). The defaults are the RFD-PSO paper's Table 1 (``w = 0.5``, ``c1 = c2 =
+    0.75``) for both swarm planners, so ``pso`` is the paper's PSO baseline. With these
+    low-energy settings the swarm converges within a few tens of iterations and, in cluttered
+    maps, often onto a path with one colliding segment: then the plan fails (``stuck``), unless
+    ``restarts`` allows further runs from new random swarms (the first collision-free run wins;
+    all runs count into ``planning_time``).
+``rfd-pso``
+    RFD-PSO (Hassen, Amin & Al-Araji 2023): RFD first, then the same PSO with one particle seeded
+    from the RFD path. The seed is the RFD path *resampled to K waypoints*: its corners are pulled
+    tight first (from each vertex, the farthest later vertex whose segment is collision-free under
+    the PSO's own test becomes the next corner; so the seed's vertices lie on the RFD path and it
+    is no longer than it), then points are added on the longest segments until there are K. When
+    the pulled path needs more than K corners, K is raised to that number for this robot (the
+    ``waypoints`` metric reports the K used). The PSO keeps its best point, so whenever the
+    seed is collision-free the planned path is collision-free and no longer than the RFD path.
+    ``rfd`` and ``rfd-pso`` run with the same seed plan identical RFD paths.
+
+A planned path is always ``start, ..., goal`` (grid paths: the start, the centres of the cells
+between the start cell and the goal cell, the goal). A robot for which no path is found (goal
+unreachable on the inflated grid, start or goal cell blocked by the inflation, or no
+collision-free PSO path) ends ``stuck`` at its start; that is not an exception.
+
+Tracking
+--------
+The path is sampled densely (all its vertices kept). Each control cycle the robot's progress is
+the nearest sample within ``2 lookahead`` ahead of its previous progress (never backwards); the
+carrot is the sample ``lookahead`` further along. The commanded velocity points at the carrot with
+``speed`` (scaled down by ``distance to goal / lookahead`` within ``lookahead`` of the goal), and
+the robot's model turns it into its target point (:meth:`hybridnav.models.Model.carrot`): a point
+mass then moves at exactly that velocity; a unicycle (the paper's differential drive, its default
+go-to-point controller) drives at that speed once it faces the carrot.
+
+Metrics
+-------
+Each robot's ``result.json`` entry gets ``planned_length`` (length of the planned path
+``start, ..., goal``; null when none was found), ``planning_time`` (seconds, also counted in
+``compute_time``) and ``waypoints`` (intermediate points of the planned path), and
+
+* ``astar``, ``dijkstra``: ``grid_length`` (the cell path's length, centre to centre: the number
+  MovingAI's optimal lengths give) and ``expanded`` (nodes expanded);
+* ``rfd``: ``grid_length`` and ``rfd_iterations``;
+* ``pso``: ``pso_runs`` (1 plus the restarts used);
+* ``rfd-pso``: ``rfd_length`` (its RFD stage's planned length, as ``rfd`` reports it),
+  ``rfd_iterations`` and ``pso_runs``.
+
+Where the start or goal is not a cell centre, ``planned_length`` and ``grid_length`` differ a
+little, and two optimal cell paths (A* and Dijkstra may return different ones) can give different
+``planned_length``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import logging
+import math
+import time
+from abc import abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hybridnav.grid import OccupancyGrid, build_grid
+from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.gridsearch import HEURISTICS, astar, dijkstra
+from hybridnav.planners.rfd_core import rfd
+from hybridnav.planners.simulate import Simulation, model_groups, simulate
+from hybridnav.planners.swarm import pso
+from hybridnav.results import Result, path_length
+from hybridnav.world import MovingCircle, Rectangle, World
+
+__all__ = [
+    "AStarPlanner",
+    "DijkstraPlanner",
+    "PSOPathPlanner",
+    "PathPlanner",
+    "PlannedPath",
+    "RFDPSOPlanner",
+    "RFDPlanner",
+    "grid_rectangles",
+    "obstacle_world",
+    "pull_tight",
+    "resample_waypoints",
+]
+
+log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------------------------
+# Obstacle model
+# --------------------------------------------------------------------------------------------
+
+
+def grid_rectangles(grid: OccupancyGrid) -> list[Rectangle]:
+    """The blocked cells of a grid as few axis-aligned rectangles covering exactly them.
+
+    Each row's runs of blocked cells are merged, then equal runs of consecutive rows.
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+
+    Returns
+    -------
+    list of Rectangle
+        Their union is exactly the union of the blocked cells (in world coordinates).
+    """
+    occ = grid.occ
+    x0, y0 = grid.origin
+    res = grid.resolution
+    open_runs: dict[tuple[int, int], int] = {}   # (c0, c1) -> first row
+    boxes: list[tuple[int, int, int, int]] = []
+    for r in range(occ.shape[0] + 1):
+        runs: set[tuple[int, int]] = set()
+        if r < occ.shape[0]:
+            row = np.concatenate([[False], occ[r], [False]]).astype(np.int8)
+            d = np.diff(row)
+            runs = set(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+        for run in list(open_runs):
+            if run not in runs:
+                boxes.append((run[0], run[1], open_runs.pop(run), r))
+        for run in runs:
+            open_runs.setdefault(run, r)
+    return [Rectangle((x0 + c0 * res, y0 + r0 * res), (x0 + c1 * res, y0 + r1 * res))
+            for c0, c1, r0, r1 in sorted(boxes, key=lambda b: (b[2], b[0]))]
+
+
+def obstacle_world(scenario) -> World:
+    """The static obstacle model the planners of this module plan and are simulated against.
+
+    The scenario's static obstacles, plus, with a ``[grid] map``, the map's blocked cells
+    (:func:`grid_rectangles`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+
+    Returns
+    -------
+    World
+    """
+    world = scenario.world
+    obs = tuple(o for o in world.obstacles if not isinstance(o, MovingCircle))
+    if scenario.grid is not None and scenario.grid.map is not None:
+        obs = obs + tuple(grid_rectangles(build_grid(scenario)))
+    return World(world.workspace, obs)
+
+
+def _cell_size(scenario) -> float:
+    """The planners' length unit: the resolution :func:`build_grid` uses for this scenario."""
+    if scenario.grid is not None:
+        return float(scenario.grid.resolution)
+    xmin, xmax, ymin, ymax = scenario.world.workspace
+    return min(xmax - xmin, ymax - ymin) / 100.0
+
+
+# --------------------------------------------------------------------------------------------
+# Path helpers
+# --------------------------------------------------------------------------------------------
+
+
+def pull_tight(points: NDArray[np.float64], world: World, radius: float) -> NDArray[np.float64]:
+    """Drop the vertices of a polyline that a collision-free shortcut can skip.
+
+    From each kept vertex, the next kept vertex is the farthest later vertex whose straight
+    segment is collision-free (:meth:`World.segment_collides` with ``radius``); when not even the
+    next vertex is, the next vertex is kept anyway. The result keeps the first and last points,
+    its vertices are vertices of the input, and it is never longer than the input.
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 2)
+    world : World
+    radius : float
+
+    Returns
+    -------
+    ndarray, shape (M', 2)
+    """
+    P = np.asarray(points, dtype=float)
+    if len(P) <= 2:
+        return P.copy()
+    keep = [0]
+    i = 0
+    while i < len(P) - 1:
+        later = np.arange(i + 1, len(P))
+        free = ~world.segment_collides(np.repeat(P[i][None], len(later), axis=0), P[later],
+                                       radius=radius)
+        ok = later[free]
+        i = int(ok.max()) if ok.size else i + 1
+        keep.append(i)
+    return P[keep]
+
+
+def resample_waypoints(points: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """At least ``k`` intermediate points on a polyline, adding points on its longest segments.
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 2)
+        ``start, ..., goal``, ``M >= 2``.
+    k : int
+        Wanted number of intermediate points.
+
+    Returns
+    -------
+    ndarray, shape (max(k, M - 2), 2)
+        The intermediate points: the input's own (all kept) and, when ``M - 2 < k``, points that
+        split the longest segments evenly (a segment split into ``m`` equal parts gets ``m - 1``
+        points; the parts are assigned one by one to the segment whose parts are longest). The
+        polyline through them is the input polyline.
+    """
+    P = np.asarray(points, dtype=float)
+    seg = np.hypot(*np.diff(P, axis=0).T)
+    parts = np.ones(len(seg), dtype=int)
+    for _ in range(max(0, k - (len(P) - 2))):
+        parts[int(np.argmax(seg / parts))] += 1
+    out = []
+    for j in range(len(seg)):
+        if j > 0:
+            out.append(P[j])
+        for s in range(1, parts[j]):
+            out.append(P[j] + (P[j + 1] - P[j]) * (s / parts[j]))
+    return np.array(out).reshape(-1, 2)
+
+
+def _densify(points: NDArray[np.float64], spacing: float) -> tuple[NDArray, NDArray]:
+    """Samples of a polyline at most ``spacing`` apart (every vertex kept) and their arc length."""
+    P = np.asarray(points, dtype=float)
+    out = [P[:1]]
+    for a, b in itertools.pairwise(P):
+        m = max(1, math.ceil(float(np.hypot(*(b - a))) / spacing))
+        s = (np.arange(1, m + 1) / m)[:, None]
+        out.append(a + s * (b - a))
+    S = np.concatenate(out)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(S, axis=0).T))])
+    return S, arc
+
+
+@dataclass(eq=False)
+class PlannedPath:
+    """A robot's planned path.
+
+    Attributes
+    ----------
+    found : bool
+    points : ndarray, shape (M, 2)
+        ``start, ..., goal`` (empty when not found).
+    length : float
+        Polyline length of ``points`` (``inf`` when not found).
+    time : float
+        Planning wall time in seconds.
+    reason : str
+        Why planning failed (empty when found).
+    info : dict
+        Method-specific details: ``grid``, the search result (``search``, ``rfd``), the PSO
+        ``opt`` result, ``rfd_points`` and ``seed_points`` (RFD-PSO's RFD path and its seed
+        particle as a path).
+    metrics : dict
+        Method-specific per-robot metrics for ``result.json`` (see the module docstring).
+    """
+
+    found: bool
+    points: NDArray[np.float64]
+    length: float
+    time: float = 0.0
+    reason: str = ""
+    info: dict[str, Any] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def waypoints(self) -> int:
+        """Number of intermediate points."""
+        return max(0, len(self.points) - 2)
+
+
+def _failed(reason: str, **info: Any) -> PlannedPath:
+    return PlannedPath(False, np.zeros((0, 2)), math.inf, reason=reason, info=info)
+
+
+def _found(points: NDArray[np.float64], **info: Any) -> PlannedPath:
+    points = np.asarray(points, dtype=float)
+    return PlannedPath(True, points, path_length(points), info=info)
+
+
+# --------------------------------------------------------------------------------------------
+# Planners
+# --------------------------------------------------------------------------------------------
+
+TRACKING: dict[str, Param] = {
+    "speed": Param(1.0, "tracking speed, grid cells per second", lo=1e-9),
+    "lookahead": Param(0.5, "pure-pursuit carrot distance along the path, grid cells", lo=1e-6),
+    "margin": Param(0.25, "clearance kept beyond the robot radius when planning, grid cells",
+                    lo=0.0),
+    "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
+                                "(0: off)", lo=0.0),
+    "stuck_radius": Param(0.1, "that disk's radius, as a fraction of the distance covered at "
+                               "speed in stuck_window", lo=0.0),
+}
+
+
+@dataclass
+class _Context:
+    """What every robot's planning shares within one run."""
+
+    scenario: Any
+    world: World          # the static obstacle model (map cells included)
+    cell: float           # the length unit
+    grids: dict[float, OccupancyGrid] = field(default_factory=dict)
+
+    def grid(self, inflate: float) -> OccupancyGrid:
+        """``build_grid(scenario, inflate=inflate)``, with the cells whose centre is closer than
+        ``inflate`` to the workspace boundary blocked too."""
+        if inflate not in self.grids:
+            g = build_grid(self.scenario, inflate=inflate)
+            cells = np.argwhere(np.ones(g.shape, dtype=bool))[:, ::-1]
+            near = self.world.border_clearance(g.to_world(cells)) < inflate
+            self.grids[inflate] = OccupancyGrid(g.occ | near.reshape(g.shape), g.resolution,
+                                                g.origin, g.source)
+        return self.grids[inflate]
+
+
+class PathPlanner(Planner):
+    """Base of the plan-then-track planners: :meth:`plan` one path per robot, then follow it."""
+
+    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle")
+    moving_obstacles: ClassVar[bool] = False
+    moving_targets: ClassVar[bool] = False
+    params: ClassVar[dict[str, Param]] = dict(TRACKING)
+
+    @abstractmethod
+    def plan(self, ctx: _Context, robot, rngs: list[np.random.Generator]) -> PlannedPath:
+        """Plan the path of one robot (``rngs``: two generators, the RFD's and the PSO's)."""
+
+    def _clearance(self, ctx: _Context, robot) -> float:
+        """Robot radius plus the margin, in world units."""
+        return float(robot.radius) + self.values["margin"] * ctx.cell
+
+    def run(self, scenario, seed: int | None = None) -> Result:
+        """Plan every robot's path, then simulate the robots following them.
+
+        Parameters
+        ----------
+        scenario : Scenario
+        seed : int or None
+            Seeds the RFD drops and the swarm (robot ``i`` uses the ``i``-th child of
+            ``numpy.random.SeedSequence(seed)``, split in two: RFD, PSO); equal seeds give equal
+            results.
+
+        Returns
+        -------
+        Result
+            Per robot, ``planned_length``, ``planning_time`` and ``waypoints`` in ``metrics``.
+        """
+        self.check_scenario(scenario)
+        world = obstacle_world(scenario)
+        ctx = _Context(scenario, world, _cell_size(scenario))
+        children = np.random.SeedSequence(seed).spawn(len(scenario.robots))
+        plans: list[PlannedPath] = []
+        for robot, child in zip(scenario.robots, children):
+            rngs = [np.random.default_rng(s) for s in child.spawn(2)]
+            tic = time.perf_counter()
+            p = self.plan(ctx, robot, rngs)
+            p.time = time.perf_counter() - tic
+            if not p.found:
+                log.info("%s: robot %s: no path (%s)", self.name, robot.name, p.reason)
+            plans.append(p)
+        self.last_plans = plans
+        sim_scenario = scenario
+        if scenario.grid is not None and scenario.grid.map is not None:
+            sim_scenario = dataclasses.replace(scenario, world=world)   # map cells as obstacles
+        models = [scenario.model(r) for r in scenario.robots]
+        robots, _ = simulate(sim_scenario, models, self._controller(ctx, plans, models),
+                             stuck_window=self.values["stuck_window"],
+                             stuck_radius=self.values["stuck_radius"] * self.values["speed"]
+                             * ctx.cell * self.values["stuck_window"])
+        for r, p in zip(robots, plans):
+            r.compute_time += p.time
+            r.metrics.update(planned_length=p.length if p.found else None,
+                             planning_time=p.time, waypoints=p.waypoints if p.found else None,
+                             **p.metrics)
+        return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
+                      seed=seed, robots=robots)
+
+    def _controller(self, ctx: _Context, plans: list[PlannedPath], models):
+        """The pure-pursuit controller of every robot (see the module docstring)."""
+        cell = ctx.cell
+        speed = self.values["speed"] * cell
+        look = self.values["lookahead"] * cell
+        spacing = min(look, speed * ctx.scenario.dt) / 4.0
+        tracks = [_densify(p.points, spacing) if p.found else None for p in plans]
+        progress = np.zeros(len(plans), dtype=int)
+        groups = model_groups(models)
+        goals = np.array([p.points[-1] if p.found else np.zeros(2) for p in plans])
+
+        def controller(sim: Simulation) -> np.ndarray:
+            V = np.zeros((sim.n, 2))
+            P = sim.positions
+            for i in np.flatnonzero(sim.active):
+                if tracks[i] is None:
+                    sim.stop(int(i), "stuck")
+                    continue
+                S, arc = tracks[i]
+                k = progress[i]
+                hi = int(np.searchsorted(arc, arc[k] + 2.0 * look, side="right"))
+                k = k + int(np.argmin(np.hypot(*(S[k:hi] - P[i]).T)))
+                progress[i] = k
+                c = min(int(np.searchsorted(arc, arc[k] + look)), len(S) - 1)
+                d = S[c] - P[i]
+                dist = float(np.hypot(*d))
+                if dist > 0.0:
+                    to_goal = float(np.hypot(*(goals[i] - P[i])))
+                    V[i] = d * (speed * min(1.0, to_goal / look) / dist)
+            T = np.full((sim.n, 2), np.nan)
+            for model, members in groups:       # one carrot call per model group
+                act = members[sim.active[members]]
+                if len(act):
+                    T[act] = model.carrot(np.array([sim.X[i] for i in act]), V[act])
+            return T
+
+        return controller
+
+    def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
+        """``planned_paths.png``: the runs with the planned paths (and the swarm's best cost)."""
+        plans = getattr(self, "last_plans", None)
+        if not plans:
+            return {}
+        from matplotlib.figure import Figure
+
+        from hybridnav.plotting import plot_result
+
+        opts = [p.info.get("opt") for p in plans if p.info.get("opt") is not None]
+        fig = Figure(figsize=(11.5 if opts else 6.6, 6.2), layout="constrained")
+        axes = fig.subplots(1, 2, width_ratios=(1.35, 1.0)) if opts else [fig.add_subplot()]
+        ax = axes[0]
+        plot_result(scenario, result, ax=ax)
+        for i, (r, p) in enumerate(zip(scenario.robots, plans)):
+            col = f"C{i % 10}"
+            seed_pts = p.info.get("seed_points")
+            if seed_pts is not None:
+                ax.plot(*np.asarray(seed_pts).T, ":", color="0.3", linewidth=1.0, zorder=6,
+                        label=f"{r.name}: RFD seed, length {path_length(seed_pts):.4g}")
+            src = p.info.get("rfd_points")
+            if src is not None:
+                ax.plot(*np.asarray(src).T, "-", color="tab:cyan", linewidth=0.9, zorder=6,
+                        alpha=0.8, label=f"{r.name}: RFD path, length {path_length(src):.4g}")
+            if p.found:
+                ax.plot(*p.points.T, "--", color=col, marker=".", markersize=5, linewidth=1.2,
+                        zorder=9, label=f"{r.name}: planned, length {p.length:.4g} "
+                                        f"({p.time:.2g} s)")
+        ax.legend(loc="upper left", fontsize=7)
+        ax.set_title(f"{scenario.name}: {self.name}, planned (dashed) and travelled paths")
+        if opts:
+            bx = axes[1]
+            for i, (r, p) in enumerate(zip(scenario.robots, plans)):
+                opt = p.info.get("opt")
+                if opt is not None:
+                    bx.plot(np.arange(len(opt.history.best)), opt.history.best,
+                            color=f"C{i % 10}", label=r.name)
+            bx.set_xlabel("iteration")
+            bx.set_ylabel("best cost (length + penalties)")
+            best = np.concatenate([p.info["opt"].history.best for p in plans
+                                   if p.info.get("opt") is not None])
+            if best.max() > 10 * best.min() > 0:     # penalties dominate the start
+                bx.set_yscale("log")
+            bx.legend(fontsize=8)
+            bx.set_title("swarm best cost")
+        return {"planned_paths.png": fig}
+
+
+def _grid_endpoints(grid: OccupancyGrid, robot) -> tuple | PlannedPath:
+    """The start and goal cells, or a failed plan when one is outside or blocked."""
+    cells = []
+    for what, p in (("start", robot.start), ("goal", robot.goal)):
+        c = grid.to_cell(np.asarray(p, dtype=float))[0]
+        if grid.blocked_cells(c)[0]:
+            return _failed(f"{what} cell {tuple(c.tolist())} is blocked once obstacles are "
+                           f"inflated by the robot radius plus the margin", grid=grid)
+        cells.append((int(c[0]), int(c[1])))
+    return cells[0], cells[1]
+
+
+def _cells_to_path(robot, points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Start, the centres of the cells strictly between the start and goal cells, goal."""
+    inner = np.asarray(points, dtype=float)[1:-1]
+    return np.vstack([np.asarray(robot.start, dtype=float)[None], inner,
+                      np.asarray(robot.goal, dtype=float)[None]])
+
+
+GRID: dict[str, Param] = {
+    "diagonal": Param(True, "8-connected octile moves (false: 4-connected)"),
+    "corner_cutting": Param(False, "allow a diagonal move past a blocked orthogonal cell"),
+}
+
+
+class AStarPlanner(PathPlanner):
+    """A* on the inflated occupancy grid, then pure-pursuit tracking."""
+
+    name = "astar"
+    description = "A* on the inflated grid (octile, no corner cutting), pure-pursuit tracking"
+    params: ClassVar[dict[str, Param]] = {
+        **GRID,
+        "heuristic": Param("octile", "A* heuristic", choices=HEURISTICS),
+        **TRACKING,
+    }
+
+    def search(self, grid, s, t):
+        v = self.values
+        return astar(grid, s, t, diagonal=v["diagonal"], corner_cutting=v["corner_cutting"],
+                     heuristic=v["heuristic"])
+
+    def plan(self, ctx, robot, rngs):
+        grid = ctx.grid(self._clearance(ctx, robot))
+        ends = _grid_endpoints(grid, robot)
+        if isinstance(ends, PlannedPath):
+            return ends
+        gp = self.search(grid, *ends)
+        if not gp.found:
+            out = _failed("the goal cell is not reachable from the start cell", grid=grid,
+                          search=gp)
+        else:
+            out = _found(_cells_to_path(robot, gp.points), grid=grid, search=gp)
+        out.metrics.update(grid_length=gp.length, expanded=gp.expanded)
+        return out
+
+
+class DijkstraPlanner(AStarPlanner):
+    """Dijkstra's algorithm on the inflated occupancy grid, then pure-pursuit tracking."""
+
+    name = "dijkstra"
+    description = "Dijkstra on the inflated grid (octile, no corner cutting), pure-pursuit tracking"
+    params: ClassVar[dict[str, Param]] = {**GRID, **TRACKING}
+
+    def search(self, grid, s, t):
+        v = self.values
+        return dijkstra(grid, s, t, diagonal=v["diagonal"], corner_cutting=v["corner_cutting"])
+
+
+RFD: dict[str, Param] = {
+    "drops": Param(20, "RFD: drops released per iteration (the paper: 20)", lo=1),
+    "rfd_iterations": Param(300, "RFD: iteration cap", lo=1),
+    "patience": Param(60, "RFD: stop after this many iterations without a shorter path", lo=1),
+    "slope": Param(0.01, "RFD: initial terrain tilt towards the goal (0: flat, standard RFD)",
+                   lo=0.0),
+}
+
+SWARM: dict[str, Param] = {
+    "waypoints": Param(8, "PSO: intermediate waypoints K of a path", lo=1),
+    "particles": Param(50, "PSO: swarm size", lo=2),
+    "iterations": Param(100, "PSO: iterations", lo=1),
+    "w": Param(0.5, "PSO: inertia weight (RFD-PSO Table 1)", lo=0.0),
+    "c1": Param(0.75, "PSO: cognitive coefficient (RFD-PSO Table 1)", lo=0.0),
+    "c2": Param(0.75, "PSO: social coefficient (RFD-PSO Table 1)", lo=0.0),
+    "vmax": Param(0.2, "PSO: velocity limit, fraction of the workspace size", lo=1e-9, hi=1.0),
+    "penalty": Param(1.0, "PSO: cost per colliding segment, in workspace diagonals", lo=0.0),
+    "restarts": Param(0, "PSO: further runs from new random swarms while the best path "
+                         "collides", lo=0),
+}
+
+
+class RFDPlanner(PathPlanner):
+    """River formation dynamics on the inflated occupancy grid, then pure-pursuit tracking."""
+
+    name = "rfd"
+    description = "river formation dynamics on the inflated grid, pure-pursuit tracking"
+    stochastic = True
+    params: ClassVar[dict[str, Param]] = {**GRID, **RFD, **TRACKING}
+
+    def rfd_path(self, ctx, robot, rng) -> PlannedPath:
+        v = self.values
+        grid = ctx.grid(self._clearance(ctx, robot))
+        ends = _grid_endpoints(grid, robot)
+        if isinstance(ends, PlannedPath):
+            return ends
+        res = rfd(grid, *ends, drops=v["drops"], iterations=v["rfd_iterations"],
+                  patience=v["patience"], seed=rng, slope=v["slope"], diagonal=v["diagonal"],
+                  corner_cutting=v["corner_cutting"])
+        if not res.found:
+            out = _failed(f"no drop reached the goal ({res.reason})", grid=grid, rfd=res)
+        else:
+            out = _found(_cells_to_path(robot, res.points), grid=grid, rfd=res)
+        out.metrics.update(grid_length=res.length, rfd_iterations=res.iterations)
+        return out
+
+    def plan(self, ctx, robot, rngs):
+        return self.rfd_path(ctx, robot, rngs[0])
+
+
+class PSOPathPlanner(PathPlanner):
+    """PSO over K intermediate waypoints in the continuous workspace, then tracking."""
+
+    name = "pso"
+    description = ("PSO over K waypoints: length + penalty per colliding segment (RFD-PSO's "
+                   "Table 1 parameters), pure-pursuit tracking")
+    stochastic = True
+    params: ClassVar[dict[str, Param]] = {**SWARM, **TRACKING}
+
+    def seed_particle(self, ctx, robot, rngs) -> tuple[NDArray | None, PlannedPath | None]:
+        """The waypoints of a seeded particle and the plan they come from (plain PSO: none)."""
+        return None, None
+
+    def plan(self, ctx, robot, rngs):
+        v = self.values
+        world = ctx.world
+        clear = self._clearance(ctx, robot)
+        start = np.asarray(robot.start, dtype=float)
+        goal = np.asarray(robot.goal, dtype=float)
+        xmin, xmax, ymin, ymax = world.workspace
+        lo = np.array([xmin + clear, ymin + clear])
+        hi = np.array([xmax - clear, ymax - clear])
+        if not np.all(lo < hi):
+            return _failed("the workspace is narrower than twice the robot radius plus margin")
+        seed_wp, base = self.seed_particle(ctx, robot, rngs)
+        info: dict[str, Any] = {}
+        metrics: dict[str, Any] = {}
+        if base is not None:
+            metrics = {"rfd_length": base.length if base.found else None,
+                       "rfd_iterations": base.metrics["rfd_iterations"]}
+            if not base.found:
+                out = _failed(base.reason, **base.info)
+                out.metrics.update(pso_runs=0, **metrics)
+                return out
+            info = {"rfd": base.info["rfd"], "rfd_points": base.points,
+                    "seed_points": np.vstack([base.points[0], seed_wp, base.points[-1]])}
+        K = v["waypoints"] if seed_wp is None else len(seed_wp)
+        penalty = v["penalty"] * math.hypot(xmax - xmin, ymax - ymin)
+
+        def cost(X: NDArray[np.float64]) -> NDArray[np.float64]:
+            n = X.shape[0]
+            P = np.concatenate([np.broadcast_to(start, (n, 1, 2)), X.reshape(n, K, 2),
+                                np.broadcast_to(goal, (n, 1, 2))], axis=1)
+            A, B = P[:, :-1].reshape(-1, 2), P[:, 1:].reshape(-1, 2)
+            hits = world.segment_collides(A, B, radius=clear).reshape(n, K + 1)
+            length = np.hypot(*(B - A).T).reshape(n, K + 1).sum(axis=1)
+            return length + penalty * hits.sum(axis=1)
+
+        rng = rngs[1]
+        box = (np.tile(lo, K), np.tile(hi, K))
+        n = v["particles"]
+        for run in range(v["restarts"] + 1):
+            # the swarm starts uniformly in the box, each particle's waypoints ordered along the
+            # start -> goal direction (the same random points, without needless loops)
+            W = rng.uniform(box[0], box[1], (n, 2 * K)).reshape(n, K, 2)
+            order = np.argsort(W @ (goal - start), axis=1, kind="stable")
+            init = np.take_along_axis(W, order[..., None], axis=1).reshape(n, -1)
+            if seed_wp is not None:
+                init[0] = np.clip(seed_wp, lo, hi).reshape(-1)
+            opt = pso(cost, box, n=n, iterations=v["iterations"], seed=rng, init=init,
+                      w=v["w"], c1=v["c1"], c2=v["c2"], vmax=v["vmax"])
+            points = np.vstack([start, opt.x.reshape(K, 2), goal])
+            hits = world.segment_collides(points[:-1], points[1:], radius=clear)
+            if not hits.any():
+                out = _found(points, opt=opt, **info)
+                out.metrics.update(pso_runs=run + 1, **metrics)
+                return out
+            log.debug("%s: robot %s: PSO run %d ends with %d colliding segment(s)", self.name,
+                      robot.name, run + 1, int(hits.sum()))
+        out = _failed(f"the best path of each of {v['restarts'] + 1} PSO run(s) has colliding "
+                      "segments", opt=opt, **info)
+        out.metrics.update(pso_runs=v["restarts"] + 1, **metrics)
+        return out
+
+
+class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
+    """RFD-PSO: RFD path, then PSO with one particle seeded from it, then tracking."""
+
+    name = "rfd-pso"
+    description = ("RFD-PSO: river formation dynamics seeds one PSO particle (w 0.5, c1 = c2 = "
+                   "0.75), pure-pursuit tracking")
+    stochastic = True
+    params: ClassVar[dict[str, Param]] = {**GRID, **RFD, **SWARM, **TRACKING}
+
+    def seed_particle(self, ctx, robot, rngs):
+        base = self.rfd_path(ctx, robot, rngs[0])
+        if not base.found:
+            return None, base
+        tight = pull_tight(base.points, ctx.world, self._clearance(ctx, robot))
+        wp = resample_waypoints(tight, self.values["waypoints"])
+        if len(wp) > self.values["waypoints"]:
+            log.info("rfd-pso: robot %s: the RFD path needs %d waypoints; using %d instead of %d",
+                     robot.name, len(wp), len(wp), self.values["waypoints"])
+        return wp, base
+
+    def plan(self, ctx, robot, rngs):
+        return PSOPathPlanner.plan(self, ctx, robot, rngs)
