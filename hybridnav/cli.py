@@ -86,6 +86,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hybridnav import planners
+    from hybridnav.fileio import atomic_write_text
     from hybridnav.plotting import plot_result, save_figure
     from hybridnav.world import load_scenario
 
@@ -102,8 +103,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     result.write(out)
     save_figure(plot_result(scenario, result), out / "path.png")
     extra = planner.diagnostics(scenario, result)
-    for name, fig in extra.items():
-        save_figure(fig, out / name)
+    for name, item in extra.items():      # figures, or the text of data files
+        if isinstance(item, str):
+            atomic_write_text(out / name, item)
+        else:
+            save_figure(item, out / name)
     print(f"{scenario.name} with {planner.name} (seed {args.seed}):")
     print(f"  {'robot':<10} {'outcome':<14} {'length':>10} {'time':>9} {'clearance':>10} "
           f"{'compute':>9}")

@@ -8,15 +8,26 @@ from __future__ import annotations
 from typing import Any
 
 from hybridnav.errors import HybridnavError
+from hybridnav.planners.acok import ACOKinematic
 from hybridnav.planners.apf import APF
 from hybridnav.planners.base import Param, Planner, parse_assignments
 from hybridnav.planners.effc import EFFC
+from hybridnav.planners.fastepk import FAStepKinematic
 from hybridnav.planners.hapf import HAPF
 from hybridnav.planners.lbcs import LbCSPlanner
+from hybridnav.planners.paths import (
+    AStarPlanner,
+    DijkstraPlanner,
+    PSOPathPlanner,
+    RFDPlanner,
+    RFDPSOPlanner,
+)
 from hybridnav.planners.pbpf import PBPF
 
 PLANNERS: dict[str, type[Planner]] = {
-    cls.name: cls for cls in (APF, EFFC, HAPF, LbCSPlanner, PBPF)
+    cls.name: cls for cls in (ACOKinematic, APF, AStarPlanner, DijkstraPlanner, EFFC,
+                              FAStepKinematic, HAPF, LbCSPlanner, PBPF, PSOPathPlanner,
+                              RFDPlanner, RFDPSOPlanner)
 }
 
 __all__ = ["PLANNERS", "Param", "Planner", "get", "parse_assignments"]

@@ -1,0 +1,48 @@
+"""ACO-Kinematic (Chaudhary, Prasad, Chand & Sharma 2022): ants plan every step of the way.
+
+For every step the robot takes, ACOR (:func:`hybridnav.planners.swarm.acor`) places the next step
+minimizing eq. 13, ``f = a / f1 + b / f2 + c / f3 + d * distance(candidate, goal)`` (circles, line
+segments, other robots, goal), and the robot's kinematic equations drive it there. Defaults are
+the paper's Table 1: archive 300, sample size 10000, deviation-distance ratio ``xi = 1``,
+intensification factor ``q = 0.5``, ``a = b = c = 0.18``, ``d = 0.01`` (its Table 3 uses
+``a = 0.02`` and ``c = 0.05`` / 0.18 for the comparison with LbCS). One ACOR generation per step,
+as in the paper's Algorithm 1; the archive starts afresh at every step (with the goal in it),
+because the robot has moved and every stored fitness, which includes the feasibility of driving
+there from the robot's state, would be stale. See :mod:`hybridnav.planners.stepping` for the
+shared loop and feasibility check.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from hybridnav.planners.base import Param
+from hybridnav.planners.stepping import COMMON, StepPlanner
+from hybridnav.planners.swarm import ACO_KINEMATIC, acor
+
+__all__ = ["ACOKinematic"]
+
+
+class ACOKinematic(StepPlanner):
+    """Plan every step with ACOR; drive to it with the robot's kinematic equations."""
+
+    name = "aco-kinematic"
+    description = "ACO-Kinematic: ACOR places every step, kinematic equations drive to it"
+    direct_first = False
+    params: ClassVar[dict[str, Param]] = {
+        "a": Param(0.18, "safety weight of the circular obstacles (eq. 13)", lo=0.0),
+        "b": Param(0.18, "safety weight of the line segments (eq. 13)", lo=0.0),
+        "c": Param(0.18, "safety weight of the other robots (eq. 13)", lo=0.0),
+        "d": Param(0.01, "weight of the distance to the goal (eq. 13)", lo=0.0),
+        "k": Param(int(ACO_KINEMATIC["k"]), "archive size (population)", lo=2),
+        "m": Param(int(ACO_KINEMATIC["m"]), "sample size (ants per generation)", lo=1),
+        "xi": Param(float(ACO_KINEMATIC["xi"]), "deviation-distance ratio", lo=1e-12),
+        "q": Param(float(ACO_KINEMATIC["q"]), "intensification factor", lo=1e-12),
+        "iterations": Param(1, "ACOR generations per step", lo=1),
+        **COMMON,
+    }
+
+    def optimize(self, f, lower, upper, rng, init):
+        v = self.values
+        return acor(f, (lower, upper), k=v["k"], m=v["m"], iterations=v["iterations"], seed=rng,
+                    init=init, xi=v["xi"], q=v["q"])

@@ -1,0 +1,252 @@
+"""What a step planner asks of a candidate next step: its fitness and whether it is feasible.
+
+Both functions take a whole swarm of candidate points ``P`` of shape ``(N, 2)`` at once.
+
+:func:`step_fitness` is ACO-Kinematic's eq. 13 (FAStep-Kinematic's eq. 10 is the same without the
+line term)::
+
+    f = a / f1 + b / f2 + c / f3 + d * ||P - goal||
+
+with ``f1`` the sum of the distances from ``P`` to the centres of the circular obstacles (eq. 7-8),
+``f2`` the sum of the minimum distances from ``P`` to the line segments (eq. 9-10; the paper's
+*minimum distance technique* samples points on each segment and keeps the nearest, we use the exact
+point-to-segment distance it approximates; the edges of rectangles and polygons count as line
+segments) and ``f3`` the sum of the distances to the other robots (eq. 11-12). A term whose set is
+empty (no circles, no lines, a single robot) is left out.
+
+:func:`feasible_steps` is what the papers leave to the fitness and a serious planner cannot: it
+simulates the robot's own compiled closed loop from its current state towards every candidate in
+one batched rollout and rejects a candidate when the swept footprint comes closer than a safety
+margin to an obstacle (moving circles where they are at each sample's time), to another robot or to
+the workspace border before the robot gets within ``reach`` of it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hybridnav.world import World, point_segment_distance
+
+__all__ = ["GoalDistance", "Surroundings", "feasible_steps", "step_fitness"]
+
+FloatArray = NDArray[np.float64]
+
+# segments checked per block (bounds the memory of the (segments, obstacles) distance arrays)
+_BLOCK = 1 << 16
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """What one robot plans against, frozen at the planning time ``t``.
+
+    Attributes
+    ----------
+    world : World
+        The scenario's world (moving circles are evaluated at ``t + k * dt`` by the sweep).
+    t : float
+        Planning time.
+    circles : ndarray, shape (C, 2)
+        Centres of the circular obstacles at ``t`` (for ``f1``).
+    edges : (ndarray, ndarray), each of shape (E, 2)
+        Line segments (for ``f2``).
+    robots : ndarray, shape (H, 2)
+        Positions of the other robots (for ``f3``).
+    robot_discs : (ndarray, ndarray)
+        Footprint disk centres ``(D, 2)`` and radii ``(D,)`` of the other robots (obstacles for
+        the sweep, frozen at ``t``).
+    """
+
+    world: World
+    t: float
+    circles: FloatArray
+    edges: tuple[FloatArray, FloatArray]
+    robots: FloatArray
+    robot_discs: tuple[FloatArray, FloatArray]
+
+    @classmethod
+    def at(cls, world: World, t: float, robots: FloatArray,
+           robot_discs: tuple[FloatArray, FloatArray]) -> Surroundings:
+        centres, _ = world.circles(t)
+        return cls(world, float(t), centres, world.edges(), np.asarray(robots, float).reshape(-1, 2),
+                   robot_discs)
+
+
+def step_fitness(P: FloatArray, goal: FloatArray, env: Surroundings, a: float, b: float, c: float,
+                 d: float, goal_distance: Callable[[FloatArray, FloatArray], FloatArray] | None
+                 = None) -> FloatArray:
+    """ACO-Kinematic's step fitness (eq. 13) of the candidates ``P`` ``(N, 2)``; lower is better.
+
+    ``goal_distance(P, goal)`` measures the distance term (default: straight-line, as the papers;
+    :class:`GoalDistance` measures it along the shortest obstacle-free path).
+    """
+    P = np.asarray(P, dtype=float)
+    if goal_distance is None:
+        f = d * np.hypot(P[:, 0] - goal[0], P[:, 1] - goal[1])
+    else:
+        f = d * goal_distance(P, goal)
+    with np.errstate(divide="ignore"):
+        if len(env.circles):
+            diff = P[:, None, :] - env.circles[None]
+            f = f + a / np.hypot(diff[..., 0], diff[..., 1]).sum(axis=1)
+        A, B = env.edges
+        if len(A):
+            dist, _ = point_segment_distance(P[:, None, :], A[None], B[None])
+            f = f + b / dist.sum(axis=1)
+        if len(env.robots):
+            diff = P[:, None, :] - env.robots[None]
+            f = f + c / np.hypot(diff[..., 0], diff[..., 1]).sum(axis=1)
+    return f
+
+
+def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, steps: int,
+                   reach: float, margin: float,
+                   end_margin: float | None = None) -> NDArray[np.bool_]:
+    """Whether driving from ``x0`` towards each candidate keeps the footprint safe.
+
+    Parameters
+    ----------
+    model : Model
+        The robot's model at the planning step ``model.dt`` (compiled, batched rollout).
+    x0 : ndarray, shape (nx,)
+        The robot's current state.
+    P : ndarray, shape (N, 2)
+        Candidate targets.
+    env : Surroundings
+    steps : int
+        Rollout length (the look-ahead horizon is ``steps * model.dt``).
+    reach : float
+        The move ends when the robot is within ``reach`` of its candidate (later samples are not
+        checked: the planner picks the next step there).
+    margin : float
+        Required clearance between each footprint disk and obstacles, other robots and the
+        workspace border, beyond touching, along the rollout.
+    end_margin : float, optional
+        Clearance of the whole-body disk (radius ``model.radius``) swept straight from where the
+        move ends to the candidate (default ``margin``).
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+        The footprint, swept along straight pieces between consecutive rollout samples, keeps
+        ``margin``, and the candidate is in sight from where the move ends. (Moving circles are
+        frozen at each piece's start time.)
+    """
+    P = np.asarray(P, dtype=float).reshape(-1, 2)
+    n = P.shape[0]
+    ok = np.ones(n, dtype=bool)
+    if n == 0:
+        return ok
+    traj = model.rollout(np.broadcast_to(x0, (n, model.nx)), P, steps)     # (n, steps+1, nx)
+    # a move ends at its first sample within reach of the candidate
+    dist = np.hypot(traj[:, :, 0] - P[:, None, 0], traj[:, :, 1] - P[:, None, 1])
+    within = dist <= reach
+    last = np.where(within.any(axis=1), within.argmax(axis=1), steps)     # last checked sample
+    rows, ks = np.nonzero(np.arange(steps)[None, :] < last[:, None])      # pieces k -> k+1
+    # the candidate itself must be in sight: the whole-body disk swept straight from where the
+    # move ends to the candidate keeps the margin too (the next step is planned from there)
+    end = traj[np.arange(n), last, :2]
+    body = model.radius + (margin if end_margin is None else end_margin)
+    world = env.world
+    t_end = env.t + last * model.dt
+    if world.obstacles:
+        ok &= ~world.segment_collides(end, P, radius=body, t=t_end)
+    other_c, other_r = env.robot_discs
+    if len(other_r):
+        dd, _ = point_segment_distance(other_c[None], end[:, None], P[:, None])
+        ok &= ~np.any(dd < body + other_r[None], axis=1)
+    if not len(rows):
+        return ok
+    centres, radii = model.footprint(traj.reshape(-1, model.nx))
+    centres = centres.reshape(n, steps + 1, len(radii), 2)
+    bad = np.zeros(len(rows), dtype=bool)
+    for lo in range(0, len(rows), _BLOCK):
+        r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
+        t = env.t + k_ * model.dt
+        hit = np.zeros(len(r_), dtype=bool)
+        for j, rad in enumerate(radii):
+            A = centres[r_, k_, j]
+            B = centres[r_, k_ + 1, j]
+            need = rad + margin
+            if world.obstacles:
+                hit |= world.segment_collides(A, B, radius=need, t=t)
+            hit |= ~world.inside_workspace(B, need)
+            if len(other_r):
+                dd, _ = point_segment_distance(other_c[None], A[:, None], B[:, None])
+                hit |= np.any(dd < need + other_r[None], axis=1)
+        bad[lo:lo + _BLOCK] = hit
+    ok[np.unique(rows[bad])] = False
+    return ok
+
+
+class GoalDistance:
+    """Distance to a goal along the shortest obstacle-free path (a grid's cost-to-go field).
+
+    The scenario's static obstacles are rasterized (:func:`hybridnav.grid.build_grid`, 1/100 of the
+    shorter workspace side unless the scenario's ``[grid]`` says otherwise) with cells closer than
+    ``inflate`` (the robot's radius) to an obstacle blocked; one Dijkstra search from the goal's
+    cell (:func:`scipy.sparse.csgraph.dijkstra` on :meth:`OccupancyGrid.adjacency`, 8-connected,
+    no corner cutting) gives every free cell's cost-to-go ``g``. A point's distance is
+    ``min(g(c) + ||P - c||)`` over the centres ``c`` of the 2 x 2 cells around it (``inf`` where
+    they are all blocked or cut off from the goal). In open space it equals the straight-line
+    distance to within a few percent (octile moves); behind an obstacle it is the way round, so a
+    step planner does not walk into a cup-shaped trap just because its bottom is near the goal.
+    Fields are cached per goal cell.
+    """
+
+    def __init__(self, scenario, inflate: float) -> None:
+        from hybridnav.grid import build_grid
+
+        self.grid = build_grid(scenario, inflate=float(inflate))
+        self._adj = self.grid.adjacency()
+        self._free = np.flatnonzero(~self.grid.occ.ravel())
+        self._fields: dict[int, FloatArray] = {}
+
+    def field(self, goal: FloatArray) -> FloatArray:
+        """Cost-to-go of every cell (flat, ``row * width + col``) for ``goal``."""
+        from scipy.sparse.csgraph import dijkstra
+
+        g = self.grid
+        cell = g.to_cell(np.asarray(goal, float)[None])
+        idx = int(g.cell_index(cell)[0]) if g.in_bounds(cell)[0] else -1
+        key = idx
+        if key in self._fields:
+            return self._fields[key]
+        if idx < 0 or g.occ.ravel()[idx]:
+            # a goal in a blocked cell (too close to an obstacle): start from the nearest free one
+            if not len(self._free):
+                field = np.full(g.occ.size, np.inf)
+                self._fields[key] = field
+                return field
+            centres = g.to_world(np.stack([self._free % g.width, self._free // g.width], axis=1))
+            j = int(np.argmin(np.hypot(*(centres - goal).T)))
+            start, offset = int(self._free[j]), float(np.hypot(*(centres[j] - goal)))
+        else:
+            start = idx
+            offset = float(np.hypot(*(g.to_world(cell)[0] - goal)))
+        field = dijkstra(self._adj, indices=start) + offset
+        field[g.occ.ravel()] = np.inf
+        if len(self._fields) > 64:
+            self._fields.pop(next(iter(self._fields)))
+        self._fields[key] = field
+        return field
+
+    def __call__(self, P: FloatArray, goal: FloatArray) -> FloatArray:
+        g = self.grid
+        field = self.field(goal)
+        P = np.asarray(P, dtype=float).reshape(-1, 2)
+        # the 2 x 2 cell centres around each point
+        base = np.floor((P - np.asarray(g.origin)) / g.resolution - 0.5).astype(int)
+        best = np.full(len(P), np.inf)
+        for dc in (0, 1):
+            for dr in (0, 1):
+                cells = base + np.array([dc, dr])
+                inside = g.in_bounds(cells)
+                val = np.full(len(P), np.inf)
+                val[inside] = field[g.cell_index(cells[inside])]
+                c = g.to_world(cells)
+                best = np.minimum(best, val + np.hypot(P[:, 0] - c[:, 0], P[:, 1] - c[:, 1]))
+        return best

@@ -1,0 +1,374 @@
+"""The shared loop of the step planners: plan a step with a swarm, drive there with the kinematics.
+
+FAStep-Kinematic and ACO-Kinematic both alternate two things for every robot: a swarm optimizer
+places the robot's next step (a waypoint) by minimizing :func:`~hybridnav.planners.stepfit.
+step_fitness` over candidate points, and the robot's own go-to-point controller (its kinematic
+equations, e.g. ``xdot = alpha1 (x1 - x)``) drives it there. :class:`StepPlanner` is that loop on top
+of :func:`~hybridnav.planners.simulate.simulate`; a subclass says which optimizer places a step
+(:meth:`StepPlanner.optimize`) and whether the robot first tries to drive straight to its goal
+(:attr:`StepPlanner.direct_first`, FAStep-Kinematic) or plans every step (ACO-Kinematic).
+
+Every control cycle, for every active robot:
+
+* a robot with no step, or within ``reach`` of its step, gets a new one (``direct_first``: the goal
+  itself while no obstacle or robot is within the protective region ``eps`` -- eq. 11 -- or while
+  driving straight to the goal is feasible; otherwise a planned step);
+* a robot with an obstacle or robot within ``eps`` re-checks its current move (every cycle when the
+  near object moves -- another robot, a moving circle -- and every ``horizon / 2`` seconds when it
+  is static) and re-plans when the move is no longer feasible.
+
+Planning a step: candidates lie in the workspace (shrunk by the robot's radius; or a square
+``window`` around the robot), farther than ``reach`` from the robot unless they are the goal, with
+the whole-body disk (radius ``model.radius``, for the tractor-trailer ``sqrt(L^2 + b^2) / 2``) at
+least ``margin`` from obstacles and robots; the robot's compiled model is rolled out from its state
+towards every candidate in one batched call and the candidates whose swept footprint comes closer
+than ``margin`` are infeasible (:func:`~hybridnav.planners.stepfit.feasible_steps`). The goal is
+always one of the candidates, so a robot that can drive straight to its goal does. A robot that
+finds no feasible step holds its position and tries again every second; after ``patience`` seconds
+without one it is ``stuck``. Robots that have ended stay where they are as obstacles.
+
+Lengths (``margin``, ``eps``, ``reach``) are in robot radii (``model.radius``), so the same
+defaults serve centimetre and metre scenarios; ``reach`` is at least the goal radius. For the
+tractor-trailer the default ``reach`` (4 radii, 3.8 cm) is larger than the ``9L/7`` (2.1 cm) inside
+which its steering law orbits a target instead of converging (see
+:mod:`hybridnav.models.tractor_trailer`), so it never has to converge onto a step.
+
+Outputs beyond the result contract (:meth:`StepPlanner.diagnostics`, written by ``hybridnav run``):
+``steps_<robot>.csv`` (per control cycle: target, step cost -- 0 while driving straight to the goal,
+as in the papers' cost-function graphs --, mode and the controller's ``xdot``, ``ydot``),
+``waypoints_<robot>.csv`` (every planned step), ``signals.png`` (cost, ``xdot``, ``ydot`` over
+time: the papers' "convergence of the controllers") and ``waypoints.png``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from abc import abstractmethod
+from typing import Any, ClassVar
+
+import casadi as cs
+import numpy as np
+
+from hybridnav import models as model_registry
+from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.simulate import Simulation, simulate
+from hybridnav.planners.stepfit import GoalDistance, Surroundings, feasible_steps, step_fitness
+from hybridnav.planners.swarm import OptResult
+from hybridnav.results import Result
+
+__all__ = ["StepPlanner"]
+
+#: mode codes in the per-cycle trace
+HOLD, DIRECT, STEP = 0, 1, 2
+MODE_NAMES = {HOLD: "hold", DIRECT: "goal", STEP: "step"}
+
+COMMON: dict[str, Param] = {
+    "window": Param(0.0, "half-width of the square searched around the robot, in robot radii; "
+                         "0: the whole workspace", lo=0.0),
+    "margin": Param(0.5, "safety margin in robot radii: clearance every footprint disk keeps "
+                         "along a planned move", lo=0.0),
+    "eps": Param(6.0, "protective region in robot radii: an obstacle or robot this close makes "
+                      "the robot check its move (FAStep-Kinematic eq. 11)", lo=0.0),
+    "reach": Param(4.0, "plan the next step within this many robot radii of the current one "
+                        "(at least the goal radius)", lo=0.0),
+    "horizon": Param(60.0, "look-ahead of the feasibility rollout (s)", lo=1e-6),
+    "plan_dt": Param(0.5, "integration step of the feasibility rollout (s)", lo=1e-6),
+    "distance": Param("geodesic", "distance-to-goal term: 'geodesic' along the shortest "
+                                  "obstacle-free path (grid cost-to-go), 'euclidean' as the papers",
+                      choices=("geodesic", "euclidean")),
+    "patience": Param(5.0, "seconds a robot waits for a feasible step (re-planning every second) "
+                           "before it is stuck", lo=0.0),
+    "stuck_window": Param(20.0, "seconds without leaving a small disk that count as stuck (0: off)",
+                          lo=0.0),
+    "stuck_radius": Param(0.5, "that disk's radius, in goal radii", lo=0.0),
+}
+
+
+class StepPlanner(Planner):
+    """Base of the step planners: a swarm places each step, the model's controller drives to it."""
+
+    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle", "tractor_trailer")
+    stochastic = True
+    #: drive straight to the goal while that is safe, plan steps only to get round obstacles
+    direct_first: ClassVar[bool] = False
+    #: names of (circles, lines, robots, goal distance) weights in :attr:`params`
+    weight_names: ClassVar[tuple[str, str, str, str]] = ("a", "b", "c", "d")
+
+    @abstractmethod
+    def optimize(self, f, lower: np.ndarray, upper: np.ndarray, rng: np.random.Generator,
+                 init: np.ndarray) -> OptResult:
+        """Minimize the step fitness ``f`` over the box; ``init`` rows are starting candidates."""
+
+    # ---- the run ------------------------------------------------------------------------------
+
+    def run(self, scenario, seed: int | None = None) -> Result:
+        self.check_scenario(scenario)
+        v = self.values
+        rng = np.random.default_rng(seed)
+        robots = scenario.robots
+        n = len(robots)
+        sim_models = [scenario.model(r) for r in robots]
+        plan_models = [model_registry.get(r.model, dt=v["plan_dt"], radius=r.radius, **r.params)
+                       for r in robots]
+        R = np.array([m.radius for m in sim_models])
+        goal_r = np.array([r.goal_radius for r in robots])
+        margin = v["margin"] * R
+        eps = v["eps"] * R
+        reach = np.maximum(v["reach"] * R, goal_r)
+        steps = max(1, int(math.ceil(v["horizon"] / v["plan_dt"] - 1e-9)))
+        weights = tuple(v[k] for k in self.weight_names)
+        world = scenario.world
+        static_world, moving_world = world.static(), world.moving()
+        xmin, xmax, ymin, ymax = world.workspace
+
+        goal_distance: list = [None] * n
+        if v["distance"] == "geodesic":
+            fields: dict[float, GoalDistance] = {}
+            for i in range(n):
+                if R[i] not in fields:
+                    fields[R[i]] = GoalDistance(scenario, inflate=R[i])
+                goal_distance[i] = fields[R[i]]
+        wp = np.zeros((n, 2))
+        to_goal = np.zeros(n, dtype=bool)
+        planned = np.zeros(n, dtype=bool)
+        cost = np.zeros(n)
+        checked_at = np.full(n, -np.inf)
+        retry_at = np.zeros(n)
+        fail_since = np.full(n, np.nan)
+        self.waypoints: dict[str, list[tuple[float, float, float, float]]] = {
+            r.name: [] for r in robots}
+        trace: dict[str, list] = {"t": [], "active": [], "target": [], "cost": [], "mode": []}
+        plan_time = np.zeros(n)
+        plans = np.zeros(n, dtype=int)
+
+        def discs(sim: Simulation, others: list[int]):
+            cs_, rs_ = [], []
+            for j in others:
+                c, r = sim.models[j].footprint(sim.X[j][None])
+                cs_.append(c[0])
+                rs_.append(r)
+            if not cs_:
+                return np.zeros((0, 2)), np.zeros(0)
+            return np.concatenate(cs_), np.concatenate(rs_)
+
+        def surroundings(sim: Simulation, i: int) -> Surroundings:
+            others = [j for j in range(n) if j != i]
+            return Surroundings.at(world, sim.t, sim.positions[others], discs(sim, others))
+
+        def current_clearance(sim: Simulation, i: int, env: Surroundings) -> float:
+            c, r = sim.models[i].footprint(sim.X[i][None])
+            c = c[0]
+            clear = np.min(world.border_clearance(c) - r)
+            if world.obstacles:
+                clear = min(clear, np.min(world.clearance(c, t=sim.t) - r))
+            oc, orad = env.robot_discs
+            if len(orad):
+                d = np.hypot(*(c[:, None, :] - oc[None]).transpose(2, 0, 1))
+                clear = min(clear, np.min(d - r[:, None] - orad[None]))
+            return float(clear)
+
+        def margin_now(sim, i, env) -> float:
+            # a robot already closer than its margin (the real motion is not the planning
+            # rollout) may still move, as long as it gets no closer than it is
+            return min(margin[i], max(0.0, current_clearance(sim, i, env) - 1e-9 * (1 + R[i])))
+
+        def move_ok(sim: Simulation, i: int, target: np.ndarray, target_reach: float) -> bool:
+            env = surroundings(sim, i)
+            return bool(feasible_steps(plan_models[i], sim.X[i], target[None], env, steps=steps,
+                                       reach=target_reach, margin=margin_now(sim, i, env),
+                                       end_margin=0.0)[0])
+
+        def plan(sim: Simulation, i: int, goal: np.ndarray) -> None:
+            tic = time.perf_counter()
+            env = surroundings(sim, i)
+            x0 = sim.X[i]
+            pos = x0[:2]
+            m_i = margin_now(sim, i, env)
+            body = R[i] + margin[i]
+            oc, orad = env.robot_discs
+            lower = np.array([xmin + R[i], ymin + R[i]])
+            upper = np.array([xmax - R[i], ymax - R[i]])
+            if v["window"] > 0:
+                lower = np.maximum(lower, pos - v["window"] * R[i])
+                upper = np.minimum(upper, pos + v["window"] * R[i])
+            upper = np.maximum(upper, lower + 1e-9)
+
+            def f(X: np.ndarray) -> np.ndarray:
+                val = step_fitness(X, goal, env, *weights, goal_distance=goal_distance[i])
+                is_goal = (X[:, 0] == goal[0]) & (X[:, 1] == goal[1])
+                ok = is_goal | (np.hypot(X[:, 0] - pos[0], X[:, 1] - pos[1]) > reach[i])
+                if world.obstacles:
+                    ok &= world.clearance(X, t=sim.t) >= body
+                if len(orad):
+                    d = np.hypot(X[:, None, 0] - oc[None, :, 0], X[:, None, 1] - oc[None, :, 1])
+                    ok &= np.all(d >= body + orad[None], axis=1)
+                sel = np.flatnonzero(ok)
+                if len(sel):
+                    ok[sel] = feasible_steps(plan_models[i], x0, X[sel], env, steps=steps,
+                                             reach=reach[i], margin=m_i, end_margin=margin[i])
+                return np.where(ok, val, np.inf)
+
+            init = np.clip(goal, lower, upper)[None]
+            res = self.optimize(f, lower, upper, rng, init)
+            plan_time[i] += time.perf_counter() - tic
+            plans[i] += 1
+            if np.isfinite(res.fun):
+                wp[i] = res.x
+                to_goal[i] = bool(np.all(res.x == goal))
+                planned[i] = True
+                cost[i] = res.fun
+                checked_at[i] = sim.t
+                fail_since[i] = np.nan
+                self.waypoints[robots[i].name].append((sim.t, float(res.x[0]), float(res.x[1]),
+                                                       float(res.fun)))
+                return
+            planned[i] = False
+            retry_at[i] = sim.t + 1.0
+            if np.isnan(fail_since[i]):
+                fail_since[i] = sim.t
+            if sim.t - fail_since[i] >= v["patience"]:
+                sim.stop(i, "stuck")
+
+        def go_straight(sim: Simulation, i: int) -> None:
+            to_goal[i] = planned[i] = True
+            cost[i] = 0.0
+            fail_since[i] = np.nan
+
+        def controller(sim: Simulation) -> np.ndarray:
+            t = sim.t
+            P = sim.positions
+            G = sim.goals()
+            idx = np.flatnonzero(sim.active)
+            near_static, near_moving = self._near(sim, idx, P, R, eps, static_world, moving_world)
+            near = near_static | near_moving
+            dwp = np.hypot(P[:, 0] - wp[:, 0], P[:, 1] - wp[:, 1])
+            arrived = planned & ~to_goal & (dwp <= reach)
+            need = (~planned & (t >= retry_at)) | arrived
+            stale = planned & ~need & (near_moving
+                                       | (near_static & (t - checked_at >= v["horizon"] / 2)))
+            for i in idx[(need | stale)[idx]]:
+                if need[i]:
+                    if self.direct_first and (not near[i] or move_ok(sim, i, G[i], goal_r[i])):
+                        go_straight(sim, i)
+                        checked_at[i] = t if near[i] else -np.inf
+                    else:
+                        plan(sim, i, G[i])
+                else:
+                    target = G[i] if to_goal[i] else wp[i]
+                    checked_at[i] = t
+                    if not move_ok(sim, i, target, goal_r[i] if to_goal[i] else reach[i]):
+                        plan(sim, i, G[i])
+            T = np.where(to_goal[:, None], G, wp)
+            T = np.where(planned[:, None], T, P)        # no feasible step: hold position
+            mode = np.where(planned, np.where(to_goal & (cost == 0), DIRECT, STEP), HOLD)
+            trace["t"].append(t)
+            trace["active"].append(sim.active.copy())
+            trace["target"].append(T.copy())
+            trace["cost"].append(cost.copy())
+            trace["mode"].append(mode)
+            return T
+
+        robot_results, _ = simulate(scenario, sim_models, controller,
+                                    stuck_window=v["stuck_window"],
+                                    stuck_radius=v["stuck_radius"] * goal_r)
+        for i, r in enumerate(robot_results):
+            r.metrics["steps_planned"] = len(self.waypoints[r.name])
+            r.metrics["planning_calls"] = int(plans[i])
+            r.metrics["planning_time"] = float(plan_time[i])
+        self._last = (scenario, sim_models, robot_results, {k: np.array(x) for k, x in
+                                                            trace.items()})
+        return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
+                      seed=seed, robots=robot_results)
+
+    @staticmethod
+    def _near(sim: Simulation, idx: np.ndarray, P: np.ndarray, R: np.ndarray, eps: np.ndarray,
+              static_world, moving_world) -> tuple[np.ndarray, np.ndarray]:
+        """Per robot: a static obstacle / a moving thing (robot, moving circle) within ``eps``."""
+        n = sim.n
+        near_static = np.zeros(n, dtype=bool)
+        near_moving = np.zeros(n, dtype=bool)
+        if not len(idx):
+            return near_static, near_moving
+        Pa = P[idx]
+        reach = R[idx] + eps[idx]
+        if static_world.obstacles:
+            near_static[idx] = static_world.clearance(Pa) <= reach
+        if moving_world.obstacles:
+            near_moving[idx] = moving_world.clearance(Pa, t=sim.t) <= reach
+        if n > 1:
+            d = np.hypot(Pa[:, None, 0] - P[None, :, 0], Pa[:, None, 1] - P[None, :, 1])
+            d[np.arange(len(idx)), idx] = np.inf
+            near_moving[idx] |= np.any(d <= (reach[:, None] + R[None, :]), axis=1)
+        return near_static, near_moving
+
+    # ---- outputs ------------------------------------------------------------------------------
+
+    def step_tables(self) -> dict[str, dict[str, np.ndarray]]:
+        """Per robot, per control cycle of the last run: ``t``, target, cost, mode, xdot, ydot."""
+        scenario, sim_models, robot_results, trace = self._last
+        out = {}
+        for i, (r, m) in enumerate(zip(robot_results, sim_models)):
+            rows = np.flatnonzero(trace["active"][:, i])
+            k = min(len(rows), len(r.states) - 1)   # the last controller call may not have moved
+            rows = rows[:k]
+            X = r.states[:k]
+            T = trace["target"][rows, i]
+            if k:
+                fn = m.function("closed_loop").map(k)
+                xdot = np.asarray(fn(X.T, T.T, cs.repmat(cs.DM(m.p_value()), 1, k)))
+            else:
+                xdot = np.zeros((m.nx, 0))
+            out[r.name] = {"t": trace["t"][rows], "target_x": T[:, 0], "target_y": T[:, 1],
+                           "cost": trace["cost"][rows, i], "mode": trace["mode"][rows, i],
+                           "xdot": xdot[0], "ydot": xdot[1]}
+        return out
+
+    def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
+        """``signals.png``, ``waypoints.png`` and the per-robot ``steps_`` / ``waypoints_`` CSVs."""
+        from matplotlib.figure import Figure
+
+        from hybridnav.plotting import plot_result
+
+        tables = self.step_tables()
+        files: dict[str, Any] = {}
+        for name, tab in tables.items():
+            buf = io.StringIO()
+            w = csv.writer(buf, lineterminator="\n")
+            w.writerow(["t", "target_x", "target_y", "cost", "mode", "xdot", "ydot"])
+            for row in zip(tab["t"], tab["target_x"], tab["target_y"], tab["cost"], tab["mode"],
+                           tab["xdot"], tab["ydot"]):
+                w.writerow([repr(float(row[0])), repr(float(row[1])), repr(float(row[2])),
+                            repr(float(row[3])), MODE_NAMES[int(row[4])], repr(float(row[5])),
+                            repr(float(row[6]))])
+            files[f"steps_{name}.csv"] = buf.getvalue()
+            buf = io.StringIO()
+            w = csv.writer(buf, lineterminator="\n")
+            w.writerow(["t", "x", "y", "cost"])
+            for row in self.waypoints[name]:
+                w.writerow([repr(float(x)) for x in row])
+            files[f"waypoints_{name}.csv"] = buf.getvalue()
+        fig = Figure(figsize=(7.0, 6.8), layout="constrained")
+        axes = fig.subplots(3, 1, sharex=True)
+        for name, tab in tables.items():
+            axes[0].plot(tab["t"], tab["cost"], linewidth=1.0, label=name)
+            axes[1].plot(tab["t"], tab["xdot"], linewidth=1.0, label=name)
+            axes[2].plot(tab["t"], tab["ydot"], linewidth=1.0, label=name)
+        axes[0].set_ylabel("step cost f")
+        axes[1].set_ylabel("xdot")
+        axes[2].set_ylabel("ydot")
+        axes[2].set_xlabel("t [s]")
+        axes[0].legend(fontsize=8)
+        axes[0].set_title(f"{self.name}: cost of the current step and controller signals")
+        files["signals.png"] = fig
+        fig = plot_result(scenario, result)
+        ax = fig.axes[0]
+        for name, pts in self.waypoints.items():
+            if pts:
+                arr = np.array(pts)
+                ax.plot(arr[:, 1], arr[:, 2], "x", markersize=6, label=f"{name} steps")
+        ax.legend(fontsize=7, loc="best")
+        files["waypoints.png"] = fig
+        return files
