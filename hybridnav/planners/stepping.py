@@ -25,7 +25,9 @@ towards every candidate in one batched call and the candidates whose swept footp
 than ``margin`` are infeasible (:func:`~hybridnav.planners.stepfit.feasible_steps`). The goal is
 always one of the candidates, so a robot that can drive straight to its goal does. A robot that
 finds no feasible step holds its position and tries again every second; after ``patience`` seconds
-without one it is ``stuck``. Robots that have ended stay where they are as obstacles.
+without one it is ``stuck``, and so is a robot with a fixed goal that plans ``stall_steps`` steps in
+a row without getting closer to its goal (by the planner's distance) than it has been (a trap it
+creeps around in). Robots that have ended stay where they are as obstacles.
 
 Lengths (``margin``, ``eps``, ``reach``) are in robot radii (``model.radius``), so the same
 defaults serve centimetre and metre scenarios; ``reach`` is at least the goal radius. For the
@@ -79,6 +81,8 @@ COMMON: dict[str, Param] = {
     "distance": Param("geodesic", "distance-to-goal term: 'geodesic' along the shortest "
                                   "obstacle-free path (grid cost-to-go), 'euclidean' as the papers",
                       choices=("geodesic", "euclidean")),
+    "stall_steps": Param(10, "a robot with a fixed goal that plans this many steps in a row "
+                             "without getting closer to its goal than before is stuck", lo=1),
     "patience": Param(5.0, "seconds a robot waits for a feasible step (re-planning every second) "
                            "before it is stuck", lo=0.0),
     "stuck_window": Param(20.0, "seconds without leaving a small disk that count as stuck (0: off)",
@@ -141,6 +145,8 @@ class StepPlanner(Planner):
         self.waypoints: dict[str, list[tuple[float, float, float, float]]] = {
             r.name: [] for r in robots}
         trace: dict[str, list] = {"t": [], "active": [], "target": [], "cost": [], "mode": []}
+        best_dist = np.full(n, np.inf)
+        stalled = np.zeros(n, dtype=int)
         plan_time = np.zeros(n)
         plans = np.zeros(n, dtype=int)
 
@@ -186,6 +192,16 @@ class StepPlanner(Planner):
             env = surroundings(sim, i)
             x0 = sim.X[i]
             pos = x0[:2]
+            if robots[i].goal is not None:       # progress towards a fixed goal
+                gd = goal_distance[i]
+                now = float(gd(pos[None], goal)[0] if gd is not None else np.hypot(*(pos - goal)))
+                if now < best_dist[i] - 1e-9:
+                    best_dist[i], stalled[i] = now, 0
+                else:
+                    stalled[i] += 1
+                    if stalled[i] >= v["stall_steps"]:
+                        sim.stop(i, "stuck")
+                        return
             m_i = margin_now(sim, i, env)
             body = R[i] + margin[i]
             oc, orad = env.robot_discs
