@@ -26,8 +26,10 @@ log = logging.getLogger(__name__)
 __all__ = ["RUN_COLUMNS", "compare", "run_seed", "summarize_runs", "write_comparison"]
 
 RUN_COLUMNS = ["planner", "scenario", "run", "seed", "robot", "outcome", "path_length",
-               "time_to_goal", "min_clearance", "compute_time"]
-METRICS = ["path_length", "time_to_goal", "min_clearance", "compute_time"]
+               "time_to_goal", "smoothness", "min_clearance", "compute_time"]
+METRICS = ["path_length", "time_to_goal", "smoothness", "min_clearance", "compute_time"]
+#: metrics summarized over the robots that reached their goal only
+REACHED_ONLY = ("path_length", "time_to_goal", "smoothness")
 
 
 def run_seed(seed: int, run: int) -> int:
@@ -144,8 +146,9 @@ def compare(
 def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
     """Per planner x scenario: runs, success rate, and mean/std/min/max of every metric.
 
-    ``path_length`` and ``time_to_goal`` are summarized over the robots that reached their goal
-    (a failed run has no meaningful length); clearance and compute time over all robots.
+    ``path_length``, ``time_to_goal`` and ``smoothness`` are summarized over the robots that
+    reached their goal (a failed run has no meaningful length); clearance and compute time over
+    all robots.
     """
     out = []
     for (planner, scenario), g in table.groupby(["planner", "scenario"], sort=False):
@@ -155,7 +158,7 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
         for outcome in ("collided", "out_of_bounds", "stuck", "timeout"):
             row[outcome] = int((g["outcome"] == outcome).sum())
         for m in METRICS:
-            vals = (ok if m in ("path_length", "time_to_goal") else g)[m].astype(float).dropna()
+            vals = (ok if m in REACHED_ONLY else g)[m].astype(float).dropna()
             for stat in ("mean", "std", "min", "max"):
                 row[f"{m}_{stat}"] = getattr(vals, stat)() if len(vals) else np.nan
         out.append(row)

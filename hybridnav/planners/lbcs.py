@@ -99,6 +99,12 @@ class LbCSPlanner(Planner):
         return LbCS.from_scenario(scenario, robot, beta=v["beta"], delta1=v["delta1"],
                                   delta2=v["delta2"], **extra)
 
+    def check_scenario(self, scenario) -> None:
+        """Also reject obstacles the LbCS model cannot take (so ``compare`` fails before work)."""
+        super().check_scenario(scenario)
+        for r in scenario.robots:
+            self.lbcs(scenario, r.name)
+
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
         v = self.values
