@@ -58,6 +58,8 @@ class Surroundings:
     robot_discs : (ndarray, ndarray)
         Footprint disk centres ``(D, 2)`` and radii ``(D,)`` of the other robots (obstacles for
         the sweep, frozen at ``t``).
+    static, moving : World
+        The world's static obstacles and its moving circles.
     """
 
     world: World
@@ -66,13 +68,15 @@ class Surroundings:
     edges: tuple[FloatArray, FloatArray]
     robots: FloatArray
     robot_discs: tuple[FloatArray, FloatArray]
+    static: World
+    moving: World
 
     @classmethod
     def at(cls, world: World, t: float, robots: FloatArray,
            robot_discs: tuple[FloatArray, FloatArray]) -> Surroundings:
         centres, _ = world.circles(t)
         return cls(world, float(t), centres, world.edges(), np.asarray(robots, float).reshape(-1, 2),
-                   robot_discs)
+                   robot_discs, world.static(), world.moving())
 
 
 def step_fitness(P: FloatArray, goal: FloatArray, env: Surroundings, a: float, b: float, c: float,
@@ -162,22 +166,40 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
         return ok
     centres, radii = model.footprint(traj.reshape(-1, model.nx))
     centres = centres.reshape(n, steps + 1, len(radii), 2)
+    static, moving = env.static, env.moving
+    used = np.arange(steps + 1)[None, :] <= last[:, None]              # samples of the moves
     bad = np.zeros(len(rows), dtype=bool)
-    for lo in range(0, len(rows), _BLOCK):
-        r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
-        t = env.t + k_ * model.dt
-        hit = np.zeros(len(r_), dtype=bool)
-        for j, rad in enumerate(radii):
-            A = centres[r_, k_, j]
-            B = centres[r_, k_ + 1, j]
-            need = rad + margin
-            if world.obstacles:
-                hit |= world.segment_collides(A, B, radius=need, t=t)
-            hit |= ~world.inside_workspace(B, need)
+    for j, rad in enumerate(radii):
+        need = rad + margin
+        C = centres[:, :, j]
+        if static.obstacles:
+            # clearance of every used sample (static obstacles); a piece whose end clearances
+            # cA, cB satisfy (cA + cB - |AB|) / 2 >= need cannot come closer than need (every
+            # point of it is within s|AB| of A and (1 - s)|AB| of B), so only the others need
+            # the exact swept-disk test
+            clear = np.full((n, steps + 1), np.inf)
+            pts = C[used]
+            vals = np.empty(len(pts))
+            for lo in range(0, len(pts), _BLOCK):
+                vals[lo:lo + _BLOCK] = static.clearance(pts[lo:lo + _BLOCK])
+            clear[used] = vals
+        for lo in range(0, len(rows), _BLOCK):
+            r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
+            A = C[r_, k_]
+            B = C[r_, k_ + 1]
+            hit = ~world.inside_workspace(B, need)
+            if static.obstacles:
+                length = np.hypot(B[:, 0] - A[:, 0], B[:, 1] - A[:, 1])
+                unsure = np.flatnonzero(0.5 * (clear[r_, k_] + clear[r_, k_ + 1] - length)
+                                        < need)
+                if len(unsure):
+                    hit[unsure] |= static.segment_collides(A[unsure], B[unsure], radius=need)
+            if moving.obstacles:
+                hit |= moving.segment_collides(A, B, radius=need, t=env.t + k_ * model.dt)
             if len(other_r):
                 dd, _ = point_segment_distance(other_c[None], A[:, None], B[:, None])
                 hit |= np.any(dd < need + other_r[None], axis=1)
-        bad[lo:lo + _BLOCK] = hit
+            bad[lo:lo + _BLOCK] |= hit
     ok[np.unique(rows[bad])] = False
     return ok
 
