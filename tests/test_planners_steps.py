@@ -13,6 +13,9 @@ from hybridnav.planners.stepfit import GoalDistance, Surroundings, feasible_step
 from hybridnav.world import Circle, Segment, World, load_scenario, scenario_from_dict
 
 NO_ROBOTS = (np.zeros((0, 2)), np.zeros(0))
+# Point-mass tests plan with a 0.5 s rollout step: the point mass's closed loop is linear, so
+# RK4 at 0.5 s predicts the same motion as the simulation's 0.1 s steps (to ~1e-6), 5x faster.
+FAST = {"plan_dt": 0.5}
 
 
 def _scenario(obstacles, robots=None, **top):
@@ -147,7 +150,7 @@ def test_fastep_kinematic_drives_the_straight_line_when_it_is_free():
 @pytest.mark.parametrize("scen", ["fastep-s2", "fastep-s3"])
 def test_step_planners_reach_the_paper_scenarios_with_their_margin(name, scen):
     s = load_scenario(scen)
-    p = planners.get(name)
+    p = planners.get(name, **FAST)
     res = p.run(s, seed=1)
     r = res.robots[0]
     assert r.outcome == "reached"
@@ -164,10 +167,10 @@ def test_step_planners_reach_the_paper_scenarios_with_their_margin(name, scen):
 def test_aco_kinematic_leaves_the_local_minimum_where_lbcs_stalls():
     s = load_scenario("aco-local-minimum")
     assert planners.get("lbcs").run(s).robots[0].outcome == "stuck"
-    r = planners.get("aco-kinematic").run(s, seed=0).robots[0]
+    r = planners.get("aco-kinematic", **FAST).run(s, seed=0).robots[0]
     assert r.outcome == "reached" and r.min_clearance > 0
     # with the papers' straight-line distance the same planner walks into the cup and stays
-    r2 = planners.get("aco-kinematic", distance="euclidean").run(s, seed=0).robots[0]
+    r2 = planners.get("aco-kinematic", distance="euclidean", **FAST).run(s, seed=0).robots[0]
     assert r2.outcome == "stuck"
     assert 21.0 < r2.states[-1, 0] < 33.0 and 17.0 < r2.states[-1, 1] < 33.0
 
@@ -175,7 +178,7 @@ def test_aco_kinematic_leaves_the_local_minimum_where_lbcs_stalls():
 @pytest.mark.parametrize("name", ["fastep-kinematic", "aco-kinematic"])
 def test_three_robots_reach_without_touching_each_other(name):
     s = load_scenario("aco-three-robots")
-    res = planners.get(name).run(s, seed=0)
+    res = planners.get(name, **FAST).run(s, seed=0)
     assert [r.outcome for r in res.robots] == ["reached"] * 3
     # min_clearance includes the other robots' footprints
     assert min(r.min_clearance for r in res.robots) > 0
@@ -187,6 +190,7 @@ def test_three_robots_reach_without_touching_each_other(name):
             assert np.min(np.hypot(*(P[i] - P[j]).T)) > 1.0
 
 
+@pytest.mark.slow
 def test_tractor_trailers_keep_their_half_diagonal_and_reach():
     s = load_scenario("tractor-trailer-3")
     p = planners.get("fastep-kinematic")
@@ -202,6 +206,26 @@ def test_tractor_trailers_keep_their_half_diagonal_and_reach():
             assert np.all(s.world.clearance(W) >= half_diag)
 
 
+def test_coarse_planning_steps_change_nothing_for_the_point_mass():
+    s = load_scenario("fastep-s3")
+    a = planners.get("fastep-kinematic").run(s, seed=2).robots[0]
+    b = planners.get("fastep-kinematic", **FAST).run(s, seed=2).robots[0]
+    assert a.outcome == b.outcome == "reached"
+    assert a.path_length == pytest.approx(b.path_length, rel=1e-3)
+
+
+@pytest.mark.parametrize("name", ["fastep-kinematic", "aco-kinematic"])
+def test_step_planners_drive_a_unicycle(name):
+    from hybridnav.world import scenario_to_dict
+
+    data = scenario_to_dict(load_scenario("fastep-s2"))
+    data["robots"][0]["model"] = "unicycle"
+    s = scenario_from_dict(data)
+    r = planners.get(name, m=2000).run(s, seed=0).robots[0] if name == "aco-kinematic" \
+        else planners.get(name).run(s, seed=0).robots[0]
+    assert r.outcome == "reached" and r.min_clearance > 0
+
+
 def test_aco_kinematic_drives_a_tractor_trailer():
     s = load_scenario("tractor-trailer-1")
     r = planners.get("aco-kinematic", m=2000).run(s, seed=0).robots[0]
@@ -210,7 +234,7 @@ def test_aco_kinematic_drives_a_tractor_trailer():
 
 def test_seeds_reproduce_and_differ():
     s = load_scenario("fastep-s3")
-    p = planners.get("aco-kinematic", m=1000)
+    p = planners.get("aco-kinematic", m=1000, **FAST)
     a = p.run(s, seed=4).robots[0]
     b = p.run(s, seed=4).robots[0]
     c = p.run(s, seed=5).robots[0]
@@ -231,7 +255,7 @@ def test_a_robot_without_a_feasible_step_is_stuck_not_hanging():
 
 def test_moving_obstacles_and_a_moving_target():
     s = load_scenario("pso-ba-dynamic")
-    res = planners.get("fastep-kinematic").run(s, seed=0)
+    res = planners.get("fastep-kinematic", **FAST).run(s, seed=0)
     out = {r.name: r for r in res.robots}
     assert out["robot1"].outcome == "reached"
     assert out["robot2"].outcome == "reached"

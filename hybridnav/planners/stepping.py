@@ -29,6 +29,12 @@ without one it is ``stuck``, and so is a robot with a fixed goal that plans ``st
 a row without getting closer to its goal (by the planner's distance) than it has been (a trap it
 creeps around in). Robots that have ended stay where they are as obstacles.
 
+The rollout integrates with the scenario's ``dt`` by default, so it replays exactly the steps
+the simulation will take. A coarser ``plan_dt`` (e.g. 0.5 s) plans 4 to 8 times faster and is
+accurate for the point mass, whose closed loop is linear; for the unicycle and the tractor-trailer
+it can mispredict fast turns (an ACO-Kinematic unicycle in ``rfd-pso-20m`` collides with
+``plan_dt = 0.5`` and reaches with the default).
+
 Lengths (``margin``, ``eps``, ``reach``) are in robot radii (``model.radius``), so the same
 defaults serve centimetre and metre scenarios; ``reach`` is at least the goal radius. For the
 tractor-trailer the default ``reach`` (4 radii, 3.8 cm) is larger than the ``9L/7`` (2.1 cm) inside
@@ -77,7 +83,8 @@ COMMON: dict[str, Param] = {
     "reach": Param(4.0, "plan the next step within this many robot radii of the current one "
                         "(at least the goal radius)", lo=0.0),
     "horizon": Param(60.0, "look-ahead of the feasibility rollout (s)", lo=1e-6),
-    "plan_dt": Param(0.5, "integration step of the feasibility rollout (s)", lo=1e-6),
+    "plan_dt": Param(0.0, "integration step of the feasibility rollout (s); 0: the scenario's "
+                          "dt, so the rollout replays the simulation's own steps", lo=0.0),
     "distance": Param("geodesic", "distance-to-goal term: 'geodesic' along the shortest "
                                   "obstacle-free path (grid cost-to-go), 'euclidean' as the papers",
                       choices=("geodesic", "euclidean")),
@@ -115,14 +122,15 @@ class StepPlanner(Planner):
         robots = scenario.robots
         n = len(robots)
         sim_models = [scenario.model(r) for r in robots]
-        plan_models = [model_registry.get(r.model, dt=v["plan_dt"], radius=r.radius, **r.params)
+        plan_dt = v["plan_dt"] or scenario.dt
+        plan_models = [model_registry.get(r.model, dt=plan_dt, radius=r.radius, **r.params)
                        for r in robots]
         R = np.array([m.radius for m in sim_models])
         goal_r = np.array([r.goal_radius for r in robots])
         margin = v["margin"] * R
         eps = v["eps"] * R
         reach = np.maximum(v["reach"] * R, goal_r)
-        steps = max(1, int(math.ceil(v["horizon"] / v["plan_dt"] - 1e-9)))
+        steps = max(1, int(math.ceil(v["horizon"] / plan_dt - 1e-9)))
         weights = tuple(v[k] for k in self.weight_names)
         world = scenario.world
         static_world, moving_world = world.static(), world.moving()
