@@ -10,8 +10,16 @@ against the scen file's optimal length (largest difference printed).
 Part 2 -- stochastic planners (``--runs``). Each entry of :data:`RUNNERS` maps a name to a function
 ``(grid, query, seed) -> path length``; it is run once per seed on every ``--every``-th query of
 the selected ``--buckets``, and reported as time per run and path length / optimal length
-(mean, max) and the number of runs that found no path. To compare another planner (RFD-PSO,
-PSO-BA, ...), add one function to :data:`RUNNERS`; nothing else changes.
+(mean, max) and the number of runs that found no path. To compare another planner, add one
+function to :data:`RUNNERS`; nothing else changes.
+
+The planners ``rfd-pso`` and ``pso-ba`` run as whole planners (:func:`planner_runner`): the built-in
+``arena`` scenario with the query's start and goal cell centres, its point-mass robot (radius 0.4
+cells) driven in the closed loop, the map's cells as obstacles. A run's time is planning plus the
+simulated drive (both planners plan inside or before that loop); its length is the *travelled*
+path length when the robot reaches the goal (``inf`` otherwise). Travelled paths are continuous
+(any-angle), so they can be shorter than the octile optimum: ratios below 1 are expected. A run
+that raises counts as no path and the first error of each runner is printed.
 
 Run: ``python benchmarks/bench_grid.py [--repeat 5] [--runs] [--only rfd-slope]
 [--buckets 3 6 9 12] [--every 2] [--seeds 3]``.
@@ -34,8 +42,10 @@ from hybridnav.grid import (
     load_movingai_scen,
 )
 from hybridnav.planners.gridsearch import astar, dijkstra
+from hybridnav.planners.paths import RFDPSOPlanner
+from hybridnav.planners.psoba import PSOBAPlanner
 from hybridnav.planners.rfd_core import rfd
-from hybridnav.world import builtin_data_path
+from hybridnav.world import builtin_data_path, load_scenario
 
 _S = math.sqrt(2.0) - 1.0
 
@@ -98,11 +108,36 @@ def bench_search(grid: OccupancyGrid, queries: list[MovingAIQuery], repeat: int)
 # Part 2: stochastic planners, per run
 # --------------------------------------------------------------------------------------------
 
+def planner_runner(cls, **params) -> Callable[[OccupancyGrid, MovingAIQuery, int], float]:
+    """A runner driving the robot of the ``arena`` scenario with a planner class on a query."""
+    import dataclasses
+
+    base = load_scenario("arena")
+    errors: list[str] = []
+
+    def run(grid: OccupancyGrid, q: MovingAIQuery, seed: int) -> float:
+        robot = dataclasses.replace(base.robots[0], start=(q.start[0] + 0.5, q.start[1] + 0.5),
+                                    goal=(q.goal[0] + 0.5, q.goal[1] + 0.5))
+        scenario = dataclasses.replace(base, robots=[robot])
+        try:
+            r = cls(**params).run(scenario, seed=seed).robots[0]
+        except Exception as exc:  # noqa: BLE001 -- a benchmark reports failures, never stops
+            if not errors:
+                print(f"  ({cls.name}: {q.start}->{q.goal}: {type(exc).__name__}: {exc}; such runs "
+                      "count as no path)")
+            errors.append(repr(exc))
+            return math.inf
+        return r.path_length if r.outcome == "reached" else math.inf
+
+    return run
+
+
 #: name -> function(grid, query, seed) returning the path length (inf when no path was found).
-#: Add RFD-PSO, PSO-BA, ... here.
 RUNNERS: dict[str, Callable[[OccupancyGrid, MovingAIQuery, int], float]] = {
     "rfd (flat, standard)": lambda grid, q, seed: rfd(grid, q.start, q.goal, seed=seed).length,
     "rfd (slope=0.01)": lambda grid, q, seed: rfd(grid, q.start, q.goal, seed=seed, slope=0.01).length,
+    "rfd-pso": planner_runner(RFDPSOPlanner),
+    "pso-ba": planner_runner(PSOBAPlanner),
 }
 
 

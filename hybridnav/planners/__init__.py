@@ -23,10 +23,11 @@ from hybridnav.planners.paths import (
     RFDPSOPlanner,
 )
 from hybridnav.planners.pbpf import PBPF
+from hybridnav.planners.psoba import PSOBAPlanner
 
 PLANNERS: dict[str, type[Planner]] = {
     cls.name: cls for cls in (ACOKinematic, APF, AStarPlanner, DijkstraPlanner, EFFC,
-                              FAStepKinematic, HAPF, LbCSPlanner, PBPF, PSOPathPlanner,
+                              FAStepKinematic, HAPF, LbCSPlanner, PBPF, PSOBAPlanner, PSOPathPlanner,
                               RFDPlanner, RFDPSOPlanner)
 }
 
