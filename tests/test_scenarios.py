@@ -111,7 +111,7 @@ def test_list_scenarios():
     assert names == sorted(names)
     expected = {"fastep-s1", "fastep-s2", "fastep-s3", "aco-three-robots", "aco-local-minimum",
                 "tractor-trailer-1", "tractor-trailer-3", "effc-train-1", "effc-train-2", "effc-env-a",
-                "effc-env-b", "rfd-pso-700", "pso-ba-dynamic", "arena"}
+                "effc-env-b", "rfd-pso-700", "rfd-pso-20m", "pso-ba-dynamic", "arena"}
     assert expected <= set(names)
     for n, desc in items:
         assert desc, n

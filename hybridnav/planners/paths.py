@@ -655,7 +655,7 @@ class PSOPathPlanner(PathPlanner):
         metrics: dict[str, Any] = {}
         if base is not None:
             metrics = {"rfd_length": base.length if base.found else None,
-                       "rfd_iterations": base.metrics["rfd_iterations"]}
+                       "rfd_iterations": base.metrics.get("rfd_iterations", 0)}
             if not base.found:
                 out = _failed(base.reason, **base.info)
                 out.metrics.update(pso_runs=0, **metrics)
