@@ -37,6 +37,8 @@ FloatArray = NDArray[np.float64]
 
 # segments checked per block (bounds the memory of the (segments, obstacles) distance arrays)
 _BLOCK = 1 << 16
+# rollout pieces per stretch whose safety is first bounded from the clearance at its two ends
+_STRIDE = 8
 
 
 @dataclass(frozen=True)
@@ -149,7 +151,7 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
     dist = np.hypot(traj[:, :, 0] - P[:, None, 0], traj[:, :, 1] - P[:, None, 1])
     within = dist <= reach
     last = np.where(within.any(axis=1), within.argmax(axis=1), steps)     # last checked sample
-    rows, ks = np.nonzero(np.arange(steps)[None, :] < last[:, None])      # pieces k -> k+1
+    used = np.arange(steps)[None, :] < last[:, None]                    # pieces k -> k+1
     # the candidate itself must be in sight: the whole-body disk swept straight from where the
     # move ends to the candidate keeps the margin too (the next step is planned from there)
     end = traj[np.arange(n), last, :2]
@@ -162,46 +164,61 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
     if len(other_r):
         dd, _ = point_segment_distance(other_c[None], end[:, None], P[:, None])
         ok &= ~np.any(dd < body + other_r[None], axis=1)
-    if not len(rows):
+    if not used.any():
         return ok
     centres, radii = model.footprint(traj.reshape(-1, model.nx))
     centres = centres.reshape(n, steps + 1, len(radii), 2)
     static, moving = env.static, env.moving
-    used = np.arange(steps + 1)[None, :] <= last[:, None]              # samples of the moves
-    bad = np.zeros(len(rows), dtype=bool)
+    coarse = np.arange(0, steps + 1, _STRIDE)
+    if coarse[-1] != steps:
+        coarse = np.append(coarse, steps)
+    chunk_of = np.searchsorted(coarse, np.arange(steps), side="right") - 1  # piece -> stretch
+    bad = np.zeros(n, dtype=bool)
+
+    def frozen_clearance(Q: FloatArray) -> FloatArray:
+        # everything that does not move during the plan: static obstacles, border, other robots
+        c = world.border_clearance(Q)
+        if static.obstacles:
+            c = np.minimum(c, static.clearance(Q))
+        if len(other_r):
+            d = np.hypot(Q[:, None, 0] - other_c[None, :, 0], Q[:, None, 1] - other_c[None, :, 1])
+            c = np.minimum(c, np.min(d - other_r[None], axis=1))
+        return c
+
     for j, rad in enumerate(radii):
         need = rad + margin
         C = centres[:, :, j]
-        if static.obstacles:
-            # clearance of every used sample (static obstacles); a piece whose end clearances
-            # cA, cB satisfy (cA + cB - |AB|) / 2 >= need cannot come closer than need (every
-            # point of it is within s|AB| of A and (1 - s)|AB| of B), so only the others need
-            # the exact swept-disk test
-            clear = np.full((n, steps + 1), np.inf)
-            pts = C[used]
-            vals = np.empty(len(pts))
-            for lo in range(0, len(pts), _BLOCK):
-                vals[lo:lo + _BLOCK] = static.clearance(pts[lo:lo + _BLOCK])
-            clear[used] = vals
+        # A stretch of the move between two samples with clearances cA, cB and arc length s
+        # cannot come closer than (cA + cB - s) / 2 to anything frozen (each of its points is
+        # within arc length a of one sample and s - a of the other): stretches of _STRIDE pieces
+        # proven safe that way skip the exact swept-disk tests of their pieces.
+        seg = np.hypot(*np.diff(C, axis=1).transpose(2, 0, 1))                  # (n, steps)
+        arc = np.concatenate([np.zeros((n, 1)), np.cumsum(seg, axis=1)], axis=1)
+        pts = C[:, coarse].reshape(-1, 2)
+        clear = np.empty(len(pts))
+        for lo in range(0, len(pts), _BLOCK):
+            clear[lo:lo + _BLOCK] = frozen_clearance(pts[lo:lo + _BLOCK])
+        clear = clear.reshape(n, len(coarse))
+        bound = 0.5 * (clear[:, :-1] + clear[:, 1:] - np.diff(arc[:, coarse], axis=1))
+        rows, ks = np.nonzero(used & (bound < need)[:, chunk_of])
         for lo in range(0, len(rows), _BLOCK):
             r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
-            A = C[r_, k_]
-            B = C[r_, k_ + 1]
+            A, B = C[r_, k_], C[r_, k_ + 1]
             hit = ~world.inside_workspace(B, need)
             if static.obstacles:
-                length = np.hypot(B[:, 0] - A[:, 0], B[:, 1] - A[:, 1])
-                unsure = np.flatnonzero(0.5 * (clear[r_, k_] + clear[r_, k_ + 1] - length)
-                                        < need)
-                if len(unsure):
-                    hit[unsure] |= static.segment_collides(A[unsure], B[unsure], radius=need)
-            if moving.obstacles:
-                hit |= moving.segment_collides(A, B, radius=need, t=env.t + k_ * model.dt)
+                hit |= static.segment_collides(A, B, radius=need)
             if len(other_r):
                 dd, _ = point_segment_distance(other_c[None], A[:, None], B[:, None])
                 hit |= np.any(dd < need + other_r[None], axis=1)
-            bad[lo:lo + _BLOCK] |= hit
-    ok[np.unique(rows[bad])] = False
-    return ok
+            bad[r_[hit]] = True
+        if moving.obstacles:
+            rows, ks = np.nonzero(used)
+            for lo in range(0, len(rows), _BLOCK):
+                r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
+                hit = moving.segment_collides(C[r_, k_], C[r_, k_ + 1], radius=need,
+                                              t=env.t + k_ * model.dt)
+                bad[r_[hit]] = True
+    return ok & ~bad
 
 
 class GoalDistance:
