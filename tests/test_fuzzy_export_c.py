@@ -124,8 +124,15 @@ def test_random_systems_match_evaluate(tmp_path_factory, d, seed):
     exe = build(tmp_path_factory.mktemp("c"), fs)
     X = random_inputs(fs, 200, np.random.default_rng(seed))
     got, want = run(exe, X), evaluate(fs, X)
-    tiny = max_strength(fs, X) < 1e-12
-    np.testing.assert_allclose(got[~tiny], want[~tiny], rtol=0, atol=1e-9)
+    strength = max_strength(fs, X)
+    tiny = strength < 1e-12
+    # Where the strongest activation c is small, the crossing points (where a term falls to c)
+    # carry rounding of about 1e-16 of the term's scale, i.e. 1e-16 / c relative to the clipped
+    # area, in both implementations (a CI run found c ~ 3e-10 giving 1.8e-9 apart): the bound
+    # is the problem's conditioning, as in the scikit-fuzzy agreement test.
+    width = fs.output.range[1] - fs.output.range[0]
+    tol = 1e-9 + width * 1e-15 / np.maximum(strength, 1e-300)
+    assert np.all(np.abs(got[~tiny] - want[~tiny]) <= tol[~tiny])
     if tiny.any():
         ref = skfuzzy_reference(fs, X[tiny])
         fired = ~np.isnan(ref)
