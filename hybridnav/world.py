@@ -855,11 +855,18 @@ class World:
 
     def static(self) -> World:
         """A world with the same workspace and only the static obstacles (indices renumbered)."""
-        return World(self.workspace, tuple(o for o in self.obstacles if not isinstance(o, MovingCircle)))
+        return self._view("static", lambda o: not isinstance(o, MovingCircle))
 
     def moving(self) -> World:
         """A world with the same workspace and only the moving circles (indices renumbered)."""
-        return World(self.workspace, tuple(o for o in self.obstacles if isinstance(o, MovingCircle)))
+        return self._view("moving", lambda o: isinstance(o, MovingCircle))
+
+    def _view(self, name: str, keep) -> World:
+        # worlds are immutable: each view is built once (planners ask for them in their loops)
+        views = self.__dict__.setdefault("_views", {})
+        if name not in views:
+            views[name] = World(self.workspace, tuple(o for o in self.obstacles if keep(o)))
+        return views[name]
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
