@@ -133,9 +133,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     scens = [s.strip() for s in args.scenarios.split(",") if s.strip()]
     params: dict[str, dict[str, str]] = {}
     for key, value in parse_assignments(args.set or []).items():
-        planner, dot, name = key.partition(".")
-        if not dot:
-            raise HybridnavError(f"--set {key}={value}: expected planner.parameter=value")
+        planner, dot, name = key.rpartition(".")    # labels may contain dots, keys do not
+        if not dot or not planner or not name:
+            raise HybridnavError(f"--set {key}={value}: expected label.parameter=value")
         params.setdefault(planner, {})[name] = value
     bar = tqdm(total=len(plans) * len(scens) * args.runs, unit="run", desc="compare")
 
@@ -275,12 +275,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
                                        "plots")
-    p.add_argument("--planners", required=True, help="comma-separated planner names")
+    p.add_argument("--planners", required=True,
+                   help="comma-separated planners: NAME, NAME@LABEL or NAME@LABEL:key=value"
+                        "[:key=value...] (a labelled variant; its parameters win over --set)")
     p.add_argument("--scenarios", required=True, help="comma-separated scenario names or paths")
     p.add_argument("--runs", type=int, default=10, help="runs per combination (default 10)")
     p.add_argument("--seed", type=int, default=0, help="seed from which every run's seed derives")
-    p.add_argument("--set", action="append", metavar="PLANNER.KEY=VALUE",
-                   help="set a planner parameter (repeatable)")
+    p.add_argument("--set", action="append", metavar="LABEL.KEY=VALUE",
+                   help="set a parameter of the planner with that label or plain name "
+                        "(repeatable)")
     backend = p.add_mutually_exclusive_group()
     backend.add_argument("--workers", type=int, default=1, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")

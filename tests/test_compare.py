@@ -66,3 +66,121 @@ def test_bad_requests_fail_before_any_work():
         compare(["apf"], ["effc-train-1"], 0)
     with pytest.raises(HybridnavError, match="'hapf' is not one of the compared planners"):
         compare(["apf"], ["effc-train-1"], 1, params={"hapf": {"margin": 0.1}})
+
+
+# --- labelled planner variants ----------------------------------------------------------------
+
+def test_variants_of_one_planner_match_running_it_directly(tmp_path):
+    from hybridnav import planners
+    from hybridnav.world import load_scenario
+
+    variants = {"effc": {}, "fast": {"speed": 0.2}, "slow": {"speed": 0.05, "max_turn": 0.5}}
+    table, summary = compare(["effc", "effc@fast:speed=0.2", ("slow", "effc", variants["slow"])],
+                             ["effc-train-1"], 2, seed=3)
+    assert list(table.columns) == RUN_COLUMNS and RUN_COLUMNS[-1] == "planner_name"
+    assert list(dict.fromkeys(table.planner)) == ["effc", "fast", "slow"]
+    assert set(table.planner_name) == {"effc"}
+    assert list(summary.planner) == ["effc", "fast", "slow"]
+    scenario = load_scenario("effc-train-1")
+    for label, params in variants.items():
+        rows = table[table.planner == label]
+        assert list(rows.run) == [0, 1]
+        for r in range(2):
+            res = planners.get("effc", **params).run(scenario, seed=run_seed(3, r)).robots[0]
+            row = rows[rows.run == r].iloc[0]
+            assert row.outcome == res.outcome
+            assert row.path_length == res.path_length
+    lengths = table[table.run == 0].set_index("planner").path_length
+    assert len(set(lengths)) == 3               # the parameters made a difference
+    write_comparison(tmp_path, table, summary)
+    back = pd.read_csv(tmp_path / "runs.csv")
+    assert list(back.columns) == RUN_COLUMNS and set(back.planner) == {"effc", "fast", "slow"}
+
+
+def test_set_applies_by_label_and_the_variant_wins():
+    table, _ = compare(["effc", "effc@fast:speed=0.2"], ["effc-train-1"], 1,
+                       params={"fast": {"speed": 0.05, "max_turn": 0.5}, "effc": {"speed": 0.2}})
+    direct, _ = compare([("a", "effc", {"speed": 0.2}), ("b", "effc", {"speed": 0.2,
+                                                                      "max_turn": 0.5})],
+                        ["effc-train-1"], 1)
+    assert list(table.path_length) == list(direct.path_length)
+    with pytest.raises(HybridnavError, match=r"'effc' is not one of the compared planners "
+                                             r"\(a, b\)"):
+        compare(["effc@a", "effc@b"], ["effc-train-1"], 1, params={"effc": {"speed": 0.2}})
+
+
+def test_relative_fis_paths_survive_a_worker_in_another_directory(tmp_path, monkeypatch):
+    import os
+
+    from hybridnav import fuzzy
+    from hybridnav.analysis import compare as module
+
+    (tmp_path / "tuned").mkdir()
+    fuzzy.builtin("effc-5rule").save(tmp_path / "tuned" / "fis.json")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    real = module._execute
+
+    def in_another_directory(task):            # what a Dask worker with another cwd would see
+        here = os.getcwd()
+        os.chdir(elsewhere)
+        try:
+            return real(task)
+        finally:
+            os.chdir(here)
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(module, "_execute", in_another_directory)
+    table, _ = compare(["effc@five:fis=tuned/fis.json", "effc@builtin:fis=effc-5rule"],
+                       ["effc-train-1"], 1)
+    assert list(table.planner) == ["five", "builtin"]
+    assert table.path_length[0] == table.path_length[1]
+
+
+@pytest.mark.parametrize("planners, message", [
+    (["effc", "apf", "effc"], r"--planners effc: duplicate label 'effc' \(items 1 and 3\)"),
+    (["effc@x", "apf@x"], r"--planners apf@x: duplicate label 'x'"),
+    (["effc@apf"], r"--planners effc@apf: the label 'apf' is the name of another planner"),
+    (["effc:speed=0.2"], r"--planners effc:speed=0.2: a variant with parameters needs a label"),
+    (["effc@"], r"--planners effc@: expected a label after '@'"),
+    (["effc@a:speed"], r"--planners effc@a:speed: 'speed': expected key=value"),
+    (["effc@a:speed=1:speed=2"], r"speed: set twice"),
+    (["nope@a"], r"--planners nope@a: planner: unknown planner 'nope'"),
+    (["effc@a:nope=1"], r"--planners effc@a:nope=1: planner effc: unknown parameter 'nope'"),
+    (["effc@a:speed=fast"], r"--planners effc@a:speed=fast: .*speed: expected a number"),
+    (["effc@a:fis=missing.json"], r"--planners effc@a:fis=missing.json: missing.json: cannot read"),
+    ([("a", "effc", {"speed": -1.0})], r"--planners effc@a:speed=-1.0: .*expected a value in"),
+    ([], r"--planners: expected at least one planner"),
+    ([3], r"planners\[0\]: expected NAME"),
+])
+def test_bad_planner_items_fail_before_any_run(planners, message, monkeypatch):
+    from hybridnav.analysis import compare as module
+
+    def no_runs(task):
+        raise AssertionError("a run started")
+
+    monkeypatch.setattr(module, "_execute", no_runs)
+    with pytest.raises(HybridnavError, match=message):
+        compare(planners, ["effc-train-1"], 1)
+
+
+def test_cli_compares_two_variants_of_effc(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "cmp"
+    proc = subprocess.run([sys.executable, "-m", "hybridnav.cli", "compare", "--planners",
+                           "effc,effc@five:fis=effc-5rule", "--scenarios", "effc-train-1",
+                           "--runs", "1", "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    runs = pd.read_csv(out / "runs.csv")
+    assert list(runs.columns) == RUN_COLUMNS
+    assert list(runs.planner) == ["effc", "five"] and list(runs.planner_name) == ["effc", "effc"]
+    assert list(pd.read_csv(out / "summary.csv").planner) == ["effc", "five"]
+    bad = subprocess.run([sys.executable, "-m", "hybridnav.cli", "compare", "--planners",
+                          "effc,effc", "--scenarios", "effc-train-1", "--runs", "1", "--out",
+                          str(tmp_path / "bad")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert "hybridnav: error: --planners effc: duplicate label 'effc'" in bad.stderr
+    assert not (tmp_path / "bad").exists()

@@ -3,14 +3,20 @@
 Each run ``r`` gets the seed ``SeedSequence(seed, spawn_key=(r,))`` — the same for every planner
 and scenario (common random numbers), and independent of how the work is spread, so the tables
 are identical whatever the number of workers or the backend.
+
+The compared planners are *labelled variants*: ``"effc"``, ``"effc@tuned:fis=tuned/fis.json"``
+(see :func:`parse_planner`) or :class:`PlannerSpec` objects, so one planner can be compared with
+itself under other parameters. The label is the ``planner`` column of the tables and the legend
+of the plots; ``planner_name`` in the runs table is the registry name.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,11 +29,15 @@ from hybridnav.fileio import atomic_write_text
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RUN_COLUMNS", "compare", "run_seed", "summarize_runs", "write_comparison"]
+__all__ = ["RUN_COLUMNS", "PlannerSpec", "compare", "parse_planner", "planner_specs", "run_seed",
+           "summarize_runs", "write_comparison"]
 
+#: the columns of ``runs.csv``; ``planner`` is the variant's label, ``planner_name`` the registry
+#: name (appended last so that the older columns keep their positions)
 RUN_COLUMNS = ["planner", "scenario", "run", "seed", "robot", "outcome", "path_length",
-               "time_to_goal", "smoothness", "min_clearance", "compute_time"]
+               "time_to_goal", "smoothness", "min_clearance", "compute_time", "planner_name"]
 METRICS = ["path_length", "time_to_goal", "smoothness", "min_clearance", "compute_time"]
+SYNTAX = "NAME, NAME@LABEL or NAME@LABEL:key=value[:key=value...]"
 #: metrics summarized over the robots that reached their goal only
 REACHED_ONLY = ("path_length", "time_to_goal", "smoothness")
 
@@ -37,8 +47,162 @@ def run_seed(seed: int, run: int) -> int:
     return int(np.random.SeedSequence(seed, spawn_key=(run,)).generate_state(1)[0])
 
 
+@dataclass
+class PlannerSpec:
+    """One compared planner: its label, its registry name and its parameter overrides.
+
+    Parameters
+    ----------
+    label : str
+        What the ``planner`` column of the tables and the plot legends show; unique in a
+        comparison.
+    name : str
+        The registry name (see ``hybridnav planners``).
+    params : dict
+        Parameter overrides; strings are parsed as ``--set`` values are.
+    text : str, optional
+        How the item was written (for error messages); default: :meth:`format`.
+    """
+
+    label: str
+    name: str
+    params: dict[str, Any] = field(default_factory=dict)
+    text: str = ""
+
+    def format(self) -> str:
+        """The item in the ``--planners`` syntax (values shown with ``str``)."""
+        head = self.name if self.label == self.name and not self.params else \
+            f"{self.name}@{self.label}"
+        return ":".join([head, *(f"{k}={v}" for k, v in self.params.items())])
+
+    def __str__(self) -> str:
+        return self.text or self.format()
+
+
+def parse_planner(text: str) -> PlannerSpec:
+    """Parse one ``--planners`` item: ``NAME``, ``NAME@LABEL`` or ``NAME@LABEL:key=value:...``.
+
+    Parameters
+    ----------
+    text : str
+        The item. A variant with parameters must have a label (``effc:fis=x`` is an error,
+        ``effc@x:fis=x`` is not); values are kept as strings, to be parsed by the planner's
+        parameter declarations like ``--set`` values. Values cannot contain ``:`` or ``,``
+        (use ``--set LABEL.key=value`` for those).
+
+    Returns
+    -------
+    PlannerSpec
+
+    Raises
+    ------
+    HybridnavError
+        A malformed item (named, with the expected syntax).
+    """
+    item = text.strip()
+
+    def fail(why: str) -> HybridnavError:
+        return HybridnavError(f"--planners {item}: {why}")
+
+    head, *assignments = item.split(":")
+    name, at, label = (part.strip() for part in head.partition("@"))
+    if not name:
+        raise fail(f"expected {SYNTAX}")
+    if at and not label:
+        raise fail(f"expected a label after '@' ({SYNTAX})")
+    if "@" in label:
+        raise fail(f"expected one '@' ({SYNTAX})")
+    if assignments and not at:
+        raise fail(f"a variant with parameters needs a label: expected {name}@LABEL:key=value")
+    params: dict[str, Any] = {}
+    for assignment in assignments:
+        key, eq, value = (part.strip() for part in assignment.partition("="))
+        if not eq or not key:
+            raise fail(f"{assignment.strip()!r}: expected key=value ({SYNTAX})")
+        if key in params:
+            raise fail(f"{key}: set twice")
+        params[key] = value
+    return PlannerSpec(label or name, name, params, item)
+
+
+def planner_specs(planners: Sequence[str | PlannerSpec | tuple]) -> list[PlannerSpec]:
+    """The compared planners as :class:`PlannerSpec` objects, with unique labels.
+
+    Parameters
+    ----------
+    planners : sequence
+        Items in the ``--planners`` syntax (:func:`parse_planner`), :class:`PlannerSpec` objects,
+        or ``(label, name, params)`` tuples.
+
+    Returns
+    -------
+    list of PlannerSpec
+
+    Raises
+    ------
+    HybridnavError
+        A malformed item, an empty list, a duplicate label, or a label that is the registry name
+        of another planner.
+    """
+    from hybridnav.planners import PLANNERS
+
+    if isinstance(planners, str):
+        planners = [planners]
+    specs: list[PlannerSpec] = []
+    for i, item in enumerate(planners):
+        if isinstance(item, PlannerSpec):
+            specs.append(item)
+        elif isinstance(item, str):
+            specs.append(parse_planner(item))
+        elif isinstance(item, tuple) and len(item) == 3 and isinstance(item[0], str) \
+                and isinstance(item[1], str) and isinstance(item[2], Mapping):
+            specs.append(PlannerSpec(item[0], item[1], dict(item[2])))
+        else:
+            raise HybridnavError(f"planners[{i}]: expected {SYNTAX}, a PlannerSpec or a "
+                                 f"(label, name, params) tuple, got {item!r}")
+    if not specs:
+        raise HybridnavError("--planners: expected at least one planner")
+    seen: dict[str, int] = {}
+    for i, spec in enumerate(specs):
+        if not spec.label.strip():
+            raise HybridnavError(f"--planners {spec}: expected a non-empty label")
+        if spec.label in seen:
+            raise HybridnavError(
+                f"--planners {spec}: duplicate label {spec.label!r} (items {seen[spec.label] + 1} "
+                f"and {i + 1}); give each variant its own label, NAME@LABEL")
+        if spec.label != spec.name and spec.label in PLANNERS:
+            raise HybridnavError(f"--planners {spec}: the label {spec.label!r} is the name of "
+                                 f"another planner; choose another label")
+        seen[spec.label] = i
+    return specs
+
+
+def _absolute_paths(name: str, params: dict[str, Any]) -> dict[str, Any]:
+    """``params`` with relative paths of existing files made absolute.
+
+    Worker processes (a Dask worker in particular) need not share this process's working
+    directory. Only free-text string parameters are touched, and only values that name a file
+    the way :func:`hybridnav.fuzzy.load_any` tells a file from a built-in name (a suffix or a
+    directory separator), so built-in names stay names.
+    """
+    from hybridnav.planners import PLANNERS
+
+    declared = PLANNERS[name].params
+    out = dict(params)
+    for key, value in params.items():
+        p = declared.get(key)
+        if p is None or p.kind is not str or p.choices is not None or not isinstance(value, str):
+            continue
+        path = Path(value)
+        if (path.suffix or "/" in value or os.sep in value) and not path.is_absolute() \
+                and path.exists():
+            out[key] = str(path.resolve())
+    return out
+
+
 @dataclass(frozen=True)
 class _Task:
+    label: str
     planner: str
     params: tuple
     scenario: str
@@ -56,13 +220,14 @@ def _execute(task: _Task) -> list[dict[str, Any]]:
     rows = []
     for r in result.robots:
         s = r.summary()
-        rows.append({"planner": task.planner, "scenario": scenario.name, "run": task.run,
-                     "seed": task.seed, "robot": r.name, **{k: s[k] for k in RUN_COLUMNS[5:]}})
+        rows.append({"planner": task.label, "scenario": scenario.name, "run": task.run,
+                     "seed": task.seed, "robot": r.name, **{k: s[k] for k in RUN_COLUMNS[5:11]},
+                     "planner_name": task.planner})
     return rows
 
 
 def compare(
-    planners: Sequence[str],
+    planners: Sequence[str | PlannerSpec | tuple],
     scenarios: Sequence[str],
     runs: int,
     *,
@@ -74,38 +239,74 @@ def compare(
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Run every combination and return ``(runs, summary)`` tables.
 
+    Everything is checked before any run starts: planner names, parameters and their values,
+    labels, and that every planner handles every scenario.
+
     Parameters
     ----------
-    planners, scenarios : sequence of str
-        Planner names; scenario names or paths.
+    planners : sequence
+        The compared planners: names (``["apf", "effc"]``), labelled variants in the
+        ``--planners`` syntax (``"effc@tuned:fis=tuned/fis.json"``, see :func:`parse_planner`),
+        :class:`PlannerSpec` objects or ``(label, name, params)`` tuples. Labels are unique.
+    scenarios : sequence of str
+        Scenario names or paths.
     runs : int
         Runs per combination (run ``r`` uses :func:`run_seed`).
     params : dict, optional
-        ``{planner: {parameter: value}}`` overrides.
+        ``{label: {parameter: value}}`` overrides (``--set label.parameter=value``); a plain
+        name is its own label. A variant's own parameters win over these.
     workers : int
         Local worker processes (1: in this process).
     dask : str or distributed.Client, optional
         A Dask scheduler address (or a client) to run the tasks on instead.
     progress : callable, optional
         ``progress(done, total)`` after each finished task.
+
+    Returns
+    -------
+    runs : DataFrame
+        One row per run and robot, columns :data:`RUN_COLUMNS`, in the order of ``planners``.
+    summary : DataFrame
+        :func:`summarize_runs` of it.
+
+    Raises
+    ------
+    HybridnavError
+        A bad planner item, label, parameter or value (naming the item), a scenario a planner
+        cannot handle, or ``runs < 1``.
+
+    Notes
+    -----
+    Relative paths of existing files in string parameters (``fis=tuned/fis.json``) are made
+    absolute here, so they name the same file in worker processes with another working
+    directory.
     """
     from hybridnav import planners as registry
     from hybridnav.world import load_scenario
 
     if runs < 1:
         raise HybridnavError(f"runs: expected a positive number of runs, got {runs}")
+    specs = planner_specs(planners)
+    labels = [spec.label for spec in specs]
     params = {k: dict(v) for k, v in (params or {}).items()}
-    unknown = sorted(set(params) - set(planners))
+    unknown = sorted(set(params) - set(labels))
     if unknown:
         raise HybridnavError(f"--set {unknown[0]}.*: {unknown[0]!r} is not one of the compared "
-                             f"planners ({', '.join(planners)})")
-    for p in planners:                     # fail before any work starts
-        planner = registry.get(p, **params.get(p, {}))
-        params[p] = planner.describe()
-        for s in scenarios:
-            planner.check_scenario(load_scenario(s))
-    tasks = [_Task(p, tuple(sorted(params[p].items())), s, r, run_seed(seed, r))
-             for p in planners for s in scenarios for r in range(runs)]
+                             f"planners ({', '.join(labels)})")
+    loaded = [load_scenario(s) for s in scenarios]
+    settings: dict[str, dict[str, Any]] = {}
+    for spec in specs:                     # fail before any work starts
+        try:
+            merged = {**params.get(spec.label, {}), **spec.params}   # the variant's own win
+            planner = registry.get(spec.name, **merged)
+            settings[spec.label] = _absolute_paths(spec.name, merged)
+            for scenario in loaded:
+                planner.check_scenario(scenario)
+        except HybridnavError as exc:
+            raise HybridnavError(f"--planners {spec}: {exc}") from None
+    tasks = [_Task(spec.label, spec.name, tuple(sorted(settings[spec.label].items())), s, r,
+                   run_seed(seed, r))
+             for spec in specs for s in scenarios for r in range(runs)]
     rows: list[dict[str, Any]] = []
     done = 0
 
@@ -136,7 +337,7 @@ def compare(
         for t in tasks:
             finished(_execute(t))
     table = pd.DataFrame(rows, columns=RUN_COLUMNS)
-    order = {p: i for i, p in enumerate(planners)}
+    order = {label: i for i, label in enumerate(labels)}
     table = table.sort_values(["planner", "scenario", "run", "robot"],
                               key=lambda c: c.map(order) if c.name == "planner" else c,
                               kind="stable").reset_index(drop=True)
