@@ -31,6 +31,9 @@ elite = 1
 tournament = 2
 [backend]
 chunk = 2
+[scenarios]
+train = ["effc-train-1", "effc-train-2"]
+validation = [{generate = 3, seed = 2, circles = [1, 3]}]
 """
 
 
@@ -141,17 +144,93 @@ def test_genome_round_trip_repair_and_switches():
         space.system(row)             # every repaired genome decodes to a valid system
 
 
+def _uncovered_reference(system, grid):
+    """Fraction of the input grid where no rule fires, from scikit-fuzzy's sampled membership
+    functions and interp_membership (min for AND, max for OR, times the weight; every output
+    term has a positive area)."""
+    import skfuzzy
+
+    names = system.input_names
+    axes = [np.linspace(v.range[0], v.range[1], grid) for v in system.inputs]
+    D, A = np.meshgrid(*axes, indexing="ij")
+    X = {names[0]: D.ravel(), names[1]: A.ravel()}
+    mf = {}
+    for v in system.inputs:
+        u = np.linspace(v.range[0], v.range[1], v.points)
+        mf[v.name] = {t.name: skfuzzy.interp_membership(u, getattr(skfuzzy, t.mf)(u, *t.params),
+                                                        X[v.name]) for t in v.terms}
+
+    def fire(a):
+        if isinstance(a, list):
+            return mf[a[0]][a[1]]
+        op, items = next(iter(a.items()))
+        if op == "not":
+            return 1.0 - fire(items)
+        parts = [fire(x) for x in items]
+        return np.minimum.reduce(parts) if op == "and" else np.maximum.reduce(parts)
+
+    fired = np.zeros(D.size, dtype=bool)
+    for r in system.to_dict()["rules"]:
+        fired |= fire(r["if"]) * r.get("weight", 1.0) > 0
+    return 1.0 - fired.mean()
+
+
 def test_chunk_reward_equals_the_planner_run(tmp_path):
     job = small_job(tmp_path)
-    space = GenomeSpace(job.start_system(), job["free"])
+    start = job.start_system()
+    space = GenomeSpace(start, job["free"])
     rec = evaluate_chunk(job_json(job), space.encode()[None], 0, [0])[0]
-    total = 0.0
+    costs = []
     for s, env in zip(job.scenarios(), rec["envs"]):
-        r = planners.get("effc", fis=job.start_system()).run(s).robots[0]
+        r = planners.get("effc", fis=start).run(s).robots[0]
         assert env["outcome"] == r.outcome
         assert env["length"] == pytest.approx(r.path_length, rel=1e-9)
-        total += r.path_length if r.outcome == "reached" else 100.0
-    assert rec["fitness"] == pytest.approx(total, rel=1e-9)
+        robot = s.robots[0]
+        D = np.hypot(*np.subtract(robot.goal, robot.start)) - robot.goal_radius
+        assert r.outcome == "reached"
+        short = max(0.0, 1.0 - r.min_clearance / robot.radius)    # safety: one robot radius
+        costs.append(r.path_length / D + 2.0 * short)
+        assert env["reward"] == pytest.approx(costs[-1], rel=1e-9)
+    unc = _uncovered_reference(start, 41)
+    assert unc == pytest.approx(0.11, abs=0.01)      # alpha high and dtheta low: no rule fires
+    assert rec["uncovered"] == pytest.approx(unc, abs=1e-12)
+    assert rec["cost"] == pytest.approx(np.mean(costs), rel=1e-9)
+    assert rec["fitness"] == pytest.approx(np.mean(costs) + 100.0 * (1 + unc), rel=1e-9)
+
+
+def test_coverage_matches_scikit_fuzzy_on_random_genomes(tmp_path):
+    job = small_job(tmp_path)
+    space = GenomeSpace(job.start_system(), job["free"])
+    X = space.random(12, np.random.default_rng(3))
+    from hybridnav.tuner.evaluate import uncovered_fraction
+
+    got = uncovered_fraction(job_json(job), X)
+    ref = [_uncovered_reference(space.system(x), 41) for x in X]
+    assert np.allclose(got, ref, atol=1e-12)
+    assert 0 < sum(np.asarray(ref) == 0) < len(ref)    # some cover everything, some do not
+
+
+def test_deploy_cost_orders_outcomes(tmp_path):
+    from hybridnav.planners.lockstep import LockstepResult
+    from hybridnav.tuner.evaluate import run_costs
+
+    job = small_job(tmp_path)
+    scen = job.scenarios()[:1]
+    out = np.array([["reached", "reached", "reached", "stuck", "timeout", "collided",
+                     "out_of_bounds"]], dtype=object)
+    n = out.shape[1]
+    res = LockstepResult(outcome=out, path_length=np.array([[4.0, 4.0, 12.0, 3, 3, 1, 1]]),
+                         time=np.full((1, n), 40.0),
+                         min_clearance=np.array([[0.5, 0.02, 0.0, 0.3, 0.3, -0.01, 0.1]]),
+                         final_distance=np.array([[0.05, 0.05, 0.05, 0.0, 5.0, 2, 2]]))
+    c = run_costs(job, scen, res)[0]
+    D = np.hypot(3, 3) - 0.1
+    assert c[0] == pytest.approx(4.0 / D)
+    assert c[1] == pytest.approx(4.0 / D + 2.0 * 0.8)          # 2 cm from a 10 cm robot
+    # the longest possible detour (the whole time budget at full speed), touching an obstacle,
+    # still costs less than getting stuck next to the goal, which costs less than a collision
+    assert c[2] < c[3] < c[4] < c[5] == c[6] == 20.0
+    assert c[3] == pytest.approx(10.0) and c[4] == pytest.approx(15.0)
 
 
 def test_penalty_and_the_maximize_convention(tmp_path):
@@ -165,6 +244,10 @@ def test_penalty_and_the_maximize_convention(tmp_path):
     rec = evaluate_chunk(job_json(job), space.repair(x[None]), 0, [0])[0]
     for env in rec["envs"]:
         assert env["reward"] == (env["length"] if env["outcome"] == "reached" else -7.0)
+    assert job["reward"]["kind"] == "paper"         # an old job file's sense chooses the kind
+    unc = rec["uncovered"]
+    total = sum(e["reward"] for e in rec["envs"])
+    assert rec["fitness"] == pytest.approx(total - (100.0 * (1 + unc) if unc > 0 else 0.0))
 
 
 def test_noise_does_not_depend_on_the_chunking(tmp_path):
@@ -187,7 +270,30 @@ def test_noise_does_not_depend_on_the_chunking(tmp_path):
     ("[free.bounds]\nalpha = [1.0, 0.5]\n", "free.bounds.alpha", "expected [lo, hi]"),
     ("[system]\nstart = \"missing.json\"\n", "system.start", "cannot read"),
     ("[scenarios]\ntrain = [\"aco-three-robots\"]\n", "scenarios.train[0]", "exactly one"),
-    ("[reward]\nrepeats = 3\n", "reward.repeats", "heading_noise > 0"),
+    ("[reward]\nrepeats = 3\n", "reward.repeats", "alpha_noise > 0"),
+    ("[reward]\nkind = \"fast\"\n", "reward.kind", "expected one of deploy, length, paper"),
+    ("[reward]\nkind = \"deploy\"\nsense = \"maximize\"\n", "reward.sense",
+     "expected minimize"),
+    ("[scenarios]\ntrain = [{generate = 0}]\n", "scenarios.train[0].generate",
+     "expected a value in [1, 10000]"),
+    ("[scenarios]\ntrain = [{seed = 1}]\n", "scenarios.train[0].generate", "missing"),
+    ("[scenarios]\ntrain = [{generate = 2, circle = [1, 2]}]\n",
+     "scenarios.train[0].circle", "unknown key"),
+    ("[scenarios]\ntrain = [{generate = 2, radius = [0.5, 0.2]}]\n",
+     "scenarios.train[0].radius", "low <= high"),
+    ("[scenarios]\ntrain = [{generate = 2, layout = \"ring\"}]\n",
+     "scenarios.train[0].layout", "expected one of diagonal, random"),
+    ("[scenarios]\ntrain = [\"effc-train-1\"]\nvalidation = [3]\n",
+     "scenarios.validation[0]", "expected a scenario name or path"),
+    ("[scenarios]\ntrain = [{generate = 2, circles = [40, 40], radius = [0.9, 1.0], "
+     "max_tries = 2}]\n", "scenarios.train[0]", "no solvable world"),
+    ("[scenarios]\ntrain = [\"effc-train-1\", {generate = 1, dt = 0.05}]\n",
+     "scenarios.train", "expected one robot model for the whole set"),
+    ("[scenarios]\ntrain = [\"effc-train-1\", \"effc-train-1\"]\n", "scenarios.train",
+     "expected distinct scenario names"),
+    ("[coverage]\nmax_uncovered = 1.5\n", "coverage.max_uncovered", "expected a value in"),
+    ("[validation]\ntop = 0\n", "validation.top", "expected a value in"),
+    ("[free]\nmargin = -0.1\n", "free.margin", "expected a value in"),
     ("[reward]\npenalty = \"big\"\n", "reward.penalty", "expected float"),
 ])
 def test_bad_jobs_fail_before_any_work(tmp_path, extra, key, text):
@@ -305,4 +411,12 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
 def test_validate_job_defaults_are_the_papers():
     job = validate_job({}, None, __import__("pathlib").Path.cwd())
     assert job["ga"]["population"] == 100 and job["ga"]["generations"] == 25
-    assert job["scenarios"]["train"] == ["effc-train-1", "effc-train-2"]
+    sets = job["scenarios"]
+    assert sets["train"][:2] == ["effc-train-1", "effc-train-2"]       # the paper's two
+    assert sets["train"][2]["generate"] > 0 and sets["validation"][0]["generate"] > 0
+    assert sets["test"][:2] == ["effc-env-a", "effc-env-b"]
+    seeds = {sets[k][-1]["seed"] for k in ("train", "validation", "test")}
+    assert len(seeds) == 3                                 # three disjoint generated sets
+    names = {k: {s.name for s in job.scenarios(k)} for k in ("train", "validation", "test")}
+    assert not names["train"] & names["validation"] and not names["test"] & (
+        names["train"] | names["validation"])

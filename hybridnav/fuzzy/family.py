@@ -116,15 +116,9 @@ class SystemFamily:
 
     # ---- evaluation -----------------------------------------------------------------------
 
-    def evaluate(self, tables: FamilyTables, member: ArrayLike,
-                 inputs: Mapping[str, ArrayLike]) -> FloatArray:
-        """Crisp outputs for samples ``b`` of members ``member[b]`` with inputs ``inputs[name][b]``.
-
-        Returns
-        -------
-        ndarray, shape (B,)
-        """
-        member = np.asarray(member, dtype=np.intp).ravel()
+    def _cuts(self, tables: FamilyTables, member: NDArray[np.intp],
+              inputs: Mapping[str, ArrayLike]):
+        """Rule strengths (B, R) and the output terms' cut levels (B, T) and use (B, T)."""
         B = len(member)
         mu: dict[tuple[int, int], FloatArray] = {}
         for i, v in enumerate(self.inputs):
@@ -157,10 +151,54 @@ class SystemFamily:
             sel = cons == t
             used[:, t] = sel.any(axis=1)
             cuts[:, t] = np.max(np.where(sel, strength, 0.0), axis=1, initial=0.0)
+        return strength, cuts, used
+
+    def evaluate(self, tables: FamilyTables, member: ArrayLike,
+                 inputs: Mapping[str, ArrayLike]) -> FloatArray:
+        """Crisp outputs for samples ``b`` of members ``member[b]`` with inputs ``inputs[name][b]``.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+        """
+        member = np.asarray(member, dtype=np.intp).ravel()
+        strength, cuts, used = self._cuts(tables, member, inputs)
         out = upsampled_centroid(self.x_out, tables.output[member], cuts, used,
                                  self.output.default)
         out[np.isnan(strength).any(axis=1)] = np.nan
         return out
+
+    def fired(self, tables: FamilyTables, member: ArrayLike,
+              inputs: Mapping[str, ArrayLike]) -> NDArray[np.bool_]:
+        """Whether any rule fires (the aggregated output has a positive area) at each sample;
+        where it does not, :meth:`evaluate` returns the output's ``default``.
+
+        Returns
+        -------
+        ndarray of bool, shape (B,)
+        """
+        member = np.asarray(member, dtype=np.intp).ravel()
+        _, cuts, used = self._cuts(tables, member, inputs)
+        # min(cut, F) > 0 somewhere exactly when the cut is positive and the term is not zero
+        positive = tables.output.max(axis=2) > 0                 # (K, T)
+        return np.any(used & (cuts > 0) & positive[member], axis=1)
+
+    def uncovered(self, tables: FamilyTables, grid: int = 41) -> FloatArray:
+        """Per member, the fraction of a ``grid``-per-axis grid over the input ranges (range
+        ends included) where no rule fires (the output falls back to ``default``).
+
+        Returns
+        -------
+        ndarray, shape (K,)
+        """
+        axes = [np.linspace(v.range[0], v.range[1], grid) for v in self.inputs]
+        mesh = [m.ravel() for m in np.meshgrid(*axes, indexing="ij")]
+        n = len(mesh[0])
+        K = tables.size
+        member = np.repeat(np.arange(K), n)
+        X = {v.name: np.tile(m, K) for v, m in zip(self.inputs, mesh)}
+        ok = self.fired(tables, member, X).reshape(K, n)
+        return 1.0 - ok.mean(axis=1)
 
     def _fire(self, a, mu) -> FloatArray:
         if isinstance(a, TermRef):

@@ -28,7 +28,7 @@ from hybridnav.planners.base import Param
 from hybridnav.planners.field import COMMON, FieldPlanner
 from hybridnav.planners.simulate import Simulation
 
-__all__ = ["EFFC", "effc_inputs", "effc_force"]
+__all__ = ["EFFC", "effc_inputs", "effc_inputs_from", "effc_force"]
 
 
 def effc_inputs(world, P: np.ndarray, goals: np.ndarray, radius, t: float):
@@ -39,13 +39,25 @@ def effc_inputs(world, P: np.ndarray, goals: np.ndarray, radius, t: float):
     dtheta, alpha : ndarray, shape (N,)
     f_att, f_rep : ndarray, shape (N, 2)
     """
+    n = len(P)
+    if not world.obstacles:
+        clear, near = np.full(n, np.inf), np.full((n, 2), np.nan)
+    else:
+        clear, near, _ = world.nearest(P, t=t)
+    return effc_inputs_from(P, goals, clear, near, radius)
+
+
+def effc_inputs_from(P: np.ndarray, goals: np.ndarray, clear: np.ndarray, near: np.ndarray,
+                     radius):
+    """:func:`effc_inputs` from the nearest obstacle's signed clearance ``clear`` (N,) and
+    surface point ``near`` (N, 2); rows with ``clear = inf`` (no obstacle) get ``dtheta = pi``,
+    ``alpha = inf`` and no repulsion."""
     to_goal = goals - P
     d_goal = np.hypot(to_goal[:, 0], to_goal[:, 1])
     f_att = to_goal / np.where(d_goal > 0, d_goal, 1.0)[:, None]
-    n = len(P)
-    if not world.obstacles:
-        return np.full(n, np.pi), np.full(n, np.inf), f_att, np.zeros((n, 2))
-    clear, near, _ = world.nearest(P, t=t)
+    none = np.isinf(clear)
+    if none.any():
+        near = np.where(none[:, None], P, near)
     away = P - near
     d_near = np.hypot(away[:, 0], away[:, 1])
     f_rep = away / np.where(d_near > 0, d_near, 1.0)[:, None]
@@ -55,6 +67,8 @@ def effc_inputs(world, P: np.ndarray, goals: np.ndarray, radius, t: float):
     dtheta = np.abs(np.arctan2(np.sin(ang), np.cos(ang)))
     d_obs = np.maximum(clear - np.asarray(radius, dtype=float), 0.0)
     alpha = d_obs / np.where(d_goal > 0, d_goal, np.finfo(float).tiny)
+    if none.any():
+        dtheta[none], alpha[none], f_rep[none] = np.pi, np.inf, 0.0
     return dtheta, alpha, f_att, f_rep
 
 

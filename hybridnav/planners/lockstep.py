@@ -44,6 +44,7 @@ def lockstep_field(
     stuck_window: float = 10.0,
     stuck_radius: float = 2.0,
     record_paths: bool = False,
+    stack=None,
 ) -> LockstepResult:
     """Simulate ``n_members`` controllers on each single-robot scenario, all in lockstep.
 
@@ -68,6 +69,9 @@ def lockstep_field(
         The velocity's length (the field gives the direction).
     stuck_window, stuck_radius :
         No-progress test: seconds, and a radius in goal radii.
+    stack : WorldStack, optional
+        The scenarios' worlds packed (:class:`hybridnav.planners.worldstack.WorldStack`); built
+        here when not given. Collision and bounds tests ask it for all robots at once.
     """
     if not scenarios:
         raise HybridnavError("scenarios: expected at least one training scenario")
@@ -83,6 +87,10 @@ def lockstep_field(
         raise HybridnavError(
             "scenarios: the training scenarios' robots must share one model, its parameters and "
             "dt (one batched step serves them all)")
+    if stack is None:
+        from hybridnav.planners.worldstack import WorldStack
+
+        stack = WorldStack([s.world for s in scenarios])
     E, M = len(scenarios), int(n_members)
     N = E * M
     dt = model.dt
@@ -104,7 +112,7 @@ def lockstep_field(
     paths = np.zeros((N, steps + 1, 2)) if record_paths else None
     if record_paths:
         paths[:, 0] = X[:, :2]
-    _check(scenarios, models, env, X, 0.0, status, min_clear, t_end, goals, goal_r)
+    _check(stack, model, env, X, 0.0, status, min_clear, t_end, goals, goal_r)
     for k in range(steps):
         run = status == 0
         if not run.any():
@@ -129,7 +137,7 @@ def lockstep_field(
         tn = (k + 1) * dt
         if record_paths:
             paths[:, k + 1] = X[:, :2]
-        _check(scenarios, models, env, X, tn, status, min_clear, t_end, goals, goal_r, run)
+        _check(stack, model, env, X, tn, status, min_clear, t_end, goals, goal_r, run)
         if window:
             ring[(k + 1) % (window + 1)] = X[:, :2]
             if k + 1 >= window:
@@ -160,27 +168,25 @@ def lockstep_field(
     )
 
 
-def _check(scenarios, models, env, X, t, status, min_clear, t_end, goals, goal_r, which=None):
-    """Collision / bounds / goal tests at time ``t`` for the robots in ``which``."""
+def _check(stack, model, env, X, t, status, min_clear, t_end, goals, goal_r, which=None):
+    """Collision / bounds / goal tests at time ``t`` for the robots in ``which``, all
+    environments at once."""
     which = (status == 0) if which is None else which & (status == 0)
-    for e, s in enumerate(scenarios):
-        sel = np.flatnonzero(which & (env == e))
-        if not len(sel):
-            continue
-        centers, radii = models[e].footprint(X[sel])
-        m = len(radii)
-        flat = centers.reshape(-1, 2)
-        world = s.world
-        if world.obstacles:
-            clear = (world.clearance(flat, t=t).reshape(len(sel), m) - radii[None]).min(axis=1)
-        else:
-            clear = np.full(len(sel), np.inf)
-        min_clear[sel] = np.minimum(min_clear[sel], clear)
-        inside = world.inside_workspace(flat, float(radii.max())).reshape(len(sel), m).all(axis=1)
-        reached = np.hypot(*(X[sel, :2] - goals[sel]).T) <= goal_r[sel]
-        code = np.where(clear < 0, OUTCOME_CODES.index("collided"),
-                        np.where(~inside, OUTCOME_CODES.index("out_of_bounds"),
-                                 np.where(reached, OUTCOME_CODES.index("reached"), 0)))
-        ended = code > 0
-        status[sel[ended]] = code[ended]
-        t_end[sel[ended]] = t
+    sel = np.flatnonzero(which)
+    if not len(sel):
+        return
+    centers, radii = model.footprint(X[sel])
+    m = len(radii)
+    flat = centers.reshape(-1, 2)
+    env_f = np.repeat(env[sel], m)
+    clear = (stack.clearance(flat, env_f, t).reshape(len(sel), m) - radii[None]).min(axis=1)
+    min_clear[sel] = np.minimum(min_clear[sel], clear)
+    inside = (stack.border_clearance(flat, env_f) >= float(radii.max())).reshape(
+        len(sel), m).all(axis=1)
+    reached = np.hypot(*(X[sel, :2] - goals[sel]).T) <= goal_r[sel]
+    code = np.where(clear < 0, OUTCOME_CODES.index("collided"),
+                    np.where(~inside, OUTCOME_CODES.index("out_of_bounds"),
+                             np.where(reached, OUTCOME_CODES.index("reached"), 0)))
+    ended = code > 0
+    status[sel[ended]] = code[ended]
+    t_end[sel[ended]] = t

@@ -1,60 +1,211 @@
 """The reward of a chunk of genomes: every (genome, environment, repeat) simulated in lockstep.
 
 Each control cycle is one batched fuzzy evaluation for all robots of the chunk
-(:class:`hybridnav.fuzzy.family.SystemFamily`) and one batched model step
-(:func:`hybridnav.planners.lockstep.lockstep_field`) — no Python loop per individual per step.
+(:class:`hybridnav.fuzzy.family.SystemFamily`), one batched nearest-obstacle query over all
+environments (:class:`hybridnav.planners.worldstack.WorldStack`) and one batched model step
+(:func:`hybridnav.planners.lockstep.lockstep_field`) — no Python loop per individual, per
+environment or per step.
 
-Reward per environment (``reward.sense``):
+Cost of one run (``reward.kind``):
 
-``"minimize"`` (default)
-    the travelled distance if the robot reaches the target (no collision, inside the workspace),
-    else ``penalty``; summed over the environments and minimized.
-``"maximize"``
+``"deploy"`` (default; minimized)
+    reached: ``length * L / D + time * T v / D + clearance * max(0, 1 - c / s)``, with ``L``
+    the path length, ``T`` the time to goal, ``v`` the planner speed, ``D`` the start-goal
+    distance less the goal radius, ``c`` the run's minimum clearance (footprint to obstacle)
+    and ``s = safety_distance`` robot radii; collided or out of bounds: ``collision``; stuck or
+    timeout: ``failure + progress * min(1, d_end / d_start)`` (distance left to the goal).
+    The fitness is the **mean** over environments (each averaged over ``repeats``) plus the
+    coverage penalty.
+``"length"``
+    the path length when the target is reached, else ``penalty``; summed, minimized.
+``"paper"``
     the EFFC paper's literal convention: the distance on success, ``-penalty`` on failure,
     summed and maximized. (The paper says the GA maximizes this while wanting short paths, which
     contradicts itself: maximizing rewards long detours. It is here so that its effect can be
-    seen; ``minimize`` is the consistent reading.)
+    seen.)
 
-With ``heading_noise > 0`` the commanded heading of every robot is perturbed each cycle by
-Gaussian noise whose generator is ``SeedSequence(seed, spawn_key=(generation, individual,
-environment, repeat))`` — so results do not depend on how the population is chunked or where the
-chunks run — and each environment's reward is averaged over ``repeats`` simulations.
+**Coverage.** A system must not rely on the "no rule fired" ``default``: the fraction of a
+``coverage.grid``-per-axis grid over the input ranges where no rule fires is measured for every
+genome; above ``coverage.max_uncovered`` the fitness is worsened by
+``coverage.penalty * (1 + fraction)``, so any covering system beats any that is not.
+
+**Noise.** With ``heading_noise``, ``dtheta_noise`` or ``alpha_noise`` > 0, every cycle the
+commanded heading is rotated by ``N(0, heading_noise)``, ``dtheta`` gets ``N(0, dtheta_noise)``
+added and ``alpha`` is scaled by ``1 + N(0, alpha_noise)`` (clipped at 0) — the EFFC paper's
+sensor uncertainty — each run drawing from
+``SeedSequence(seed, spawn_key=(generation, individual, environment, repeat))``: results do not
+depend on how the population is chunked or where the chunks run. Validation runs use one fixed
+stream per (environment, repeat), the same for every candidate, so that validation scores are
+comparable across generations.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import math
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from hybridnav.fuzzy.family import SystemFamily
-from hybridnav.planners.effc import effc_force, effc_inputs
-from hybridnav.planners.lockstep import lockstep_field
+from hybridnav.planners.effc import effc_force, effc_inputs_from
+from hybridnav.planners.lockstep import LockstepResult, lockstep_field
+from hybridnav.planners.worldstack import WorldStack
 
-__all__ = ["evaluate_chunk"]
+__all__ = ["VALIDATION_KEY", "evaluate_chunk", "run_costs", "simulate_genomes"]
+
+#: First spawn-key entry of the validation noise streams (training uses the generation there).
+VALIDATION_KEY = 2**31 - 1
+
+
+@dataclass
+class _Set:
+    scenarios: list
+    stack: WorldStack
+    radius: np.ndarray           # robot radius per environment
 
 
 @functools.lru_cache(maxsize=4)
 def _context(job_json: str):
-    """Per-process cache: the job, its scenarios, genome space and system family."""
-    import json
-
+    """Per-process cache: the job, its genome space, system family and packed scenario sets."""
     from hybridnav.tuner.genome import GenomeSpace
     from hybridnav.tuner.job import validate_job
 
     raw = json.loads(job_json)
-    job = validate_job(raw["data"], raw["source"], __import__("pathlib").Path(raw["base"]))
+    job = validate_job(raw["data"], raw["source"], Path(raw["base"]))
     template = job.start_system()
     space = GenomeSpace(template, job["free"])
     family = SystemFamily(template)
-    scenarios = job.scenarios("train")
-    return job, space, family, scenarios
+    return job, space, family, {}
+
+
+def _set(job_json: str, which: str) -> _Set:
+    job, _, _, sets = _context(job_json)
+    if which not in sets:
+        scen = job.scenarios(which)
+        sets[which] = _Set(scen, WorldStack([s.world for s in scen]),
+                           np.array([s.robots[0].radius for s in scen]))
+    return sets[which]
+
+
+def _noise(job, E: int, keys: list[tuple[int, int]], repeats: int, steps: int):
+    """Per (environment, member * repeats) noise arrays ``(3, E, K*R, steps)``, or None."""
+    rw = job["reward"]
+    sig = np.array([rw["heading_noise"], rw["dtheta_noise"], rw["alpha_noise"]])
+    if not np.any(sig > 0):
+        return None
+    out = np.empty((3, E, len(keys) * repeats, steps))
+    for e in range(E):
+        for k, (a, b) in enumerate(keys):
+            for r in range(repeats):
+                ss = np.random.SeedSequence(job.seed, spawn_key=(a, b, e, r))
+                out[:, e, k * repeats + r] = (np.random.default_rng(ss).normal(0.0, 1.0, (3, steps))
+                                              * sig[:, None])
+    return out
+
+
+def simulate_genomes(job_json: str, which: str, genomes: np.ndarray,
+                     keys: list[tuple[int, int]] | None = None, *, noise: bool = True,
+                     record_paths: bool = False) -> tuple[LockstepResult, int]:
+    """Simulate every genome on every scenario of a set (``repeats`` times with noise).
+
+    Parameters
+    ----------
+    job_json : str
+        The job as JSON (see :func:`evaluate_chunk`).
+    which : {"train", "validation", "test"}
+        The set (its scenarios must share one robot model).
+    genomes : ndarray, shape (K, genes)
+    keys : list of (int, int), optional
+        Per genome the first two spawn-key entries of its noise streams; default
+        ``(VALIDATION_KEY, 0)`` for all (common random numbers).
+    noise : bool
+        False: the nominal runs (one repeat, no noise).
+
+    Returns
+    -------
+    (LockstepResult, repeats)
+        Arrays of shape ``(E, K * repeats)``, member ``k * repeats + r``.
+    """
+    job, space, family, _ = _context(job_json)
+    st = _set(job_json, which)
+    genomes = np.atleast_2d(np.asarray(genomes, dtype=float))
+    K = len(genomes)
+    rw, pl = job["reward"], job["planner"]
+    repeats = rw["repeats"] if noise else 1
+    inp, out, weights, cons, _ = space.arrays(genomes)
+    tables = family.tables(inp, out, weights, cons)
+    scenarios = st.scenarios
+    E = len(scenarios)
+    dt = scenarios[0].dt
+    steps = int(math.ceil(max(s.max_time for s in scenarios) / dt - 1e-9)) + 1
+    keys = keys if keys is not None else [(VALIDATION_KEY, 0)] * K
+    nz = _noise(job, E, keys, repeats, steps) if noise else None
+    radius = st.radius
+
+    def field(env, members, P, goals, t):
+        clear, near = st.stack.nearest(P, env, t)
+        dtheta, alpha, f_att, f_rep = effc_inputs_from(P, goals, clear, near, radius[env])
+        if nz is not None:
+            i = min(int(round(t / dt)), steps - 1)
+            dtheta = dtheta + nz[1, env, members, i]
+            alpha = np.maximum(alpha * (1.0 + nz[2, env, members, i]), 0.0)
+        w = family.evaluate(tables, members // repeats, {"dtheta": dtheta, "alpha": alpha})
+        F = effc_force(w, f_att, f_rep)
+        F = np.where(np.isinf(clear)[:, None], f_att, F)     # no obstacle: go to the goal
+        if nz is not None:
+            ang = nz[0, env, members, min(int(round(t / dt)), steps - 1)]
+            c, s_ = np.cos(ang), np.sin(ang)
+            F = np.stack([c * F[:, 0] - s_ * F[:, 1], s_ * F[:, 0] + c * F[:, 1]], axis=1)
+        return F
+
+    overrides = {"controller": "heading", "speed": pl["speed"], "max_turn": pl["max_turn"]}
+    res = lockstep_field(scenarios, K * repeats, field, model_overrides=overrides,
+                         speed=pl["speed"], stuck_window=pl["stuck_window"],
+                         stuck_radius=pl["stuck_radius"], record_paths=record_paths,
+                         stack=st.stack)
+    return res, repeats
+
+
+def run_costs(job, scenarios, res: LockstepResult) -> np.ndarray:
+    """The cost (reward) of every run, ``(E, M)``, by ``reward.kind``."""
+    rw = job["reward"]
+    outcome = res.outcome
+    reached = outcome == "reached"
+    if rw["kind"] == "length":
+        return np.where(reached, res.path_length, rw["penalty"])
+    if rw["kind"] == "paper":
+        return np.where(reached, res.path_length, -rw["penalty"])
+    start = np.array([s.robots[0].start for s in scenarios], dtype=float)
+    goal = np.array([s.robots[0].goal for s in scenarios], dtype=float)
+    goal_r = np.array([s.robots[0].goal_radius for s in scenarios])
+    radius = np.array([s.robots[0].radius for s in scenarios])
+    d0 = np.hypot(*(goal - start).T)
+    D = np.maximum(d0 - goal_r, goal_r)[:, None]
+    ok = (rw["length"] * res.path_length / D
+          + rw["time"] * np.nan_to_num(res.time) * job["planner"]["speed"] / D)
+    safety = rw["safety_distance"] * radius[:, None]
+    if rw["clearance"] > 0 and np.any(safety > 0):
+        short = np.clip(1.0 - res.min_clearance / np.where(safety > 0, safety, 1.0), 0.0, 1.0)
+        ok = ok + rw["clearance"] * np.where(safety > 0, short, 0.0)
+    crash = (outcome == "collided") | (outcome == "out_of_bounds")
+    left = np.minimum(1.0, res.final_distance / np.maximum(d0, 1e-12)[:, None])
+    fail = rw["failure"] + rw["progress"] * left
+    return np.where(reached, ok, np.where(crash, rw["collision"], fail))
+
+
+def uncovered_fraction(job_json: str, genomes: np.ndarray) -> np.ndarray:
+    """Per genome, the fraction of the input grid where no rule fires."""
+    job, space, family, _ = _context(job_json)
+    inp, out, weights, cons, _ = space.arrays(np.atleast_2d(genomes))
+    return family.uncovered(family.tables(inp, out, weights, cons), job["coverage"]["grid"])
 
 
 def evaluate_chunk(job_json: str, genomes: np.ndarray, generation: int,
-                   indices: list[int]) -> list[dict[str, Any]]:
+                   indices: list[int], which: str = "train") -> list[dict[str, Any]]:
     """Rewards and per-environment records of the genomes of one chunk.
 
     Parameters
@@ -63,66 +214,35 @@ def evaluate_chunk(job_json: str, genomes: np.ndarray, generation: int,
         The job (``Job`` as JSON with its source and base folder), so any worker can rebuild it.
     genomes : ndarray, shape (k, genes)
     generation : int
-        The generation these evaluations belong to (seeds the noise).
+        The generation these evaluations belong to (seeds the training noise).
     indices : list of int
-        Each genome's index in its generation (seeds the noise).
+        Each genome's index in its generation (seeds the training noise).
+    which : {"train", "validation"}
+        The set; validation runs share one noise stream per environment and repeat.
 
     Returns
     -------
     list of dict
-        Per genome: ``fitness`` and ``envs`` (scenario, outcome, reached fraction, length, time,
-        reward per environment).
+        Per genome: ``fitness``, ``cost`` (without the coverage penalty), ``uncovered`` and
+        ``envs`` (scenario, outcome, reached fraction, length, time, clearance, reward per
+        environment).
     """
-    job, space, family, scenarios = _context(job_json)
+    job, _, _, _ = _context(job_json)
     genomes = np.atleast_2d(np.asarray(genomes, dtype=float))
     K = len(genomes)
-    rw, pl = job["reward"], job["planner"]
-    repeats = rw["repeats"]
-    inp, out, weights, cons, _ = space.arrays(genomes)
-    tables = family.tables(inp, out, weights, cons)
+    keys = None if which != "train" else [(generation, i) for i in indices]
+    res, repeats = simulate_genomes(job_json, which, genomes, keys)
+    scenarios = _set(job_json, which).scenarios
     E = len(scenarios)
-    radius = np.array([s.model(s.robots[0]).radius for s in scenarios])
-    dt = scenarios[0].dt
-    steps = int(math.ceil(max(s.max_time for s in scenarios) / dt - 1e-9)) + 1
-    noise = None
-    if rw["heading_noise"] > 0:
-        # one stream per (generation, individual, environment, repeat), drawn once per chunk
-        noise = np.empty((E, K * repeats, steps))
-        for e in range(E):
-            for k in range(K):
-                for r in range(repeats):
-                    ss = np.random.SeedSequence(job.seed, spawn_key=(generation, indices[k], e, r))
-                    noise[e, k * repeats + r] = np.random.default_rng(ss).normal(
-                        0.0, rw["heading_noise"], steps)
-
-    def field(env, members, P, goals, t):
-        n = len(members)
-        dtheta, alpha = np.empty(n), np.empty(n)
-        f_att, f_rep = np.empty((n, 2)), np.empty((n, 2))
-        for e in np.unique(env):
-            sel = env == e
-            d, a, fa, fr = effc_inputs(scenarios[e].world, P[sel], goals[sel], radius[e], t)
-            dtheta[sel], alpha[sel], f_att[sel], f_rep[sel] = d, a, fa, fr
-        w = family.evaluate(tables, members // repeats, {"dtheta": dtheta, "alpha": alpha})
-        F = effc_force(w, f_att, f_rep)
-        if noise is not None:
-            ang = noise[env, members, min(int(round(t / dt)), steps - 1)]
-            c, s_ = np.cos(ang), np.sin(ang)
-            F = np.stack([c * F[:, 0] - s_ * F[:, 1], s_ * F[:, 0] + c * F[:, 1]], axis=1)
-        return F
-
-    overrides = {"controller": "heading", "speed": pl["speed"], "max_turn": pl["max_turn"]}
-    res = lockstep_field(scenarios, K * repeats, field, model_overrides=overrides,
-                         speed=pl["speed"], stuck_window=pl["stuck_window"],
-                         stuck_radius=pl["stuck_radius"])
-    reached = res.outcome == "reached"                            # (E, K * repeats)
-    length = res.path_length
-    if rw["sense"] == "minimize":
-        reward = np.where(reached, length, rw["penalty"])
-    else:
-        reward = np.where(reached, length, -rw["penalty"])
-    shape = (E, K, repeats)
-    reward = reward.reshape(shape).mean(axis=2)                   # (E, K)
+    cost = run_costs(job, scenarios, res).reshape(E, K, repeats).mean(axis=2)     # (E, K)
+    kind = job["reward"]["kind"]
+    total = cost.mean(axis=0) if kind == "deploy" else cost.sum(axis=0)
+    cov = job["coverage"]
+    unc = uncovered_fraction(job_json, genomes)
+    over = unc > cov["max_uncovered"] + 1e-12
+    pen = np.where(over, cov["penalty"] * (1.0 + unc), 0.0)
+    fitness = total - pen if kind == "paper" else total + pen
+    reached = (res.outcome == "reached").reshape(E, K, repeats)
     out_records = []
     for k in range(K):
         envs = []
@@ -131,10 +251,12 @@ def evaluate_chunk(job_json: str, genomes: np.ndarray, generation: int,
             envs.append({
                 "scenario": s.name,
                 "outcome": str(res.outcome[e, k * repeats]),
-                "reached": float(np.mean(reached[e, cols])),
-                "length": float(np.mean(length[e, cols])),
+                "reached": float(np.mean(reached[e, k])),
+                "length": float(np.mean(res.path_length[e, cols])),
                 "time": float(np.mean(res.time[e, cols])),
-                "reward": float(reward[e, k]),
+                "clearance": float(np.min(res.min_clearance[e, cols])),
+                "reward": float(cost[e, k]),
             })
-        out_records.append({"fitness": float(reward[:, k].sum()), "envs": envs})
+        out_records.append({"fitness": float(fitness[k]), "cost": float(total[k]),
+                            "uncovered": float(unc[k]), "envs": envs})
     return out_records

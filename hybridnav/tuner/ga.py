@@ -12,11 +12,19 @@ client's threads, user code) can shift that stream, the run gives them a private
 ``random.Random`` seeded from the job (:func:`_deap_random` swaps it into DEAP's operator
 modules for the duration of the run).
 
+**Validation and early stopping.** After every generation the ``validation.top`` best distinct
+individuals (by training fitness; in generation 0 the starting system too) are scored on the
+job's validation set (same chunks and backend; scores cached per genome). The job returns the
+individual with the best **validation** score — not the best on training — and stops early when
+that score has not improved by more than ``validation.tolerance`` for ``validation.patience``
+generations (0: never). Without a validation set the best on training is returned.
+
 After every generation ``checkpoint.json`` is written atomically with the population, the hall of
-fame, the logbook, the records, the *next* generation's number, that ``random`` state, the NumPy
-generator state and the job's configuration hash. ``resume``
-continues from it — refusing a checkpoint of a different configuration — and ends with exactly
-the result an uninterrupted run gives.
+fame, the logbook, the records, the validation state, the *next* generation's number (and the
+early-stop generation, if any), that ``random`` state, the NumPy generator state and the job's
+configuration hash. ``resume`` continues from it — refusing a checkpoint of a different
+configuration; a resume after an early stop does nothing — and ends with exactly the result an
+uninterrupted run gives.
 """
 
 from __future__ import annotations
@@ -72,7 +80,13 @@ class Individual(list):
 
 @dataclass
 class TuneResult:
-    """What a tuning run leaves: the best genome and system, the logbook, every evaluation."""
+    """What a tuning run leaves: the chosen genome and system, the logbook, every evaluation.
+
+    ``best`` is the individual returned: the best on validation when the job has a validation
+    set (``selected_by = "validation"``), else the best on training. ``validation`` holds the
+    chosen individual's validation score and generation, the start's score, every validated
+    candidate and the early-stop generation (None when the run went to the end).
+    """
 
     best: Individual
     system: Any
@@ -80,6 +94,10 @@ class TuneResult:
     logbook: list[dict[str, Any]]
     records: list[dict[str, Any]] = field(default_factory=list)
     hall_of_fame: list[Individual] = field(default_factory=list)
+    validation: dict[str, Any] = field(default_factory=dict)
+    selected_by: str = "training"
+    best_generation: int = 0
+    start_genome: list[float] = field(default_factory=list)
 
 
 def _job_json(job: Job) -> str:
@@ -146,8 +164,56 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         results = [r for res in backend.map(evaluate_chunk, args) for r in res]
         for ind, idx, rec in zip(inds, indices, results):
             ind.fitness.values = (rec["fitness"],)
-            ind.records = [dict(e, generation=generation, individual=idx) for e in rec["envs"]]
+            ind.records = [dict(e, generation=generation, individual=idx, set="train",
+                                uncovered=rec["uncovered"]) for e in rec["envs"]]
         return len(inds)
+
+    has_val = bool(job["scenarios"]["validation"])
+    vcfg = job["validation"]
+    better = (lambda a, b: a < b) if rw["sense"] == "minimize" else (lambda a, b: a > b)
+
+    def validate(inds: list[Individual], generation: int, val: dict[str, Any]) -> None:
+        """Score the new candidates on the validation set; update the best validated one."""
+        cache = val["cache"]
+        genomes = [list(i) for i in inds]
+        train = {_gkey(i): i.fitness.values[0] for i in inds}
+        todo = [g for g in genomes if _gkey(g) not in cache]
+        todo = list({_gkey(g): g for g in todo}.values())
+        if todo:
+            args = [(jj, np.array(todo[s:s + chunk], dtype=float), generation,
+                     list(range(s, min(s + chunk, len(todo)))), "validation")
+                    for s in range(0, len(todo), chunk)]
+            results = [r for res in backend.map(evaluate_chunk, args) for r in res]
+            for g, rec in zip(todo, results):
+                cache[_gkey(g)] = {"genes": list(g), "score": rec["fitness"],
+                                   "cost": rec["cost"], "uncovered": rec["uncovered"],
+                                   "train_fitness": train[_gkey(g)],
+                                   "generation": generation, "envs": rec["envs"]}
+        scores = [cache[_gkey(g)]["score"] for g in genomes]
+        val["gen_best"] = float(min(scores) if rw["sense"] == "minimize" else max(scores))
+        for g in genomes:
+            entry = cache[_gkey(g)]
+            if val["best"] is None or better(entry["score"], val["best"]["score"]):
+                improved = (val["best"] is None or abs(entry["score"] - val["best"]["score"])
+                            > vcfg["tolerance"])
+                val["best"] = dict(entry, generation=generation)
+                if improved:
+                    val["last_improvement"] = generation
+
+    def candidates(pop: list[Individual], generation: int) -> list[Individual]:
+        """The ``validation.top`` best distinct individuals (generation 0: and the start)."""
+        ranked = sorted(pop, key=lambda i: i.fitness.values[0],
+                        reverse=rw["sense"] != "minimize")
+        out, seen = [], set()
+        for ind in ranked:
+            if _gkey(ind) not in seen:
+                seen.add(_gkey(ind))
+                out.append(ind)
+            if len(out) == vcfg["top"]:
+                break
+        if generation == 0 and _gkey(pop[0]) not in seen:
+            out.append(pop[0])                 # the starting system
+        return out
 
     if resume:
         state = _load_checkpoint(ckpt_path, chash)
@@ -163,27 +229,35 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         rng = np.random.default_rng()
         rng.bit_generator.state = state["numpy_random"]
         elapsed = state["elapsed"]
+        val = _load_val(state["validation"])
+        stopped = state.get("stopped")
+        start_genome = state["start_genome"]
         log.info("resuming %s at generation %d", job.name, start_gen)
     else:
         rnd = random.Random(job.seed)
         rng = np.random.default_rng(job.seed)
         genomes = np.vstack([space.encode()[None], space.random(ga["population"] - 1, rng)])
         pop = [Individual(g, fit_cls) for g in genomes]
+        start_genome = list(pop[0])
+        stopped = None
+        val = {"cache": {}, "best": None, "last_improvement": 0, "gen_best": None}
         tic = time.perf_counter()
         nevals = evaluate(pop, 0, list(range(len(pop))))
         start_fitness = pop[0].fitness.values[0]
         hof = tools.HallOfFame(max(1, elite))
         hof.update(pop)
         records = [r for ind in pop for r in ind.records]
+        if has_val:
+            validate(candidates(pop, 0), 0, val)
         elapsed = time.perf_counter() - tic
-        logbook = [_row(0, nevals, pop, elapsed)]
+        logbook = [_row(0, nevals, pop, elapsed, val if has_val else None)]
         start_gen = 1
         _save_checkpoint(ckpt_path, job, chash, 1, pop, hof, logbook, records, rnd, rng,
-                         start_fitness, elapsed)
+                         start_fitness, elapsed, val, stopped, start_genome)
         if progress:
             progress(logbook[-1])
     for gen in range(start_gen, ga["generations"] + 1):
-        if stop_after is not None and gen > stop_after:
+        if stopped is not None or (stop_after is not None and gen > stop_after):
             break
         tic = time.perf_counter()
         with _deap_random(rnd):
@@ -213,22 +287,70 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         pop = [_clone(h, fit_cls) for h in hof[:elite]] + offspring
         hof.update(pop)
         records += [r for ind in changed for r in ind.records]
+        if has_val:
+            validate(candidates(pop, gen), gen, val)
+            if vcfg["patience"] and gen - val["last_improvement"] >= vcfg["patience"]:
+                stopped = gen
+                log.info("early stop at generation %d: no validation improvement since %d",
+                         gen, val["last_improvement"])
         elapsed += time.perf_counter() - tic
-        logbook.append(_row(gen, n_ev, pop, elapsed))
+        logbook.append(_row(gen, n_ev, pop, elapsed, val if has_val else None))
         _save_checkpoint(ckpt_path, job, chash, gen + 1, pop, hof, logbook, records, rnd, rng,
-                         start_fitness, elapsed)
+                         start_fitness, elapsed, val, stopped, start_genome)
         if progress:
             progress(logbook[-1])
-    best = hof[0]
+    if has_val:
+        chosen = val["best"]
+        best = Individual(chosen["genes"], fit_cls)
+        match = [h for h in hof if _gkey(h) == _gkey(best)]
+        best.fitness.values = (match[0].fitness.values if match else
+                               (float(chosen["train_fitness"]),))
+        best_gen, selected = chosen["generation"], "validation"
+    else:
+        best, best_gen, selected = hof[0], _first_generation(records, logbook, hof[0]), "training"
     system = space.system(np.array(best), name=f"{job.name}-tuned")
+    vinfo: dict[str, Any] = {}
+    if has_val:
+        start_entry = val["cache"][_gkey(start_genome)]
+        vinfo = {"best_score": val["best"]["score"], "best_generation": val["best"]["generation"],
+                 "best_envs": val["best"]["envs"], "start_score": start_entry["score"],
+                 "start_envs": start_entry["envs"], "stopped": stopped,
+                 "candidates": list(val["cache"].values())}
     return TuneResult(best=best, system=system, start_fitness=start_fitness, logbook=logbook,
-                      records=records, hall_of_fame=list(hof))
+                      records=records, hall_of_fame=list(hof), validation=vinfo,
+                      selected_by=selected, best_generation=best_gen,
+                      start_genome=list(start_genome))
 
 
-def _row(gen: int, nevals: int, pop: list[Individual], wall: float) -> dict[str, Any]:
+def _gkey(genes) -> str:
+    """A genome's cache key (exact: floats written with repr)."""
+    return ",".join(repr(float(g)) for g in genes)
+
+
+def _load_val(state: dict[str, Any]) -> dict[str, Any]:
+    return {"cache": {_gkey(e["genes"]): e for e in state["cache"]}, "best": state["best"],
+            "last_improvement": state["last_improvement"], "gen_best": state["gen_best"]}
+
+
+def _first_generation(records, logbook, ind) -> int:
+    """The generation in which the best training fitness was first reached."""
+    target = ind.fitness.values[0]
+    for row in logbook:
+        if row["min"] == target or row["max"] == target:
+            return int(row["gen"])
+    return int(logbook[-1]["gen"])
+
+
+def _row(gen: int, nevals: int, pop: list[Individual], wall: float,
+         val: dict[str, Any] | None = None) -> dict[str, Any]:
     f = np.array([i.fitness.values[0] for i in pop])
-    return {"gen": gen, "evals": nevals, "min": float(f.min()), "mean": float(f.mean()),
-            "max": float(f.max()), "std": float(f.std()), "wall_time": wall}
+    row = {"gen": gen, "evals": nevals, "min": float(f.min()), "mean": float(f.mean()),
+           "max": float(f.max()), "std": float(f.std())}
+    if val is not None:
+        row["val_gen"] = val["gen_best"]
+        row["val_best"] = val["best"]["score"]
+    row["wall_time"] = wall
+    return row
 
 
 def _clone(ind: Individual, fit_cls) -> Individual:
@@ -252,7 +374,8 @@ def _tuplify(obj):
 
 
 def _save_checkpoint(path: Path, job: Job, chash: str, next_gen: int, pop, hof, logbook,
-                     records, rnd: random.Random, rng, start_fitness, elapsed) -> None:
+                     records, rnd: random.Random, rng, start_fitness, elapsed, val, stopped,
+                     start_genome) -> None:
     def dump(ind):
         return {"genes": list(ind), "fitness": ind.fitness.values[0] if ind.fitness.valid
                 else None, "records": ind.records}
@@ -264,6 +387,10 @@ def _save_checkpoint(path: Path, job: Job, chash: str, next_gen: int, pop, hof, 
         "logbook": logbook, "records": records, "start_fitness": start_fitness,
         "python_random": rnd.getstate(), "numpy_random": rng.bit_generator.state,
         "elapsed": elapsed,
+        "validation": {"cache": list(val["cache"].values()), "best": val["best"],
+                       "last_improvement": val["last_improvement"],
+                       "gen_best": val["gen_best"]},
+        "stopped": stopped, "start_genome": list(start_genome),
     }
     atomic_write_text(path, dumps_json(state))
 

@@ -3,7 +3,8 @@
 Genes, in this order:
 
 * ``mf``: every parameter of every term of the free variables, bounded by the variable's range
-  (or ``free.bounds``); widths and slopes (``gaussmf`` sigma, ``gbellmf`` a and b, ``sigmf``
+  widened by ``free.margin`` times its width on each side (or by ``free.bounds``) — a Z or S
+  curve can then reach past the range end, so a rule can fire on the whole input range; widths and slopes (``gaussmf`` sigma, ``gbellmf`` a and b, ``sigmf``
   slope) get their own positive bounds;
 * ``switch`` (``free.rule_switches``): one gene in [0, 1] per rule, the rule is on when >= 0.5
   (at least one rule always stays on: the one with the largest gene);
@@ -54,7 +55,11 @@ class GenomeSpace:
         for vi, v in enumerate(self.variables):
             if v.name not in free.get("mf", []):
                 continue
-            lo, hi = bounds.get(v.name, v.range)
+            if v.name in bounds:
+                lo, hi = bounds[v.name]
+            else:                   # positions may reach past the range by margin * width
+                pad = float(free.get("margin", 0.0)) * (v.range[1] - v.range[0])
+                lo, hi = v.range[0] - pad, v.range[1] + pad
             width = hi - lo
             for ti, t in enumerate(v.terms):
                 for pi, _ in enumerate(t.params):

@@ -1,15 +1,20 @@
 """Tuning jobs: the TOML file, its validation, the built-in EFFC job and the configuration hash.
 
 A job is validated completely before any work starts; every error names the file and the key.
+Scenario sets (``scenarios.train``, ``scenarios.validation``, ``scenarios.test``) are lists whose
+items are built-in names, scenario files, or generated sets ``{generate = N, seed = S, ...}``
+(:mod:`hybridnav.worldgen`; the other keys are generator settings).
 The configuration hash covers everything that determines the result (GA settings, free
-parameters and bounds, the starting system's content, the training scenarios' content, reward,
-planner settings, seed) and nothing that does not (backend, workers, chunk size, held-out
-scenarios), so a checkpoint resumes on any backend but refuses a changed job.
+parameters and bounds, the starting system's content, the training and validation scenarios'
+content, reward, coverage, validation and planner settings, seed) and nothing that does not
+(backend, workers, chunk size, the test scenarios), so a checkpoint resumes on any backend but
+refuses a changed job.
 """
 
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import json
 import math
@@ -23,8 +28,11 @@ from hybridnav.errors import HybridnavError
 
 __all__ = ["DEFAULT_JOB", "Job", "load_job", "quick"]
 
-#: The built-in job: the EFFC paper's GA (population 100, 25 generations) on its two training
-#: environments, starting from its 5-rule system and learning which rules matter.
+#: The built-in job: the EFFC paper's GA (population 100, 25 generations) starting from its
+#: 5-rule system and learning its membership functions and which rules matter, trained on the
+#: paper's two training environments plus generated worlds, the returned system chosen on a
+#: separate generated validation set, and reported on the paper's comparison environments and
+#: a generated test set.
 DEFAULT_JOB: dict[str, Any] = {
     "name": "effc",
     "seed": 0,
@@ -36,10 +44,18 @@ DEFAULT_JOB: dict[str, Any] = {
     },
     "system": {"start": "effc-5rule"},
     "free": {"mf": ["dtheta", "alpha", "w"], "rule_switches": True, "rule_weights": False,
-             "rule_consequents": False, "bounds": {}},
-    "scenarios": {"train": ["effc-train-1", "effc-train-2"],
-                  "heldout": ["effc-env-a", "effc-env-b"]},
-    "reward": {"sense": "minimize", "penalty": 100.0, "repeats": 1, "heading_noise": 0.0},
+             "rule_consequents": False, "bounds": {}, "margin": 0.25},
+    "scenarios": {
+        "train": ["effc-train-1", "effc-train-2", {"generate": 14, "seed": 1}],
+        "validation": [{"generate": 24, "seed": 2}],
+        "test": ["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3}],
+    },
+    "reward": {"kind": "deploy", "sense": "minimize", "penalty": 100.0,
+               "collision": 20.0, "failure": 10.0, "progress": 5.0, "length": 1.0,
+               "time": 0.0, "clearance": 2.0, "safety_distance": 1.0,
+               "repeats": 1, "heading_noise": 0.0, "dtheta_noise": 0.0, "alpha_noise": 0.0},
+    "coverage": {"grid": 41, "max_uncovered": 0.0, "penalty": 100.0},
+    "validation": {"top": 3, "patience": 10, "tolerance": 0.0},
     "planner": {"speed": 0.1, "max_turn": math.pi / 4, "stuck_window": 10.0,
                 "stuck_radius": 2.0},
     "backend": {"workers": 1, "dask": "", "chunk": 50},
@@ -50,7 +66,7 @@ _QUICK = {"population": 12, "generations": 3}
 _SCHEMA: dict[str, dict[str, tuple]] = {
     # section: key -> (type, lo, hi, choices)
     "ga": {
-        "population": (int, 2, None, None), "generations": (int, 0, None, None),
+        "population": (int, 2, 100_000, None), "generations": (int, 0, 100_000, None),
         "tournament": (int, 1, None, None), "elite": (int, 0, None, None),
         "crossover": (str, None, None, ("sbx", "blend")),
         "crossover_prob": (float, 0.0, 1.0, None), "sbx_eta": (float, 0.0, None, None),
@@ -62,17 +78,34 @@ _SCHEMA: dict[str, dict[str, tuple]] = {
     "system": {"start": (str, None, None, None)},
     "free": {"mf": (list, None, None, None), "rule_switches": (bool, None, None, None),
              "rule_weights": (bool, None, None, None),
-             "rule_consequents": (bool, None, None, None), "bounds": (dict, None, None, None)},
-    "scenarios": {"train": (list, None, None, None), "heldout": (list, None, None, None)},
-    "reward": {"sense": (str, None, None, ("minimize", "maximize")),
-               "penalty": (float, 0.0, None, None), "repeats": (int, 1, None, None),
-               "heading_noise": (float, 0.0, None, None)},
+             "rule_consequents": (bool, None, None, None), "bounds": (dict, None, None, None),
+             "margin": (float, 0.0, 1.0, None)},
+    "scenarios": {"train": (list, None, None, None), "validation": (list, None, None, None),
+                  "test": (list, None, None, None), "heldout": (list, None, None, None)},
+    "reward": {"kind": (str, None, None, ("deploy", "length", "paper")),
+               "sense": (str, None, None, ("minimize", "maximize")),
+               "penalty": (float, 0.0, None, None),
+               "collision": (float, 0.0, None, None), "failure": (float, 0.0, None, None),
+               "progress": (float, 0.0, None, None), "length": (float, 0.0, None, None),
+               "time": (float, 0.0, None, None), "clearance": (float, 0.0, None, None),
+               "safety_distance": (float, 0.0, None, None),
+               "repeats": (int, 1, 1000, None),
+               "heading_noise": (float, 0.0, None, None),
+               "dtheta_noise": (float, 0.0, None, None),
+               "alpha_noise": (float, 0.0, None, None)},
+    "coverage": {"grid": (int, 2, 1001, None), "max_uncovered": (float, 0.0, 1.0, None),
+                 "penalty": (float, 0.0, None, None)},
+    "validation": {"top": (int, 1, 1000, None), "patience": (int, 0, None, None),
+                   "tolerance": (float, 0.0, None, None)},
     "planner": {"speed": (float, 1e-9, None, None), "max_turn": (float, 1e-6, math.pi, None),
                 "stuck_window": (float, 0.0, None, None),
                 "stuck_radius": (float, 0.0, None, None)},
     "backend": {"workers": (int, 1, None, None), "dask": (str, None, None, None),
                 "chunk": (int, 1, None, None)},
 }
+
+#: the scenario sets of a job; ``heldout`` is the old name of ``test``
+SETS = ("train", "validation", "test")
 
 
 @dataclass
@@ -110,10 +143,9 @@ class Job:
         return fuzzy.load(self.resolve(self.data["system"]["start"]))
 
     def scenarios(self, which: str = "train") -> list:
-        """The training (or held-out) scenarios, loaded."""
-        from hybridnav.world import load_scenario
-
-        return [load_scenario(self.resolve(s)) for s in self.data["scenarios"][which]]
+        """The scenarios of a set (``train``, ``validation`` or ``test``), loaded or generated."""
+        return _load_set(json.dumps(self.data["scenarios"][which], sort_keys=True),
+                         str(self.base))
 
     def with_seed(self, seed: int | None) -> Job:
         if seed is None:
@@ -136,9 +168,10 @@ class Job:
 
         d = {k: v for k, v in self.data.items() if k not in ("backend", "name")}
         d = copy.deepcopy(d)
-        d["scenarios"].pop("heldout", None)
+        d["scenarios"].pop("test", None)
         d["system"] = self.start_system().to_dict()
         d["train_content"] = [scenario_to_dict(s) for s in self.scenarios("train")]
+        d["validation_content"] = [scenario_to_dict(s) for s in self.scenarios("validation")]
         text = json.dumps(d, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()
 
@@ -211,15 +244,47 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
         raise fail("ga.tournament", f"expected at most the population ({ga['population']}), "
                                     f"got {ga['tournament']}")
     rw = data["reward"]
-    if rw["repeats"] > 1 and rw["heading_noise"] == 0:
-        raise fail("reward.repeats", "repeats > 1 only make sense with heading_noise > 0 "
-                                     "(without noise every repeat is identical)")
-    for key in ("train", "heldout"):
-        items = data["scenarios"][key]
-        if not all(isinstance(s, str) and s for s in items):
-            raise fail(f"scenarios.{key}", f"expected a list of scenario names or paths, got "
-                                           f"{items!r}")
-    if not data["scenarios"]["train"]:
+    if "reward" in raw and "sense" in raw["reward"] and "kind" not in raw["reward"]:
+        # job files written before reward.kind: sense alone chose the old conventions
+        rw["kind"] = "paper" if rw["sense"] == "maximize" else "length"
+    if rw["kind"] == "paper":
+        rw["sense"] = "maximize"
+    elif rw["sense"] == "maximize":
+        raise fail("reward.sense", f"expected minimize for reward.kind = {rw['kind']!r} "
+                                   "(maximize is the paper's convention, reward.kind = 'paper')")
+    noisy = any(rw[k] > 0 for k in ("heading_noise", "dtheta_noise", "alpha_noise"))
+    if rw["repeats"] > 1 and not noisy:
+        raise fail("reward.repeats", "repeats > 1 only make sense with heading_noise, "
+                                     "dtheta_noise or alpha_noise > 0 (without noise every "
+                                     "repeat is identical)")
+    sc = data["scenarios"]
+    given = raw.get("scenarios", {}) if isinstance(raw.get("scenarios"), dict) else {}
+    if "heldout" in given:
+        if "test" in given:
+            raise fail("scenarios.heldout", "expected either test or its old name heldout, "
+                                            "not both")
+        sc["test"] = sc["heldout"]
+    sc.pop("heldout", None)
+    if "train" in given:               # a job that names its own training set: no generated
+        if "validation" not in given:  # default sets beside it
+            sc["validation"] = []
+        if "test" not in given and "heldout" not in given:
+            sc["test"] = ["effc-env-a", "effc-env-b"]
+    for key in SETS:
+        for i, item in enumerate(sc[key]):
+            if isinstance(item, str):
+                if not item:
+                    raise fail(f"scenarios.{key}[{i}]", "expected a scenario name or path, "
+                                                        "got an empty string")
+            elif isinstance(item, dict):
+                from hybridnav.worldgen import generator_from_table
+
+                generator_from_table(item, where, f"scenarios.{key}[{i}]")
+            else:
+                raise fail(f"scenarios.{key}[{i}]", "expected a scenario name or path, or a "
+                                                    "generated set {generate = N, seed = S}, "
+                                                    f"got {item!r}")
+    if not sc["train"]:
         raise fail("scenarios.train", "expected at least one training scenario")
     job = Job(data, source, base)
     # the referenced files must load, and fit together, before any work starts
@@ -242,18 +307,23 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
     if set(system.input_names) != {"dtheta", "alpha"}:
         raise fail("system.start", f"the EFFC controller needs the inputs dtheta and alpha, "
                                    f"{system.name!r} has {', '.join(system.input_names)}")
-    for which in ("train", "heldout"):
-        for i, spec in enumerate(data["scenarios"][which]):
-            try:
-                from hybridnav.world import load_scenario
-
-                s = load_scenario(job.resolve(spec))
-            except HybridnavError as exc:
-                raise fail(f"scenarios.{which}[{i}]", str(exc)) from None
-            if which == "train" and (len(s.robots) != 1 or s.robots[0].goal is None
-                                     or s.robots[0].model != "unicycle"):
-                raise fail(f"scenarios.train[{i}]", "expected a scenario with exactly one "
-                                                    "unicycle robot and a fixed goal")
+    for which in SETS:
+        try:
+            loaded = job.scenarios(which)
+        except HybridnavError as exc:
+            raise HybridnavError(f"{where}scenarios.{which}{exc}") from None
+        for i, s in enumerate(loaded):
+            if which != "test" and (len(s.robots) != 1 or s.robots[0].goal is None
+                                    or s.robots[0].model != "unicycle"):
+                raise fail(f"scenarios.{which}[{i}]", f"{s.source or s.name}: expected a "
+                           "scenario with exactly one unicycle robot and a fixed goal")
+        if which != "test" and loaded:
+            keys = {(s.dt, s.robots[0].radius, tuple(sorted(s.robots[0].params.items())))
+                    for s in loaded}
+            if len(keys) > 1:
+                raise fail(f"scenarios.{which}", "expected one robot model for the whole set "
+                           "(the same dt, robot radius and parameters), so that one batched "
+                           f"step serves them all; got {len(keys)} different ones")
     if data["free"]["mf"] == [] and not any(
             data["free"][k] for k in ("rule_switches", "rule_weights", "rule_consequents")):
         raise fail("free", "nothing is free: set free.mf or a free.rule_* switch")
@@ -261,21 +331,39 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
 
 
 def _check(fail, key: str, value: Any, kind: type, lo, hi, choices):
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if kind is bool:
-        ok = isinstance(value, bool)
-    elif kind in (int, float):
-        ok = isinstance(value, kind) and not isinstance(value, bool)
-    else:
-        ok = isinstance(value, kind)
-    if not ok:
-        raise fail(key, f"expected {kind.__name__}, got {value!r}")
-    if kind is float and not math.isfinite(value):
-        raise fail(key, f"expected a finite number, got {value!r}")
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise fail(key, f"expected a value in [{lo}, {hi if hi is not None else 'inf'}], got "
-                        f"{value!r}")
-    if choices is not None and value not in choices:
-        raise fail(key, f"expected one of {', '.join(choices)}, got {value!r}")
-    return value
+    from hybridnav.params import check_value
+
+    try:
+        return check_value("", key, value, kind, lo, hi, choices)
+    except HybridnavError as exc:
+        raise fail(key, str(exc).split(": ", 1)[1]) from None
+
+
+@functools.lru_cache(maxsize=16)
+def _load_set(items_json: str, base: str) -> list:
+    """The scenarios of one set (cached: generated worlds are drawn once per process)."""
+    from hybridnav.world import load_scenario
+    from hybridnav.worldgen import generator_from_table
+
+    out = []
+    for i, item in enumerate(json.loads(items_json)):
+        if isinstance(item, str):
+            spec = item
+            if spec.endswith((".json", ".toml")) or "/" in spec or os.sep in spec:
+                p = Path(spec)
+                spec = str(p if p.is_absolute() else Path(base) / p)
+            try:
+                out.append(load_scenario(spec))
+            except HybridnavError as exc:
+                raise HybridnavError(f"[{i}]: {exc}") from None
+        else:
+            gen, count, seed = generator_from_table(item, "", f"[{i}]")
+            try:
+                out += gen.generate(count, seed)
+            except HybridnavError as exc:
+                raise HybridnavError(f"[{i}]: {exc}") from None
+    names = [s.name for s in out]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise HybridnavError(f": expected distinct scenario names, {dup[0]!r} appears twice")
+    return out

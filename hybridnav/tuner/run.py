@@ -71,7 +71,7 @@ def write_outputs(job: Job, result: TuneResult, out: Path) -> list[str]:
     pl = job["planner"]
     rows = []
     scen = [("train", s) for s in job.scenarios("train")] + \
-           [("held-out", s) for s in job.scenarios("heldout")]
+           [("held-out", s) for s in job.scenarios("test")]
     fig = Figure(figsize=(8.5, 4.0 * len(scen)), layout="constrained")
     axes = fig.subplots(len(scen), 2, squeeze=False)
     for row, (kind, s) in enumerate(scen):
