@@ -211,6 +211,30 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_generate(args: argparse.Namespace) -> int:
+    import tomllib
+    from pathlib import Path
+
+    from hybridnav.planners import parse_assignments
+    from hybridnav.world import save_scenario
+    from hybridnav.worldgen import generator_from_table
+
+    table: dict[str, object] = {"generate": args.count, "seed": args.seed}
+    for key, text in parse_assignments(args.set or []).items():
+        try:                                # TOML values: numbers, [low, high], "strings"
+            table[key] = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            table[key] = text.strip()       # a bare word such as random
+    gen, count, seed = generator_from_table(table, "hybridnav generate: ", "")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for s in gen.generate(count, seed):
+        save_scenario(s, out / f"{s.name}.toml")
+    print(f"wrote {count} solvable worlds (seed {seed}) to {out}/: {gen.name}-{seed}-000.toml"
+          + (f" ... {gen.name}-{seed}-{count - 1:03d}.toml" if count > 1 else ""))
+    return 0
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
     from hybridnav import fuzzy
 
@@ -324,6 +348,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=101, help="universe points for .fll/.fis files "
                                                            "without hybridnav metadata")
     p.set_defaults(func=_cmd_export)
+
+    p = sub.add_parser("generate", help="write random solvable EFFC-scale worlds as scenario "
+                                        "TOML files")
+    p.add_argument("--count", type=int, default=10, help="number of worlds (default 10)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the set (default 0)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="generator setting, e.g. circles=[2,6], radius=[0.2,0.4], "
+                        "layout=random (repeatable; see the README)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the .toml files")
+    p.set_defaults(func=_cmd_generate)
 
     p = sub.add_parser("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)

@@ -313,22 +313,23 @@ def generator_from_table(table: Any, where: str, key: str):
     HybridnavError
         Unknown keys, bad values or settings; the message names ``where`` and ``key``.
     """
+    pre = f"{key}." if key else ""
     if not isinstance(table, Mapping):
         raise HybridnavError(f"{where}{key}: expected a table {{generate = N, seed = S, ...}}, "
                              f"got {table!r}")
     allowed = ("generate", "seed", *GENERATOR_KEYS)
     bad = sorted(set(table) - set(allowed))
     if bad:
-        raise HybridnavError(f"{where}{key}.{bad[0]}: unknown key; expected one of: "
+        raise HybridnavError(f"{where}{pre}{bad[0]}: unknown key; expected one of: "
                              + ", ".join(allowed))
     if "generate" not in table:
-        raise HybridnavError(f"{where}{key}.generate: missing; expected the number of worlds")
-    count = check_value(where, f"{key}.generate", table["generate"], int, 1, MAX_WORLDS)
-    seed = check_value(where, f"{key}.seed", table.get("seed", 0), int, 0)
+        raise HybridnavError(f"{where}{pre}generate: missing; expected the number of worlds")
+    count = check_value(where, f"{pre}generate", table["generate"], int, 1, MAX_WORLDS)
+    seed = check_value(where, f"{pre}seed", table.get("seed", 0), int, 0)
     settings = {k: v for k, v in table.items() if k not in ("generate", "seed")}
-    checked = _check_settings(settings, where, f"{key}.")
+    checked = _check_settings(settings, where, pre)
     try:
         gen = WorldGenerator(**checked)
     except HybridnavError as exc:
-        raise HybridnavError(f"{where}{key}: {exc}") from None
+        raise HybridnavError(f"{where}{key or 'generator'}: {exc}") from None
     return gen, count, seed

@@ -309,6 +309,17 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
     else:
         best, best_gen, selected = hof[0], _first_generation(records, logbook, hof[0]), "training"
     system = space.system(np.array(best), name=f"{job.name}-tuned")
+    d = system.to_dict()
+    d["description"] = (
+        f"Tuned by hybridnav {__version__} (job {job.name!r}, seed {job.seed}) from "
+        f"{job.start_system().name!r}: generation {best_gen}, chosen by its {selected} score "
+        f"over {len(job.scenarios('train'))} training and {len(job.scenarios('validation'))} "
+        "validation worlds. Inputs: dtheta = |direction to target - direction to nearest "
+        "obstacle| (rad); alpha = d_obstacle / d_target. Output: w, the weight of the "
+        "repulsive force in F_w = w F_rep + (1 - w) F_att.")
+    from hybridnav.fuzzy import FuzzySystem
+
+    system = FuzzySystem.from_dict(d)
     vinfo: dict[str, Any] = {}
     if has_val:
         start_entry = val["cache"][_gkey(start_genome)]

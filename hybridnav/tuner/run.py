@@ -1,16 +1,20 @@
-"""A whole tuning job: run the GA, then write the tuned system, its report and its plots.
+"""A whole tuning job: run the GA, then judge the result on held-out worlds and write it all.
 
-``DIR`` receives ``fis.json`` (the tuned system), ``logbook.csv`` (gen, evals, min, mean, max,
-std, wall_time), ``evaluations.csv`` (every individual's outcome, length and time per training
-environment), ``convergence.png``, ``mfs.png`` (start and tuned), ``surface.png``, ``paths.png``
-(the starting and the tuned controller on the training and held-out scenarios), ``report.md``,
-and the deployment exports: ``fis.fll`` (fuzzylite), ``fis.fis`` (MATLAB), ``fis.fcl``
-(IEC 61131-7) and ``effc_fis.h``/``effc_fis.c`` (standalone C).
+``DIR`` receives ``fis.json`` (the tuned system: the best on validation), ``start.json`` (the
+system it started from), ``logbook.csv`` (gen, evals, min, mean, max, std, val_gen, val_best,
+wall_time), ``evaluations.csv`` (every individual's outcome, length, time and clearance per
+training environment), ``validation.csv`` (every validated candidate per validation world),
+``heldout.csv`` (start, tuned and ``apf`` on every validation and test world) and
+``heldout_summary.csv``, ``convergence.png`` (training and validation curves), ``mfs.png``
+(start and tuned), ``surface.png``, ``coverage.png`` (where no rule fires), ``paths.png``,
+``report.md`` with the verdict, and the deployment exports: ``fis.fll`` (fuzzylite),
+``fis.fis`` (MATLAB), ``fis.fcl`` (IEC 61131-7) and ``effc_fis.h``/``effc_fis.c`` (standalone C).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -22,8 +26,9 @@ from matplotlib.figure import Figure
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.plotting import plot_result, save_figure
-from hybridnav.tuner.backends import make_backend
-from hybridnav.tuner.ga import TuneResult, tune
+from hybridnav.tuner.backends import Backend, SerialBackend, make_backend
+from hybridnav.tuner.ga import TuneResult, _job_json, tune
+from hybridnav.tuner.heldout import compare_systems, summarize, verdict
 from hybridnav.tuner.job import Job
 
 log = logging.getLogger(__name__)
@@ -41,23 +46,43 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
     backend = make_backend(be["workers"], dask_client or be["dask"])
     with backend:
         result = tune(job, out, backend=backend, resume=resume, progress=progress)
-    return result, write_outputs(job, result, out)
+        files = write_outputs(job, result, out, backend=backend)
+    return result, files
 
 
-def write_outputs(job: Job, result: TuneResult, out: Path) -> list[str]:
-    """Write the tuned system, tables, plots, exports and ``report.md``."""
+def write_outputs(job: Job, result: TuneResult, out: Path,
+                  backend: Backend | None = None) -> list[str]:
+    """Judge the result on the validation and test sets; write the systems, tables, plots,
+    exports and ``report.md``."""
     from hybridnav import planners
     from hybridnav.fuzzy import plots
+    from hybridnav.tuner.evaluate import uncovered_fraction
 
+    backend = backend or SerialBackend()
     out.mkdir(parents=True, exist_ok=True)
     files = []
+    start = job.start_system()
     result.system.save(out / "fis.json")
-    files.append("fis.json")
+    start.save(out / "start.json")
+    files += ["fis.json", "start.json"]
     atomic_write_text(out / "logbook.csv", pd.DataFrame(result.logbook).to_csv(index=False))
     atomic_write_text(out / "evaluations.csv", pd.DataFrame(result.records).to_csv(index=False))
     files += ["logbook.csv", "evaluations.csv"]
-    save_figure(_convergence(result.logbook, job), out / "convergence.png")
-    start = job.start_system()
+    if result.validation:
+        vrows = [dict(e, generation=c["generation"], score=c["score"], uncovered=c["uncovered"])
+                 for c in result.validation["candidates"] for e in c["envs"]]
+        atomic_write_text(out / "validation.csv", pd.DataFrame(vrows).to_csv(index=False))
+        files.append("validation.csv")
+    # start, tuned and apf on the worlds tuning never trained on
+    jj = _job_json(job)
+    genomes = {"start": np.array(result.start_genome), "tuned": np.array(result.best)}
+    table = compare_systems(job, jj, genomes, backend)
+    summary = summarize(table)
+    atomic_write_text(out / "heldout.csv", table.to_csv(index=False))
+    atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
+    files += ["heldout.csv", "heldout_summary.csv"]
+    unc = uncovered_fraction(jj, np.vstack([genomes["start"], genomes["tuned"]]))
+    save_figure(_convergence(result.logbook, job, result), out / "convergence.png")
     fig = Figure(figsize=(11, 7), layout="constrained")
     left, right = fig.subfigures(1, 2)
     plots.plot_memberships(start, fig=left)
@@ -66,29 +91,31 @@ def write_outputs(job: Job, result: TuneResult, out: Path) -> list[str]:
     right.suptitle(f"tuned: {result.system.name}")
     save_figure(fig, out / "mfs.png")
     plots.save_surface_png(result.system, out / "surface.png")
-    files += ["convergence.png", "mfs.png", "surface.png"]
-    # the starting and the tuned controller on every training and held-out scenario
+    save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
+                out / "coverage.png")
+    files += ["convergence.png", "mfs.png", "surface.png", "coverage.png"]
+    # paths: the paper's worlds and a few generated test worlds
     pl = job["planner"]
-    rows = []
-    scen = [("train", s) for s in job.scenarios("train")] + \
-           [("held-out", s) for s in job.scenarios("test")]
-    fig = Figure(figsize=(8.5, 4.0 * len(scen)), layout="constrained")
-    axes = fig.subplots(len(scen), 2, squeeze=False)
-    for row, (kind, s) in enumerate(scen):
-        for col, (label, system) in enumerate((("start", start), ("tuned", result.system))):
-            res = planners.get("effc", fis=system, speed=pl["speed"], max_turn=pl["max_turn"],
-                               stuck_window=pl["stuck_window"],
-                               stuck_radius=pl["stuck_radius"]).run(s)
-            r = res.robots[0]
-            plot_result(s, res, ax=axes[row, col])
-            axes[row, col].set_title(f"{s.name} ({kind}): {label}", fontsize=9)
-            rows.append({"scenario": s.name, "set": kind, "system": label, "outcome": r.outcome,
-                         "path_length": r.path_length, "time_to_goal": r.time_to_goal})
-    save_figure(fig, out / "paths.png")
-    files.append("paths.png")
+    shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
+    test = job.scenarios("test")
+    shown += [("test", s) for s in test if not s.name.startswith("gen-")]
+    shown += [("test", s) for s in test if s.name.startswith("gen-")][:4]
+    if shown:
+        fig = Figure(figsize=(8.5, 4.0 * len(shown)), layout="constrained")
+        axes = fig.subplots(len(shown), 2, squeeze=False)
+        for row, (kind, s) in enumerate(shown):
+            for col, (label, system) in enumerate((("start", start),
+                                                   ("tuned", result.system))):
+                res = planners.get("effc", fis=system, speed=pl["speed"],
+                                   max_turn=pl["max_turn"], stuck_window=pl["stuck_window"],
+                                   stuck_radius=pl["stuck_radius"]).run(s)
+                plot_result(s, res, ax=axes[row, col])
+                axes[row, col].set_title(f"{s.name} ({kind}): {label}", fontsize=9)
+        save_figure(fig, out / "paths.png")
+        files.append("paths.png")
     files += _exports(result.system, out)
-    table = pd.DataFrame(rows)
-    atomic_write_text(out / "report.md", _report(job, result, table, files))
+    radius = job.scenarios("train")[0].robots[0].radius
+    atomic_write_text(out / "report.md", _report(job, result, summary, unc, radius, files))
     files.append("report.md")
     return files
 
@@ -113,26 +140,60 @@ def _exports(system, out: Path) -> list[str]:
     return names
 
 
-def _convergence(logbook: list[dict[str, Any]], job: Job) -> Figure:
+def _convergence(logbook: list[dict[str, Any]], job: Job, result: TuneResult) -> Figure:
     df = pd.DataFrame(logbook)
-    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    fig = Figure(figsize=(6.8, 4.2), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(df["gen"], df["min"], marker="o", label="best")
-    ax.plot(df["gen"], df["mean"], label="mean")
-    ax.fill_between(df["gen"], df["mean"] - df["std"], df["mean"] + df["std"], alpha=0.2)
-    ax.set_xlabel("generation")
+    ax.plot(df["gen"], df["min"], marker="o", markersize=3, label="training: best")
+    ax.plot(df["gen"], df["mean"], linewidth=0.8, label="training: mean")
+    if "val_gen" in df:
+        ax.plot(df["gen"], df["val_gen"], marker="s", markersize=3,
+                label="validation: best of generation")
+        ax.plot(df["gen"], df["val_best"], linestyle="--", label="validation: best so far")
+        ax.axvline(result.best_generation, color="0.5", linewidth=0.8)
     sense = job["reward"]["sense"]
-    ax.set_ylabel(f"reward ({sense}d)")
-    ax.set_title(f"{job.name}: convergence")
-    ax.legend()
+    if sense == "minimize" and (df["min"] > 0).all():
+        ax.set_yscale("log")
+    ax.set_xlabel("generation")
+    ax.set_ylabel(f"fitness ({sense}d; {job['reward']['kind']} reward)")
+    ax.set_title(f"{job.name}: training and validation")
+    ax.legend(fontsize=8)
     return fig
 
 
-def _report(job: Job, result: TuneResult, table: pd.DataFrame, files: list[str]) -> str:
-    sense = job["reward"]["sense"]
-    best = result.best.fitness.values[0]
-    better = best < result.start_fitness if sense == "minimize" else best > result.start_fitness
-    ga = job["ga"]
+def _coverage(job: Job, systems: dict[str, Any], unc: np.ndarray) -> Figure:
+    """Where no rule fires (the output falls back to ``default``), per system."""
+    from hybridnav.fuzzy.family import SystemFamily
+
+    grid = job["coverage"]["grid"]
+    fig = Figure(figsize=(4.2 * len(systems), 3.8), layout="constrained")
+    axes = fig.subplots(1, len(systems), squeeze=False)[0]
+    for ax, (label, system), u in zip(axes, systems.items(), unc):
+        fam = SystemFamily(system)
+        a, b = system.inputs[0], system.inputs[1]
+        xa = np.linspace(*a.range, grid)
+        xb = np.linspace(*b.range, grid)
+        A, B = np.meshgrid(xa, xb, indexing="ij")
+        fired = fam.fired(fam.tables_of([system]), np.zeros(A.size, dtype=int),
+                          {a.name: A.ravel(), b.name: B.ravel()}).reshape(A.shape)
+        ax.pcolormesh(xa, xb, (~fired).T.astype(float), cmap="Reds", vmin=0, vmax=1.5,
+                      shading="nearest")
+        ax.set_xlabel(a.name)
+        ax.set_ylabel(b.name)
+        ax.set_title(f"{label}: no rule fires on {100 * u:.1f} %", fontsize=9)
+    fig.suptitle("coverage (red: the output is the default)")
+    return fig
+
+
+def _fmt(v: float, spec: str = ".3f") -> str:
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
+
+
+def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray,
+            radius: float, files: list[str]) -> str:
+    rw, ga = job["reward"], job["ga"]
+    sense = rw["sense"]
+    n = {k: len(job.scenarios(k)) for k in ("train", "validation", "test")}
     lines = [
         f"# Tuning report: {job.name}", "",
         f"Seed {job.seed}; population {ga['population']}, {ga['generations']} generations; "
@@ -140,29 +201,77 @@ def _report(job: Job, result: TuneResult, table: pd.DataFrame, files: list[str])
         + (", rule switches" if job["free"]["rule_switches"] else "")
         + (", rule weights" if job["free"]["rule_weights"] else "")
         + (", rule consequents" if job["free"]["rule_consequents"] else "") + ".",
-        f"Reward ({sense}): path length when the target is reached, "
-        f"{'penalty' if sense == 'minimize' else '-penalty'} {job['reward']['penalty']:g} "
-        "otherwise, summed over the training scenarios.", "",
-        f"**Training reward: start {result.start_fitness:.4f}, tuned {best:.4f} — the tuned "
-        f"system {'beats' if better else 'does not beat'} the starting one.**", "",
-        f"The tuned system keeps {len(result.system.rules)} of "
-        f"{len(job.start_system().rules)} rules.", "",
-        "| scenario | set | system | outcome | path length | time to goal |",
-        "|---|---|---|---|---|---|",
+        f"Worlds: {n['train']} for training, {n['validation']} for validation (choosing the "
+        f"returned system), {n['test']} for the final test (used only for this report).", "",
+        _reward_text(job), "",
     ]
-    for r in table.itertuples():
-        t = "-" if r.time_to_goal is None or (isinstance(r.time_to_goal, float)
-                                              and np.isnan(r.time_to_goal)) \
-            else f"{r.time_to_goal:.1f} s"
-        lines.append(f"| {r.scenario} | {r.set} | {r.system} | {r.outcome} | "
-                     f"{r.path_length:.3f} | {t} |")
-    held = table[table.set == "held-out"]
-    if len(held):
-        ok = held.groupby("system")["outcome"].apply(lambda s: int((s == "reached").sum()))
-        lines += ["", f"Held-out scenarios reached: start {ok.get('start', 0)}/"
-                      f"{len(held) // 2}, tuned {ok.get('tuned', 0)}/{len(held) // 2}."]
+    # the verdict first: what a user deploys
+    for which in ("test", "validation"):
+        v = verdict(summary, which, radius)
+        if not v["checks"]:
+            continue
+        word = "better" if v["better"] else "NOT better"
+        lines += [f"**Verdict on the {which} set ({n[which]} worlds): the tuned system is "
+                  f"{word} than its start.**", ""]
+        lines += [f"- {'pass' if ok else 'FAIL'}: {text}" for text, ok in v["checks"]]
+        lines.append("")
+    if result.validation:
+        vs, ss = result.validation["best_score"], result.validation["start_score"]
+        beat = vs < ss if sense == "minimize" else vs > ss
+        lines += [f"Returned system: the best on **validation**, from generation "
+                  f"{result.best_generation} (validation score {vs:.4f}; start {ss:.4f})."]
+        if not beat:
+            lines += ["", "**WARNING: no tuned candidate scored better than the starting "
+                          "system on the validation set. `fis.json` is then the starting "
+                          "system's genome; both `fis.json` and `start.json` are written.**"]
+        stopped = result.validation["stopped"]
+        lines += ["", f"Early stopping: {'stopped at generation ' + str(stopped) if stopped else 'not triggered'} "
+                      f"(patience {job['validation']['patience']}, tolerance "
+                      f"{job['validation']['tolerance']:g})."]
+    else:
+        lines += ["No validation set: the returned system is the best on training (generation "
+                  f"{result.best_generation}); nothing checks that it generalizes."]
+    best = result.best.fitness.values[0]
+    lines += ["", f"Training fitness: start {result.start_fitness:.4f}, returned {best:.4f}.",
+              f"The tuned system keeps {len(result.system.rules)} of "
+              f"{len(job.start_system().rules)} rules.", "",
+              f"Coverage (grid {job['coverage']['grid']} x {job['coverage']['grid']} over the "
+              f"input ranges): no rule fires on {100 * unc[0]:.1f} % for the start, "
+              f"{100 * unc[1]:.1f} % for the tuned system (allowed: "
+              f"{100 * job['coverage']['max_uncovered']:.1f} %; see coverage.png).", "",
+              "## Start vs tuned vs apf on held-out worlds", "",
+              "Nominal runs (no noise). Length and clearance: means over the worlds every system "
+              "reached; 'min clearance' is the smallest over the worlds that system reached.", "",
+              "| set | system | reached | 95 % interval | collided | stuck | timeout | "
+              "out of bounds | common worlds | length | clearance | min clearance |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in summary.itertuples():
+        lines.append(f"| {r.set} | {r.system} | {r.reached}/{r.worlds} | "
+                     f"{_fmt(r.ci_low, '.2f')}-{_fmt(r.ci_high, '.2f')} | {r.collided} | "
+                     f"{r.stuck} | {r.timeout} | {r.out_of_bounds} | {r.common_worlds} | "
+                     f"{_fmt(r.common_length)} | {_fmt(r.common_clearance)} | "
+                     f"{_fmt(r.min_clearance_reached)} |")
     last = result.logbook[-1]
     lines += ["", f"Wall time {last['wall_time']:.1f} s for "
-                  f"{sum(r['evals'] for r in result.logbook)} evaluations.", "",
+                  f"{sum(r['evals'] for r in result.logbook)} evaluations (tuning only).", "",
               "Files: " + ", ".join(files), ""]
     return "\n".join(lines)
+
+
+def _reward_text(job: Job) -> str:
+    rw = job["reward"]
+    if rw["kind"] == "length":
+        return (f"Reward (length, minimized): path length when the target is reached, penalty "
+                f"{rw['penalty']:g} otherwise, summed over the training worlds.")
+    if rw["kind"] == "paper":
+        return (f"Reward (paper, maximized): path length when the target is reached, "
+                f"-{rw['penalty']:g} otherwise, summed over the training worlds.")
+    noise = ", ".join(f"{k} {rw[k]:g}" for k in ("heading_noise", "dtheta_noise", "alpha_noise")
+                      if rw[k] > 0)
+    return (f"Reward (deploy, minimized; mean over the training worlds): reached: "
+            f"{rw['length']:g} x length / distance + {rw['time']:g} x time x speed / distance + "
+            f"{rw['clearance']:g} x shortfall of the clearance below {rw['safety_distance']:g} "
+            f"robot radii; collision or leaving the workspace {rw['collision']:g}; stuck or "
+            f"timeout {rw['failure']:g} + {rw['progress']:g} x distance left / start distance. "
+            f"Coverage penalty {job['coverage']['penalty']:g} x (1 + uncovered fraction). "
+            + (f"Noise: {noise}, {rw['repeats']} repeats." if noise else "No noise.")).strip()
