@@ -71,6 +71,10 @@ class WorldGenerator:
     robot_radius, goal_radius : float
     margin : float
         Free gap kept between obstacles and the start and goal footprints.
+    min_gap : float
+        Narrowest gap between two obstacles, or an obstacle and the border: obstacles either
+        overlap (or touch the border) or leave at least this much room (default 0.3: a 0.2 m
+        robot passes with half its radius on each side). 0 allows any gap.
     dt, max_time : float
         The scenarios' control step and time budget (s).
     resolution : float
@@ -98,6 +102,7 @@ class WorldGenerator:
     robot_radius: float = 0.1
     goal_radius: float = 0.1
     margin: float = 0.15
+    min_gap: float = 0.3
     dt: float = 0.1
     max_time: float = 120.0
     resolution: float = 0.025
@@ -169,12 +174,19 @@ class WorldGenerator:
                 return start + s * d + rng.uniform(-self.corridor, self.corridor) * n
             return rng.uniform(0.0, L, 2)
 
+        placed: list = []
+
         def place(make) -> None:
             for _ in range(50):
                 obs = make(center())
-                if obs is not None and _clear_of(obs, (start, goal), keep_out):
-                    obstacles.append(obs)
-                    return
+                shape = _shape(obs)
+                if not _clear_of(shape, (start, goal), keep_out):
+                    continue
+                if self.min_gap > 0 and not _no_narrow_gap(shape, placed, L, self.min_gap):
+                    continue
+                obstacles.append(obs)
+                placed.append(shape)
+                return
 
         for _ in range(int(rng.integers(self.circles[0], self.circles[1] + 1))):
             place(lambda c: {"type": "circle", "center": [float(c[0]), float(c[1])],
@@ -214,16 +226,51 @@ class WorldGenerator:
         return replace(self, **settings)
 
 
-def _clear_of(obs: dict, points, keep: float) -> bool:
+def _shape(obs: dict):
     from hybridnav.world import Circle, Rectangle, Segment
 
     if obs["type"] == "circle":
-        shape = Circle(tuple(obs["center"]), obs["radius"])
-    elif obs["type"] == "segment":
-        shape = Segment(tuple(obs["a"]), tuple(obs["b"]))
-    else:
-        shape = Rectangle(tuple(obs["min"]), tuple(obs["max"]))
+        return Circle(tuple(obs["center"]), obs["radius"])
+    if obs["type"] == "segment":
+        return Segment(tuple(obs["a"]), tuple(obs["b"]))
+    return Rectangle(tuple(obs["min"]), tuple(obs["max"]))
+
+
+def _clear_of(shape, points, keep: float) -> bool:
     return bool(np.all(shape.clearance(np.asarray(points, dtype=float)) >= keep))
+
+
+def _outline(shape, n: int = 96) -> np.ndarray:
+    """Points on a shape's boundary (exact for circles' distances to other circles)."""
+    from hybridnav.world import Circle, Segment
+
+    if isinstance(shape, Circle):
+        a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+        return np.asarray(shape.center) + shape.radius * np.column_stack([np.cos(a), np.sin(a)])
+    A, B = shape._A, shape._B
+    s = np.linspace(0, 1, max(2, n // len(A)), endpoint=not isinstance(shape, Segment))
+    return (A[:, None] + s[None, :, None] * (B - A)[:, None]).reshape(-1, 2)
+
+
+def _no_narrow_gap(shape, placed: list, size: float, gap: float) -> bool:
+    """Whether ``shape`` overlaps or keeps ``gap`` from every placed obstacle and the border."""
+    from hybridnav.world import Circle, World
+
+    pts = _outline(shape)
+    border = np.min(np.minimum.reduce([pts[:, 0], size - pts[:, 0], pts[:, 1],
+                                       size - pts[:, 1]]))
+    if 0 < border < gap:
+        return False
+    for other in placed:
+        if isinstance(shape, Circle) and isinstance(other, Circle):
+            d = math.dist(shape.center, other.center) - shape.radius - other.radius
+        else:
+            d = min(float(np.min(World((-1e9, 1e9, -1e9, 1e9), (other,)).clearance(pts))),
+                    float(np.min(World((-1e9, 1e9, -1e9, 1e9), (shape,)).clearance(
+                        _outline(other)))))
+        if 0 < d < gap:
+            return False
+    return True
 
 
 def solvable(scenario, resolution: float | None = None) -> bool:

@@ -285,7 +285,7 @@ def test_noise_does_not_depend_on_the_chunking(tmp_path):
      "scenarios.train[0].layout", "expected one of diagonal, random"),
     ("[scenarios]\ntrain = [\"effc-train-1\"]\nvalidation = [3]\n",
      "scenarios.validation[0]", "expected a scenario name or path"),
-    ("[scenarios]\ntrain = [{generate = 2, circles = [40, 40], radius = [0.9, 1.0], "
+    ("[scenarios]\ntrain = [{generate = 2, circles = [40, 40], radius = [0.9, 1.0], min_gap = 0, "
      "max_tries = 2}]\n", "scenarios.train[0]", "no solvable world"),
     ("[scenarios]\ntrain = [\"effc-train-1\", {generate = 1, dt = 0.05}]\n",
      "scenarios.train", "expected one robot model for the whole set"),
@@ -393,18 +393,33 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
 
     job_file = tmp_path / "job.toml"
     job_file.write_text(SMALL)
+    import pandas as pd
+
     assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
-    for name in ("fis.json", "logbook.csv", "evaluations.csv", "convergence.png", "mfs.png",
-                 "surface.png", "paths.png", "report.md", "checkpoint.json"):
+    for name in ("fis.json", "start.json", "logbook.csv", "evaluations.csv", "validation.csv",
+                 "heldout.csv", "heldout_summary.csv", "convergence.png", "mfs.png",
+                 "surface.png", "coverage.png", "paths.png", "report.md", "checkpoint.json"):
         assert (tmp_path / "o" / name).exists(), name
     tuned = fuzzy.load(str(tmp_path / "o" / "fis.json"))
     assert tuned.input_names == ("dtheta", "alpha")
     report = (tmp_path / "o" / "report.md").read_text()
-    assert "Training reward: start" in report and "effc-env-a" in report
+    assert "Training fitness: start" in report and "Verdict on the test set" in report
+    assert "Returned system: the best on **validation**" in report
+    summary = pd.read_csv(tmp_path / "o" / "heldout_summary.csv")
+    assert set(summary.system) == {"start", "tuned", "apf"}
+    assert set(summary.set) == {"validation", "test"}
+    held = pd.read_csv(tmp_path / "o" / "heldout.csv")
+    assert set(held[held.set == "test"].scenario) == {"effc-env-a", "effc-env-b"}
+    # the start's row comes from the same lockstep code as tuning; check one against the planner
+    row = held[(held.set == "test") & (held.system == "start")
+               & (held.scenario == "effc-env-b")].iloc[0]
+    ref = planners.get("effc", fis="effc-5rule").run(
+        __import__("hybridnav.world", fromlist=["x"]).load_scenario("effc-env-b")).robots[0]
+    assert row.outcome == ref.outcome and row.path_length == pytest.approx(ref.path_length)
     import pandas as pd
     ev = pd.read_csv(tmp_path / "o" / "evaluations.csv")
     assert set(ev.columns) >= {"generation", "individual", "scenario", "outcome", "length",
-                               "time", "reward"}
+                               "time", "clearance", "reward", "uncovered"}
     assert main(["tune", str(job_file), "--out", str(tmp_path / "x"), "--resume"]) == 2
 
 
@@ -420,3 +435,98 @@ def test_validate_job_defaults_are_the_papers():
     names = {k: {s.name for s in job.scenarios(k)} for k in ("train", "validation", "test")}
     assert not names["train"] & names["validation"] and not names["test"] & (
         names["train"] | names["validation"])
+
+
+def test_wilson_interval_matches_scipy():
+    from scipy.stats import binomtest
+
+    from hybridnav.tuner.heldout import wilson
+
+    for k, n in [(0, 5), (3, 10), (29, 30), (30, 30), (11, 30)]:
+        ref = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+        assert wilson(k, n) == pytest.approx((ref.low, ref.high), abs=1e-12)
+
+
+def test_summary_and_verdict_on_a_known_table():
+    import pandas as pd
+
+    from hybridnav.tuner.heldout import summarize, verdict
+
+    rows = []
+    for w, (st, tu, ap) in enumerate([("reached", "reached", "reached"),
+                                      ("collided", "reached", "stuck"),
+                                      ("reached", "reached", "reached")]):
+        for sys_, out, L, c in (("start", st, 5.0 + w, 0.03), ("tuned", tu, 4.8 + w, 0.07),
+                                ("apf", ap, 5.5 + w, 0.2)):
+            rows.append({"set": "test", "scenario": f"w{w}", "system": sys_, "outcome": out,
+                         "path_length": L, "time": 1.0, "min_clearance": c})
+    summ = summarize(pd.DataFrame(rows))
+    t = summ.set_index("system").loc["tuned"]
+    assert t.reached == 3 and t.common_worlds == 2                  # w0 and w2: all reached
+    assert t.common_length == pytest.approx((4.8 + 6.8) / 2)
+    assert summ.set_index("system").loc["start"].collided == 1
+    v = verdict(summ, "test", 0.1)
+    assert v["better"] and all(ok for _, ok in v["checks"])
+    rows[4]["min_clearance"] = 0.04                                  # tuned grazes w1
+    v = verdict(summarize(pd.DataFrame(rows)), "test", 0.1)
+    assert not v["better"] and [ok for _, ok in v["checks"]] == [True, True, True, True, False]
+
+
+EARLY = SMALL.replace("generations = 2", "generations = 6") + """
+[validation]
+patience = 1
+"""
+
+
+def test_early_stop_returns_the_best_on_validation_and_resume_is_a_no_op(tmp_path):
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(EARLY)
+    job = load_job(job_file)
+    res = tune(job, tmp_path / "e")
+    stopped = res.validation["stopped"]
+    assert stopped is not None and stopped < 6                  # stopped before the end
+    assert len(res.logbook) == stopped + 1
+    cands = res.validation["candidates"]
+    best = min(cands, key=lambda c: c["score"])
+    assert list(res.best) == best["genes"] and res.best_generation == best["generation"]
+    assert res.validation["best_score"] == best["score"]
+    before = (tmp_path / "e" / "checkpoint.json").read_text()
+    again = tune(job, tmp_path / "e", resume=True)
+    assert list(again.best) == list(res.best) and _strip(again.logbook) == _strip(res.logbook)
+    assert json.loads(before)["stopped"] == stopped
+
+
+KFOLD = SMALL.replace("generations = 2", "generations = 1").replace(
+    'train = ["effc-train-1", "effc-train-2"]',
+    'train = ["effc-train-1", "effc-train-2", {generate = 2, seed = 5, circles = [1, 2]}]') + """
+[validation]
+kfold = 2
+patience = 0
+"""
+
+
+def test_kfold_runs_one_stage_per_fold_and_resumes_exactly(tmp_path):
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(KFOLD)
+    job = load_job(job_file)
+    folds = job.folds()
+    assert sorted(folds) == [0, 0, 1, 1]
+    full = tune(job, tmp_path / "full")
+    assert [r["stage"] for r in full.logbook] == [0, 0, 1, 1]
+    assert [f["fold"] for f in full.validation["folds"]] == ["fold0", "fold1"]
+    ev = pd_read(full.records)
+    names = {s.name for s in job.scenarios("train")}
+    for stage in (0, 1):          # each stage trains on the worlds outside its fold only
+        trained = set(ev[ev.stage == stage].scenario)
+        held = {s.name for f, s in zip(folds, job.scenarios("train")) if f == stage}
+        assert trained == names - held
+    tune(job, tmp_path / "part", stop_after=2)                 # inside stage 1
+    resumed = tune(job, tmp_path / "part", resume=True)
+    assert list(resumed.best) == list(full.best)
+    assert _strip(resumed.logbook) == _strip(full.logbook)
+
+
+def pd_read(records):
+    import pandas as pd
+
+    return pd.DataFrame(records)

@@ -137,6 +137,23 @@ def test_bad_settings_name_the_key(table, key, text):
 
 
 def test_impossible_settings_fail_cleanly():
-    gen = WorldGenerator(circles=(40, 40), radius=(0.9, 1.0), max_tries=2)
+    gen = WorldGenerator(circles=(40, 40), radius=(0.9, 1.0), min_gap=0.0, max_tries=2)
     with pytest.raises(HybridnavError, match="no solvable world in 2 draws for gen-0-000"):
         gen.world(0, seed=0)
+
+
+def test_no_gap_narrower_than_min_gap():
+    from hybridnav.worldgen import _outline
+
+    gen = WorldGenerator(circles=(6, 10), radius=(0.2, 0.5), rectangles=(0, 2), min_gap=0.3)
+    for w in gen.generate(10, seed=6):
+        obs = w.world.obstacles
+        for i, a in enumerate(obs):
+            pts = _outline(a, 400)
+            border = np.min(np.minimum.reduce([pts[:, 0], 5 - pts[:, 0], pts[:, 1],
+                                               5 - pts[:, 1]]))
+            assert not 0.001 < border < 0.3 - 0.001
+            for b in obs[i + 1:]:          # solid to solid: overlapping shapes give d < 0
+                d = min(float(np.min(World((-9, 9, -9, 9), (b,)).clearance(pts))),
+                        float(np.min(World((-9, 9, -9, 9), (a,)).clearance(_outline(b, 400)))))
+                assert not 0.001 < d < 0.3 - 0.001, (a, b, d)

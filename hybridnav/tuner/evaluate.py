@@ -83,9 +83,17 @@ def _context(job_json: str):
 
 
 def _set(job_json: str, which: str) -> _Set:
+    """A scenario set: ``train``, ``validation``, ``test``, or for k-fold ``train-f{j}`` (the
+    training worlds outside fold ``j``) and ``fold{j}``."""
     job, _, _, sets = _context(job_json)
     if which not in sets:
-        scen = job.scenarios(which)
+        if which.startswith("train-f") or which.startswith("fold"):
+            j = int(which.rsplit("f", 1)[1] if which.startswith("train-f") else which[4:])
+            folds = job.folds()
+            scen = [s for f, s in zip(folds, job.scenarios("train")) if (f == j)
+                    == which.startswith("fold")]
+        else:
+            scen = job.scenarios(which)
         sets[which] = _Set(scen, WorldStack([s.world for s in scen]),
                            np.array([s.robots[0].radius for s in scen]))
     return sets[which]
@@ -230,7 +238,7 @@ def evaluate_chunk(job_json: str, genomes: np.ndarray, generation: int,
     job, _, _, _ = _context(job_json)
     genomes = np.atleast_2d(np.asarray(genomes, dtype=float))
     K = len(genomes)
-    keys = None if which != "train" else [(generation, i) for i in indices]
+    keys = [(generation, i) for i in indices] if which.startswith("train") else None
     res, repeats = simulate_genomes(job_json, which, genomes, keys)
     scenarios = _set(job_json, which).scenarios
     E = len(scenarios)

@@ -98,6 +98,7 @@ class TuneResult:
     selected_by: str = "training"
     best_generation: int = 0
     start_genome: list[float] = field(default_factory=list)
+    best_stage: int = 0
 
 
 def _job_json(job: Job) -> str:
@@ -137,7 +138,18 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
     progress : callable, optional
         Called after every generation with that generation's logbook row.
     stop_after : int, optional
-        Stop after this generation (for tests of interruption; the checkpoint stays).
+        Stop after this many generations in all (for tests of interruption; the checkpoint
+        stays).
+
+    Notes
+    -----
+    With ``validation.kfold = k >= 2`` the training worlds are split into ``k`` folds (a
+    permutation seeded by the job's seed) and the GA runs ``k`` stages of ``ga.generations``
+    generations: stage ``j`` trains on the other folds, scores its best individuals on fold
+    ``j`` (early stopping on that score) and hands its final population to stage ``j + 1`` (as
+    MATLAB's ``tunefis`` with ``KFoldValue`` passes each fold's result on). The returned system
+    is the best on the job's validation set over all stages, or — without one — the best of the
+    last stage on its fold.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -152,68 +164,107 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
     sigma = (ga["gaussian_sigma"] * (space.upper - space.lower)).tolist()
     chunk = job["backend"]["chunk"]
     elite = ga["elite"]
+    vcfg = job["validation"]
+    kfold = vcfg["kfold"] if vcfg["kfold"] >= 2 else 0
+    stages = max(1, kfold)
+    G = ga["generations"]
+    has_val = bool(job["scenarios"]["validation"])
+    better = (lambda a, b: a < b) if rw["sense"] == "minimize" else (lambda a, b: a > b)
 
-    def evaluate(inds: list[Individual], generation: int, indices: list[int]) -> int:
+    def train_set(stage: int) -> str:
+        return f"train-f{stage}" if kfold else "train"
+
+    def select_set(stage: int) -> str | None:
+        """The set that early stopping watches in a stage."""
+        return f"fold{stage}" if kfold else ("validation" if has_val else None)
+
+    def evaluate(inds: list[Individual], stage: int, generation: int,
+                 indices: list[int]) -> int:
         """Evaluate ``inds`` in chunks on the backend; returns the number of evaluations."""
         if not inds:
             return 0
+        key = stage * (G + 1) + generation          # distinct noise in every stage
         args = []
         for s in range(0, len(inds), chunk):
             part = inds[s:s + chunk]
-            args.append((jj, np.array(part, dtype=float), generation, indices[s:s + chunk]))
+            args.append((jj, np.array(part, dtype=float), key, indices[s:s + chunk],
+                         train_set(stage)))
         results = [r for res in backend.map(evaluate_chunk, args) for r in res]
         for ind, idx, rec in zip(inds, indices, results):
             ind.fitness.values = (rec["fitness"],)
-            ind.records = [dict(e, generation=generation, individual=idx, set="train",
-                                uncovered=rec["uncovered"]) for e in rec["envs"]]
+            ind.records = [dict(e, stage=stage, generation=generation, individual=idx,
+                                set=train_set(stage), uncovered=rec["uncovered"])
+                           for e in rec["envs"]]
         return len(inds)
 
-    has_val = bool(job["scenarios"]["validation"])
-    vcfg = job["validation"]
-    better = (lambda a, b: a < b) if rw["sense"] == "minimize" else (lambda a, b: a > b)
-
-    def validate(inds: list[Individual], generation: int, val: dict[str, Any]) -> None:
-        """Score the new candidates on the validation set; update the best validated one."""
-        cache = val["cache"]
-        genomes = [list(i) for i in inds]
+    def score(which: str, inds: list[Individual], generation: int, track: dict[str, Any],
+              stage: int) -> None:
+        """Score the new candidates on ``which``; update ``track``'s best."""
+        cache = track["cache"]
         train = {_gkey(i): i.fitness.values[0] for i in inds}
-        todo = [g for g in genomes if _gkey(g) not in cache]
-        todo = list({_gkey(g): g for g in todo}.values())
+        genomes = [list(i) for i in inds]
+        todo = list({_gkey(g): g for g in genomes if _gkey(g) not in cache}.values())
         if todo:
             args = [(jj, np.array(todo[s:s + chunk], dtype=float), generation,
-                     list(range(s, min(s + chunk, len(todo)))), "validation")
+                     list(range(s, min(s + chunk, len(todo)))), which)
                     for s in range(0, len(todo), chunk)]
             results = [r for res in backend.map(evaluate_chunk, args) for r in res]
             for g, rec in zip(todo, results):
                 cache[_gkey(g)] = {"genes": list(g), "score": rec["fitness"],
                                    "cost": rec["cost"], "uncovered": rec["uncovered"],
-                                   "train_fitness": train[_gkey(g)],
+                                   "train_fitness": train[_gkey(g)], "stage": stage,
                                    "generation": generation, "envs": rec["envs"]}
         scores = [cache[_gkey(g)]["score"] for g in genomes]
-        val["gen_best"] = float(min(scores) if rw["sense"] == "minimize" else max(scores))
+        track["gen_best"] = float(min(scores) if rw["sense"] == "minimize" else max(scores))
         for g in genomes:
             entry = cache[_gkey(g)]
-            if val["best"] is None or better(entry["score"], val["best"]["score"]):
-                improved = (val["best"] is None or abs(entry["score"] - val["best"]["score"])
+            if track["best"] is None or better(entry["score"], track["best"]["score"]):
+                improved = (track["best"] is None or abs(entry["score"] - track["best"]["score"])
                             > vcfg["tolerance"])
-                val["best"] = dict(entry, generation=generation)
+                track["best"] = dict(entry, stage=stage, generation=generation)
                 if improved:
-                    val["last_improvement"] = generation
+                    track["last_improvement"] = generation
 
-    def candidates(pop: list[Individual], generation: int) -> list[Individual]:
-        """The ``validation.top`` best distinct individuals (generation 0: and the start)."""
+    def candidates(pop: list[Individual], include_first: bool) -> list[Individual]:
+        """The ``validation.top`` best distinct individuals (and ``pop[0]``, the start)."""
         ranked = sorted(pop, key=lambda i: i.fitness.values[0],
                         reverse=rw["sense"] != "minimize")
-        out, seen = [], set()
+        out_, seen = [], set()
         for ind in ranked:
             if _gkey(ind) not in seen:
                 seen.add(_gkey(ind))
-                out.append(ind)
-            if len(out) == vcfg["top"]:
+                out_.append(ind)
+            if len(out_) == vcfg["top"]:
                 break
-        if generation == 0 and _gkey(pop[0]) not in seen:
-            out.append(pop[0])                 # the starting system
-        return out
+        if include_first and _gkey(pop[0]) not in seen:
+            out_.append(pop[0])
+        return out_
+
+    def after_generation(pop, stage, gen, st) -> None:
+        """Validation bookkeeping and early stopping after a generation has been evaluated."""
+        cands = candidates(pop, gen == 0 and stage == 0)
+        if kfold:
+            score(select_set(stage), cands, gen, st["fold"], stage)
+        if has_val:
+            score("validation", cands, gen, st["val"], stage)
+        watch = st["fold"] if kfold else (st["val"] if has_val else None)
+        if watch is not None and vcfg["patience"] and \
+                gen - watch["last_improvement"] >= vcfg["patience"] and gen < G:
+            st["stopped"] = gen
+            log.info("early stop in stage %d at generation %d: no improvement on %s since %d",
+                     stage, gen, select_set(stage), watch["last_improvement"])
+
+    def row(gen, stage, n_ev, pop, elapsed, st):
+        r = _row(gen, n_ev, pop, elapsed, st["val"] if has_val else None)
+        if kfold:
+            r = {"stage": stage, **r}
+            r["fold_gen"] = st["fold"]["gen_best"]
+            r["fold_best"] = st["fold"]["best"]["score"]
+            r["wall_time"] = r.pop("wall_time")
+        return r
+
+    def new_track():
+        return {"cache": {}, "best": None, "last_improvement": 0, "gen_best": None}
 
     if resume:
         state = _load_checkpoint(ckpt_path, chash)
@@ -222,115 +273,154 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         hof.update([_ind(d, fit_cls) for d in state["hall_of_fame"]])
         logbook = state["logbook"]
         records = state["records"]
-        start_gen = state["generation"]
+        stage, start_gen = state["stage"], state["generation"]
         start_fitness = state["start_fitness"]
         rnd = random.Random()
         rnd.setstate(_tuplify(state["python_random"]))
         rng = np.random.default_rng()
         rng.bit_generator.state = state["numpy_random"]
         elapsed = state["elapsed"]
-        val = _load_val(state["validation"])
-        stopped = state.get("stopped")
+        st = {"val": _load_track(state["validation"]), "fold": _load_track(state["fold"]),
+              "stopped": state["stopped"]}
+        folds_done = state["folds_done"]
         start_genome = state["start_genome"]
-        log.info("resuming %s at generation %d", job.name, start_gen)
+        log.info("resuming %s at stage %d, generation %d", job.name, stage, start_gen)
     else:
         rnd = random.Random(job.seed)
         rng = np.random.default_rng(job.seed)
         genomes = np.vstack([space.encode()[None], space.random(ga["population"] - 1, rng)])
         pop = [Individual(g, fit_cls) for g in genomes]
         start_genome = list(pop[0])
-        stopped = None
-        val = {"cache": {}, "best": None, "last_improvement": 0, "gen_best": None}
-        tic = time.perf_counter()
-        nevals = evaluate(pop, 0, list(range(len(pop))))
-        start_fitness = pop[0].fitness.values[0]
-        hof = tools.HallOfFame(max(1, elite))
-        hof.update(pop)
-        records = [r for ind in pop for r in ind.records]
-        if has_val:
-            validate(candidates(pop, 0), 0, val)
-        elapsed = time.perf_counter() - tic
-        logbook = [_row(0, nevals, pop, elapsed, val if has_val else None)]
-        start_gen = 1
-        _save_checkpoint(ckpt_path, job, chash, 1, pop, hof, logbook, records, rnd, rng,
-                         start_fitness, elapsed, val, stopped, start_genome)
-        if progress:
-            progress(logbook[-1])
-    for gen in range(start_gen, ga["generations"] + 1):
-        if stopped is not None or (stop_after is not None and gen > stop_after):
+        st = {"val": new_track(), "fold": new_track(), "stopped": None}
+        folds_done: list[dict[str, Any]] = []
+        stage, logbook, records, elapsed = 0, [], [], 0.0
+        start_fitness = None
+        start_gen = 0
+        hof = None
+    done_gens = len(logbook)
+    while stage < stages:
+        if start_gen == 0:                     # a stage begins: (re-)evaluate the population
+            if stop_after is not None and done_gens > stop_after:
+                break
+            tic = time.perf_counter()
+            for ind in pop:
+                del ind.fitness.values
+            nevals = evaluate(pop, stage, 0, list(range(len(pop))))
+            if start_fitness is None:
+                start_fitness = pop[0].fitness.values[0]
+            hof = tools.HallOfFame(max(1, elite))
+            hof.update(pop)
+            records += [r for ind in pop for r in ind.records]
+            after_generation(pop, stage, 0, st)
+            elapsed += time.perf_counter() - tic
+            logbook.append(row(0, stage, nevals, pop, elapsed, st))
+            done_gens += 1
+            start_gen = 1
+            _save_checkpoint(ckpt_path, job, chash, stage, 1, pop, hof, logbook, records, rnd,
+                             rng, start_fitness, elapsed, st, folds_done, start_genome)
+            if progress:
+                progress(logbook[-1])
+        for gen in range(start_gen, G + 1):
+            if st["stopped"] is not None or (stop_after is not None and done_gens > stop_after):
+                break
+            tic = time.perf_counter()
+            with _deap_random(rnd):
+                offspring = [_clone(i, fit_cls) for i in tools.selTournament(
+                    pop, len(pop) - elite, ga["tournament"])]
+                for a, b in zip(offspring[::2], offspring[1::2]):
+                    if rnd.random() < ga["crossover_prob"]:
+                        if ga["crossover"] == "sbx":
+                            tools.cxSimulatedBinaryBounded(a, b, ga["sbx_eta"], low, up)
+                        else:
+                            tools.cxBlend(a, b, ga["blend_alpha"])
+                        del a.fitness.values, b.fitness.values
+                for ind in offspring:
+                    if rnd.random() < ga["mutation_prob"]:
+                        if ga["mutation"] == "polynomial":
+                            tools.mutPolynomialBounded(ind, ga["polynomial_eta"], low, up,
+                                                       ga["gene_prob"])
+                        else:
+                            tools.mutGaussian(ind, 0.0, sigma, ga["gene_prob"])
+                        del ind.fitness.values
+            changed = [i for i in offspring if not i.fitness.valid]
+            if changed:
+                fixed = space.repair(np.array(changed, dtype=float))
+                for ind, r_ in zip(changed, fixed):
+                    ind[:] = r_.tolist()
+            n_ev = evaluate(changed, stage, gen, list(range(len(changed))))
+            pop = [_clone(h, fit_cls) for h in hof[:elite]] + offspring
+            hof.update(pop)
+            records += [r for ind in changed for r in ind.records]
+            after_generation(pop, stage, gen, st)
+            elapsed += time.perf_counter() - tic
+            logbook.append(row(gen, stage, n_ev, pop, elapsed, st))
+            done_gens += 1
+            _save_checkpoint(ckpt_path, job, chash, stage, gen + 1, pop, hof, logbook, records,
+                             rnd, rng, start_fitness, elapsed, st, folds_done, start_genome)
+            if progress:
+                progress(logbook[-1])
+        else:
+            gen = G + 1
+        interrupted = st["stopped"] is None and gen <= G
+        if interrupted:
             break
-        tic = time.perf_counter()
-        with _deap_random(rnd):
-            offspring = [_clone(i, fit_cls) for i in tools.selTournament(
-                pop, len(pop) - elite, ga["tournament"])]
-            for a, b in zip(offspring[::2], offspring[1::2]):
-                if rnd.random() < ga["crossover_prob"]:
-                    if ga["crossover"] == "sbx":
-                        tools.cxSimulatedBinaryBounded(a, b, ga["sbx_eta"], low, up)
-                    else:
-                        tools.cxBlend(a, b, ga["blend_alpha"])
-                    del a.fitness.values, b.fitness.values
-            for ind in offspring:
-                if rnd.random() < ga["mutation_prob"]:
-                    if ga["mutation"] == "polynomial":
-                        tools.mutPolynomialBounded(ind, ga["polynomial_eta"], low, up,
-                                                   ga["gene_prob"])
-                    else:
-                        tools.mutGaussian(ind, 0.0, sigma, ga["gene_prob"])
-                    del ind.fitness.values
-        changed = [i for i in offspring if not i.fitness.valid]
-        if changed:
-            fixed = space.repair(np.array(changed, dtype=float))
-            for ind, row in zip(changed, fixed):
-                ind[:] = row.tolist()
-        n_ev = evaluate(changed, gen, list(range(len(changed))))
-        pop = [_clone(h, fit_cls) for h in hof[:elite]] + offspring
-        hof.update(pop)
-        records += [r for ind in changed for r in ind.records]
-        if has_val:
-            validate(candidates(pop, gen), gen, val)
-            if vcfg["patience"] and gen - val["last_improvement"] >= vcfg["patience"]:
-                stopped = gen
-                log.info("early stop at generation %d: no validation improvement since %d",
-                         gen, val["last_improvement"])
-        elapsed += time.perf_counter() - tic
-        logbook.append(_row(gen, n_ev, pop, elapsed, val if has_val else None))
-        _save_checkpoint(ckpt_path, job, chash, gen + 1, pop, hof, logbook, records, rnd, rng,
-                         start_fitness, elapsed, val, stopped, start_genome)
-        if progress:
-            progress(logbook[-1])
+        # the stage is over (all generations or early stop): next fold, or the end
+        if kfold:
+            folds_done.append({"stage": stage, "fold": select_set(stage),
+                               "stopped": st["stopped"], **st["fold"]["best"]})
+            st["fold"] = new_track()
+        if stage + 1 < stages:
+            stage, start_gen = stage + 1, 0
+            st["stopped"] = None
+            _save_checkpoint(ckpt_path, job, chash, stage, 0, pop, hof, logbook, records,
+                             rnd, rng, start_fitness, elapsed, st, folds_done, start_genome)
+        else:
+            if kfold or st["stopped"] is not None:
+                _save_checkpoint(ckpt_path, job, chash, stage, G + 1, pop, hof, logbook,
+                                 records, rnd, rng, start_fitness, elapsed, st, folds_done,
+                                 start_genome, finished=True)
+            break
     if has_val:
-        chosen = val["best"]
-        best = Individual(chosen["genes"], fit_cls)
-        match = [h for h in hof if _gkey(h) == _gkey(best)]
-        best.fitness.values = (match[0].fitness.values if match else
-                               (float(chosen["train_fitness"]),))
-        best_gen, selected = chosen["generation"], "validation"
+        chosen, selected = st["val"]["best"], "validation"
+    elif kfold and folds_done:
+        chosen, selected = folds_done[-1], f"fold {folds_done[-1]['fold'][4:]}"
     else:
-        best, best_gen, selected = hof[0], _first_generation(records, logbook, hof[0]), "training"
+        chosen, selected = None, "training"
+    if chosen is not None:
+        best = Individual(chosen["genes"], fit_cls)
+        best.fitness.values = (float(chosen["train_fitness"]),)
+        best_gen = chosen["generation"]
+    else:
+        best, best_gen = hof[0], _first_generation(records, logbook, hof[0])
+    best_stage = chosen.get("stage", 0) if chosen is not None else stage
     system = space.system(np.array(best), name=f"{job.name}-tuned")
     d = system.to_dict()
     d["description"] = (
         f"Tuned by hybridnav {__version__} (job {job.name!r}, seed {job.seed}) from "
-        f"{job.start_system().name!r}: generation {best_gen}, chosen by its {selected} score "
-        f"over {len(job.scenarios('train'))} training and {len(job.scenarios('validation'))} "
-        "validation worlds. Inputs: dtheta = |direction to target - direction to nearest "
-        "obstacle| (rad); alpha = d_obstacle / d_target. Output: w, the weight of the "
-        "repulsive force in F_w = w F_rep + (1 - w) F_att.")
+        f"{job.start_system().name!r}: generation {best_gen}"
+        + (f" of stage {best_stage}" if kfold else "")
+        + f", chosen by its {selected} score over {len(job.scenarios('train'))} training and "
+        f"{len(job.scenarios('validation'))} validation worlds. Inputs: dtheta = |direction "
+        "to target - direction to nearest obstacle| (rad); alpha = d_obstacle / d_target. "
+        "Output: w, the weight of the repulsive force in F_w = w F_rep + (1 - w) F_att.")
     from hybridnav.fuzzy import FuzzySystem
 
     system = FuzzySystem.from_dict(d)
     vinfo: dict[str, Any] = {}
     if has_val:
-        start_entry = val["cache"][_gkey(start_genome)]
-        vinfo = {"best_score": val["best"]["score"], "best_generation": val["best"]["generation"],
-                 "best_envs": val["best"]["envs"], "start_score": start_entry["score"],
-                 "start_envs": start_entry["envs"], "stopped": stopped,
-                 "candidates": list(val["cache"].values())}
+        start_entry = st["val"]["cache"].get(_gkey(start_genome))
+        vinfo = {"best_score": st["val"]["best"]["score"],
+                 "best_generation": best_gen, "best_envs": st["val"]["best"]["envs"],
+                 "start_score": start_entry["score"] if start_entry else None,
+                 "start_envs": start_entry["envs"] if start_entry else [],
+                 "stopped": st["stopped"] if not kfold else None,
+                 "candidates": list(st["val"]["cache"].values())}
+    if kfold:
+        vinfo["folds"] = folds_done
     return TuneResult(best=best, system=system, start_fitness=start_fitness, logbook=logbook,
                       records=records, hall_of_fame=list(hof), validation=vinfo,
                       selected_by=selected, best_generation=best_gen,
-                      start_genome=list(start_genome))
+                      start_genome=list(start_genome), best_stage=best_stage)
 
 
 def _gkey(genes) -> str:
@@ -338,7 +428,7 @@ def _gkey(genes) -> str:
     return ",".join(repr(float(g)) for g in genes)
 
 
-def _load_val(state: dict[str, Any]) -> dict[str, Any]:
+def _load_track(state: dict[str, Any]) -> dict[str, Any]:
     return {"cache": {_gkey(e["genes"]): e for e in state["cache"]}, "best": state["best"],
             "last_improvement": state["last_improvement"], "gen_best": state["gen_best"]}
 
@@ -346,9 +436,9 @@ def _load_val(state: dict[str, Any]) -> dict[str, Any]:
 def _first_generation(records, logbook, ind) -> int:
     """The generation in which the best training fitness was first reached."""
     target = ind.fitness.values[0]
-    for row in logbook:
-        if row["min"] == target or row["max"] == target:
-            return int(row["gen"])
+    for r in logbook:
+        if r["min"] == target or r["max"] == target:
+            return int(r["gen"])
     return int(logbook[-1]["gen"])
 
 
@@ -384,24 +474,26 @@ def _tuplify(obj):
     return tuple(_tuplify(v) for v in obj) if isinstance(obj, list) else obj
 
 
-def _save_checkpoint(path: Path, job: Job, chash: str, next_gen: int, pop, hof, logbook,
-                     records, rnd: random.Random, rng, start_fitness, elapsed, val, stopped,
-                     start_genome) -> None:
+def _save_checkpoint(path: Path, job: Job, chash: str, stage: int, next_gen: int, pop, hof,
+                     logbook, records, rnd: random.Random, rng, start_fitness, elapsed,
+                     st: dict[str, Any], folds_done: list, start_genome,
+                     finished: bool = False) -> None:
     def dump(ind):
         return {"genes": list(ind), "fitness": ind.fitness.values[0] if ind.fitness.valid
                 else None, "records": ind.records}
 
+    def track(t):
+        return {"cache": list(t["cache"].values()), "best": t["best"],
+                "last_improvement": t["last_improvement"], "gen_best": t["gen_best"]}
+
     state = {
         "format": CHECKPOINT_FORMAT, "version": __version__, "job": job.name,
-        "config_hash": chash, "generation": next_gen,
+        "config_hash": chash, "stage": stage, "generation": next_gen, "finished": finished,
         "population": [dump(i) for i in pop], "hall_of_fame": [dump(i) for i in hof],
         "logbook": logbook, "records": records, "start_fitness": start_fitness,
         "python_random": rnd.getstate(), "numpy_random": rng.bit_generator.state,
-        "elapsed": elapsed,
-        "validation": {"cache": list(val["cache"].values()), "best": val["best"],
-                       "last_improvement": val["last_improvement"],
-                       "gen_best": val["gen_best"]},
-        "stopped": stopped, "start_genome": list(start_genome),
+        "elapsed": elapsed, "validation": track(st["val"]), "fold": track(st["fold"]),
+        "stopped": st["stopped"], "folds_done": folds_done, "start_genome": list(start_genome),
     }
     atomic_write_text(path, dumps_json(state))
 

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hybridnav.errors import HybridnavError
 
 __all__ = ["DEFAULT_JOB", "Job", "load_job", "quick"]
@@ -55,7 +57,7 @@ DEFAULT_JOB: dict[str, Any] = {
                "time": 0.0, "clearance": 2.0, "safety_distance": 1.0,
                "repeats": 1, "heading_noise": 0.0, "dtheta_noise": 0.0, "alpha_noise": 0.0},
     "coverage": {"grid": 41, "max_uncovered": 0.0, "penalty": 100.0},
-    "validation": {"top": 3, "patience": 10, "tolerance": 0.0},
+    "validation": {"top": 3, "patience": 10, "tolerance": 0.0, "kfold": 0},
     "planner": {"speed": 0.1, "max_turn": math.pi / 4, "stuck_window": 10.0,
                 "stuck_radius": 2.0},
     "backend": {"workers": 1, "dask": "", "chunk": 50},
@@ -96,7 +98,7 @@ _SCHEMA: dict[str, dict[str, tuple]] = {
     "coverage": {"grid": (int, 2, 1001, None), "max_uncovered": (float, 0.0, 1.0, None),
                  "penalty": (float, 0.0, None, None)},
     "validation": {"top": (int, 1, 1000, None), "patience": (int, 0, None, None),
-                   "tolerance": (float, 0.0, None, None)},
+                   "tolerance": (float, 0.0, None, None), "kfold": (int, 0, 100, None)},
     "planner": {"speed": (float, 1e-9, None, None), "max_turn": (float, 1e-6, math.pi, None),
                 "stuck_window": (float, 0.0, None, None),
                 "stuck_radius": (float, 0.0, None, None)},
@@ -146,6 +148,18 @@ class Job:
         """The scenarios of a set (``train``, ``validation`` or ``test``), loaded or generated."""
         return _load_set(json.dumps(self.data["scenarios"][which], sort_keys=True),
                          str(self.base))
+
+    def folds(self) -> list[int]:
+        """The k-fold assignment of the training worlds (``validation.kfold``): a permutation
+        seeded by the job's seed, dealt round robin into the folds."""
+        n = len(self.scenarios("train"))
+        k = self.data["validation"]["kfold"]
+        perm = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(7,))) \
+            .permutation(n)
+        out = [0] * n
+        for pos, i in enumerate(perm):
+            out[int(i)] = pos % k if k >= 2 else 0
+        return out
 
     def with_seed(self, seed: int | None) -> Job:
         if seed is None:
@@ -324,6 +338,10 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                 raise fail(f"scenarios.{which}", "expected one robot model for the whole set "
                            "(the same dt, robot radius and parameters), so that one batched "
                            f"step serves them all; got {len(keys)} different ones")
+    k = data["validation"]["kfold"]
+    if k >= 2 and k > len(job.scenarios("train")):
+        raise fail("validation.kfold", f"expected at most the number of training worlds "
+                                       f"({len(job.scenarios('train'))}), got {k}")
     if data["free"]["mf"] == [] and not any(
             data["free"][k] for k in ("rule_switches", "rule_weights", "rule_consequents")):
         raise fail("free", "nothing is free: set free.mf or a free.rule_* switch")
