@@ -26,8 +26,10 @@ Cost of one run (``reward.kind``):
 
 **Coverage.** A system must not rely on the "no rule fired" ``default``: the fraction of a
 ``coverage.grid``-per-axis grid over the input ranges where no rule fires is measured for every
-genome; above ``coverage.max_uncovered`` the fitness is worsened by
-``coverage.penalty * (1 + fraction)``, so any covering system beats any that is not.
+genome; the fitness is worsened by ``coverage.penalty * excess``, the excess of that fraction over
+``coverage.max_uncovered`` (with the default 100, one per cent uncovered costs as much as a
+whole path), which gives the GA a slope towards covering systems. The validation selection is
+strict: a candidate above ``max_uncovered`` is never chosen over one within it.
 
 **Noise.** With ``heading_noise``, ``dtheta_noise`` or ``alpha_noise`` > 0, every cycle the
 commanded heading is rotated by ``N(0, heading_noise)``, ``dtheta`` gets ``N(0, dtheta_noise)``
@@ -55,7 +57,8 @@ from hybridnav.planners.effc import effc_force, effc_inputs_from
 from hybridnav.planners.lockstep import LockstepResult, lockstep_field
 from hybridnav.planners.worldstack import WorldStack
 
-__all__ = ["VALIDATION_KEY", "evaluate_chunk", "run_costs", "simulate_genomes"]
+__all__ = ["VALIDATION_KEY", "evaluate_chunk", "run_costs", "scenario_set", "simulate_genomes",
+           "simulate_on"]
 
 #: First spawn-key entry of the validation noise streams (training uses the generation there).
 VALIDATION_KEY = 2**31 - 1
@@ -94,8 +97,7 @@ def _set(job_json: str, which: str) -> _Set:
                     == which.startswith("fold")]
         else:
             scen = job.scenarios(which)
-        sets[which] = _Set(scen, WorldStack([s.world for s in scen]),
-                           np.array([s.robots[0].radius for s in scen]))
+        sets[which] = scenario_set(scen)
     return sets[which]
 
 
@@ -138,8 +140,21 @@ def simulate_genomes(job_json: str, which: str, genomes: np.ndarray,
     (LockstepResult, repeats)
         Arrays of shape ``(E, K * repeats)``, member ``k * repeats + r``.
     """
+    return simulate_on(job_json, _set(job_json, which), genomes, keys, noise=noise,
+                       record_paths=record_paths)
+
+
+def scenario_set(scenarios) -> _Set:
+    """Scenarios packed for :func:`simulate_on` (one robot model for all)."""
+    return _Set(list(scenarios), WorldStack([s.world for s in scenarios]),
+                np.array([s.robots[0].radius for s in scenarios]))
+
+
+def simulate_on(job_json: str, st: _Set, genomes: np.ndarray,
+                keys: list[tuple[int, int]] | None = None, *, noise: bool = True,
+                record_paths: bool = False) -> tuple[LockstepResult, int]:
+    """:func:`simulate_genomes` on any packed scenario set (:func:`scenario_set`)."""
     job, space, family, _ = _context(job_json)
-    st = _set(job_json, which)
     genomes = np.atleast_2d(np.asarray(genomes, dtype=float))
     K = len(genomes)
     rw, pl = job["reward"], job["planner"]
@@ -247,8 +262,7 @@ def evaluate_chunk(job_json: str, genomes: np.ndarray, generation: int,
     total = cost.mean(axis=0) if kind == "deploy" else cost.sum(axis=0)
     cov = job["coverage"]
     unc = uncovered_fraction(job_json, genomes)
-    over = unc > cov["max_uncovered"] + 1e-12
-    pen = np.where(over, cov["penalty"] * (1.0 + unc), 0.0)
+    pen = cov["penalty"] * np.maximum(unc - cov["max_uncovered"], 0.0)
     fitness = total - pen if kind == "paper" else total + pen
     reached = (res.outcome == "reached").reshape(E, K, repeats)
     out_records = []

@@ -216,8 +216,17 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
                                    "generation": generation, "envs": rec["envs"]}
         scores = [cache[_gkey(g)]["score"] for g in genomes]
         track["gen_best"] = float(min(scores) if rw["sense"] == "minimize" else max(scores))
+        max_unc = job["coverage"]["max_uncovered"] + 1e-12
         for g in genomes:
             entry = cache[_gkey(g)]
+            ok, best_ok = entry["uncovered"] <= max_unc, (
+                track["best"] is not None and track["best"]["uncovered"] <= max_unc)
+            if ok != best_ok and track["best"] is not None:     # feasibility first
+                if not ok:
+                    continue
+                track["best"] = dict(entry, stage=stage, generation=generation)
+                track["last_improvement"] = generation
+                continue
             if track["best"] is None or better(entry["score"], track["best"]["score"]):
                 improved = (track["best"] is None or abs(entry["score"] - track["best"]["score"])
                             > vcfg["tolerance"])
@@ -288,7 +297,7 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
     else:
         rnd = random.Random(job.seed)
         rng = np.random.default_rng(job.seed)
-        genomes = np.vstack([space.encode()[None], space.random(ga["population"] - 1, rng)])
+        genomes = _initial_population(space, ga, rng)
         pop = [Individual(g, fit_cls) for g in genomes]
         start_genome = list(pop[0])
         st = {"val": new_track(), "fold": new_track(), "stopped": None}
@@ -421,6 +430,19 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
                       records=records, hall_of_fame=list(hof), validation=vinfo,
                       selected_by=selected, best_generation=best_gen,
                       start_genome=list(start_genome), best_stage=best_stage)
+
+
+def _initial_population(space: GenomeSpace, ga: dict[str, Any],
+                        rng: np.random.Generator) -> np.ndarray:
+    """Generation 0: the starting system, then ``ga.init_local`` of the population drawn around
+    it (Gaussian, ``ga.init_sigma`` of each gene's range, repaired) and the rest uniformly."""
+    n = ga["population"]
+    x0 = space.encode()
+    n_local = int(round(ga["init_local"] * (n - 1)))
+    span = space.upper - space.lower
+    local = space.repair(x0 + rng.normal(0.0, 1.0, (n_local, space.size)) * ga["init_sigma"]
+                         * span)
+    return np.vstack([x0[None], local, space.random(n - 1 - n_local, rng)])
 
 
 def _gkey(genes) -> str:

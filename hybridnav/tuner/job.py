@@ -42,13 +42,13 @@ DEFAULT_JOB: dict[str, Any] = {
         "population": 100, "generations": 25, "tournament": 3, "elite": 2,
         "crossover": "sbx", "crossover_prob": 0.9, "sbx_eta": 15.0, "blend_alpha": 0.3,
         "mutation": "polynomial", "mutation_prob": 0.3, "gene_prob": 0.2,
-        "polynomial_eta": 20.0, "gaussian_sigma": 0.1,
+        "polynomial_eta": 20.0, "gaussian_sigma": 0.1, "init_local": 0.5, "init_sigma": 0.1,
     },
     "system": {"start": "effc-5rule"},
     "free": {"mf": ["dtheta", "alpha", "w"], "rule_switches": True, "rule_weights": False,
              "rule_consequents": False, "bounds": {}, "margin": 0.25},
     "scenarios": {
-        "train": ["effc-train-1", "effc-train-2", {"generate": 14, "seed": 1}],
+        "train": ["effc-train-1", "effc-train-2", {"generate": 30, "seed": 1}],
         "validation": [{"generate": 24, "seed": 2}],
         "test": ["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3}],
     },
@@ -58,6 +58,8 @@ DEFAULT_JOB: dict[str, Any] = {
                "repeats": 1, "heading_noise": 0.0, "dtheta_noise": 0.0, "alpha_noise": 0.0},
     "coverage": {"grid": 41, "max_uncovered": 0.0, "penalty": 100.0},
     "validation": {"top": 3, "patience": 10, "tolerance": 0.0, "kfold": 0},
+    "falsify": {"budget": 300, "population": 30, "obstacles": 4, "keep": 5,
+                "optimizer": "pso"},
     "planner": {"speed": 0.1, "max_turn": math.pi / 4, "stuck_window": 10.0,
                 "stuck_radius": 2.0},
     "backend": {"workers": 1, "dask": "", "chunk": 50},
@@ -76,6 +78,7 @@ _SCHEMA: dict[str, dict[str, tuple]] = {
         "mutation": (str, None, None, ("polynomial", "gaussian")),
         "mutation_prob": (float, 0.0, 1.0, None), "gene_prob": (float, 0.0, 1.0, None),
         "polynomial_eta": (float, 0.0, None, None), "gaussian_sigma": (float, 0.0, None, None),
+        "init_local": (float, 0.0, 1.0, None), "init_sigma": (float, 0.0, None, None),
     },
     "system": {"start": (str, None, None, None)},
     "free": {"mf": (list, None, None, None), "rule_switches": (bool, None, None, None),
@@ -99,6 +102,9 @@ _SCHEMA: dict[str, dict[str, tuple]] = {
                  "penalty": (float, 0.0, None, None)},
     "validation": {"top": (int, 1, 1000, None), "patience": (int, 0, None, None),
                    "tolerance": (float, 0.0, None, None), "kfold": (int, 0, 100, None)},
+    "falsify": {"budget": (int, 0, 100_000, None), "population": (int, 2, 1000, None),
+                "obstacles": (int, 1, 50, None), "keep": (int, 1, 100, None),
+                "optimizer": (str, None, None, ("pso", "bat", "firefly"))},
     "planner": {"speed": (float, 1e-9, None, None), "max_turn": (float, 1e-6, math.pi, None),
                 "stuck_window": (float, 0.0, None, None),
                 "stuck_radius": (float, 0.0, None, None)},
@@ -180,7 +186,7 @@ class Job:
         """SHA-256 of everything that determines the result (not the backend)."""
         from hybridnav.world import scenario_to_dict
 
-        d = {k: v for k, v in self.data.items() if k not in ("backend", "name")}
+        d = {k: v for k, v in self.data.items() if k not in ("backend", "name", "falsify")}
         d = copy.deepcopy(d)
         d["scenarios"].pop("test", None)
         d["system"] = self.start_system().to_dict()
@@ -194,10 +200,12 @@ class Job:
 
 
 def quick(job: Job) -> Job:
-    """The small smoke-run version of a job (population 12, 3 generations)."""
+    """The small smoke-run version of a job (population 12, 3 generations, a falsification
+    budget of at most 60 worlds; the same scenario sets)."""
     d = copy.deepcopy(job.data)
     d["ga"].update(_QUICK)
     d["ga"]["elite"] = min(d["ga"]["elite"], d["ga"]["population"] - 1)
+    d["falsify"]["budget"] = min(d["falsify"]["budget"], 60)
     d["name"] = f"{d['name']}-quick"
     return Job(d, job.source, job.base)
 

@@ -13,6 +13,7 @@ training environment), ``validation.csv`` (every validated candidate per validat
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 from collections.abc import Callable
@@ -82,6 +83,9 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
     atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
     files += ["heldout.csv", "heldout_summary.csv"]
     unc = uncovered_fraction(jj, np.vstack([genomes["start"], genomes["tuned"]]))
+    falsified = _falsify(job, jj, genomes, backend, out)
+    if falsified is not None:
+        files += falsified["files"]
     save_figure(_convergence(result.logbook, job, result), out / "convergence.png")
     fig = Figure(figsize=(11, 7), layout="constrained")
     left, right = fig.subfigures(1, 2)
@@ -115,9 +119,51 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
         files.append("paths.png")
     files += _exports(result.system, out)
     radius = job.scenarios("train")[0].robots[0].radius
-    atomic_write_text(out / "report.md", _report(job, result, summary, unc, radius, files))
+    atomic_write_text(out / "report.md", _report(job, result, summary, unc, radius, files,
+                                                 falsified))
     files.append("report.md")
     return files
+
+
+def _falsify(job: Job, jj: str, genomes: dict[str, np.ndarray], backend: Backend,
+             out: Path) -> dict[str, Any] | None:
+    """The falsification search against the tuned system; its worst worlds as TOML files and
+    how start and ``apf`` do there."""
+    from hybridnav.tuner.evaluate import scenario_set, simulate_on
+    from hybridnav.tuner.falsify import falsify
+    from hybridnav.tuner.heldout import _apf_rows
+    from hybridnav.world import save_scenario, scenario_to_dict
+
+    cfg = job["falsify"]
+    if cfg["budget"] == 0:
+        return None
+    seed = int(np.random.SeedSequence(job.seed, spawn_key=(13,)).generate_state(1)[0])
+    res = falsify(jj, genomes["tuned"], budget=cfg["budget"], population=cfg["population"],
+                  obstacles=cfg["obstacles"], keep=cfg["keep"], optimizer=cfg["optimizer"],
+                  seed=seed)
+    rows, files = [], []
+    if res.worlds:
+        folder = out / "falsified"
+        folder.mkdir(exist_ok=True)
+        sim, _ = simulate_on(jj, scenario_set(res.worlds), genomes["start"][None], noise=False)
+        pl = job["planner"]
+        apf = backend.map(_apf_rows, [(json.dumps(scenario_to_dict(w)),
+                                       {"speed": pl["speed"], "max_turn": pl["max_turn"],
+                                        "stuck_window": pl["stuck_window"],
+                                        "stuck_radius": pl["stuck_radius"]})
+                                      for w in res.worlds])
+        for i, w in enumerate(res.worlds):
+            name = f"falsified/{w.name}.toml"
+            save_scenario(w, out / name)
+            files.append(name)
+            rows.append({"world": name, "tuned": res.outcomes[i],
+                         "tuned_clearance": res.clearances[i], "tuned_cost": res.costs[i],
+                         "start": str(sim.outcome[i, 0]),
+                         "start_clearance": float(sim.min_clearance[i, 0]),
+                         "apf": apf[i]["outcome"], "apf_clearance": apf[i]["min_clearance"]})
+        atomic_write_text(out / "falsified.csv", pd.DataFrame(rows).to_csv(index=False))
+        files.append("falsified.csv")
+    return {"result": res, "rows": rows, "files": files, "config": cfg}
 
 
 def _exports(system, out: Path) -> list[str]:
@@ -190,7 +236,7 @@ def _fmt(v: float, spec: str = ".3f") -> str:
 
 
 def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray,
-            radius: float, files: list[str]) -> str:
+            radius: float, files: list[str], falsified: dict[str, Any] | None = None) -> str:
     rw, ga = job["reward"], job["ga"]
     sense = rw["sense"]
     n = {k: len(job.scenarios(k)) for k in ("train", "validation", "test")}
@@ -251,6 +297,22 @@ def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray
                      f"{r.stuck} | {r.timeout} | {r.out_of_bounds} | {r.common_worlds} | "
                      f"{_fmt(r.common_length)} | {_fmt(r.common_clearance)} | "
                      f"{_fmt(r.min_clearance_reached)} |")
+    if falsified is not None:
+        fr, cfg = falsified["result"], falsified["config"]
+        lines += ["", "## Falsification: worlds where the tuned system fails", "",
+                  f"A {cfg['optimizer']} search over solvable worlds with {cfg['obstacles']} "
+                  f"circles (start, goal, heading, positions and radii) tried {fr.evaluations} "
+                  f"candidates, {fr.valid} of them valid and solvable; the tuned system failed "
+                  f"in {fr.failures}."]
+        if falsified["rows"]:
+            lines += ["", "| world | tuned | clearance | start | apf |", "|---|---|---|---|---|"]
+            for r in falsified["rows"]:
+                lines.append(f"| `{r['world']}` | {r['tuned']} | {_fmt(r['tuned_clearance'])} "
+                             f"| {r['start']} | {r['apf']} |")
+            lines += ["", "Replay one: `hybridnav run <world> --planner effc --fis fis.json "
+                          "--out DIR`."]
+        else:
+            lines += ["", "No failure found within the budget."]
     last = result.logbook[-1]
     lines += ["", f"Wall time {last['wall_time']:.1f} s for "
                   f"{sum(r['evals'] for r in result.logbook)} evaluations (tuning only).", "",
@@ -273,5 +335,6 @@ def _reward_text(job: Job) -> str:
             f"{rw['clearance']:g} x shortfall of the clearance below {rw['safety_distance']:g} "
             f"robot radii; collision or leaving the workspace {rw['collision']:g}; stuck or "
             f"timeout {rw['failure']:g} + {rw['progress']:g} x distance left / start distance. "
-            f"Coverage penalty {job['coverage']['penalty']:g} x (1 + uncovered fraction). "
+            f"Coverage penalty {job['coverage']['penalty']:g} x the uncovered fraction above "
+            f"{job['coverage']['max_uncovered']:g}; validation picks only systems within it. "
             + (f"Noise: {noise}, {rw['repeats']} repeats." if noise else "No noise.")).strip()

@@ -1,0 +1,175 @@
+"""Looking for failures before a user does: a swarm search for worlds where a system fails.
+
+A world of the generator's class is a vector ``x = (sx, sy, gx, gy, theta, (cx, cy, r) * n)``:
+start, goal, initial heading and ``n`` circles. :func:`falsify` minimizes, with one of the
+project's swarm optimizers (:mod:`hybridnav.planners.swarm`; PSO by default), *minus* the
+deploy cost of the system in that world (:func:`hybridnav.tuner.evaluate.run_costs`: a collision
+costs more than getting stuck, which costs more than any detour) — so the search climbs towards
+collisions, then traps. Every candidate world obeys the generator's rules: circles that would
+overlap the start or goal footprint (plus ``margin``) or leave a gap narrower than ``min_gap``
+are dropped, start and goal are at least ``min_distance`` apart, and the world must be
+solvable (:func:`hybridnav.worldgen.solvable`); a candidate breaking a rule scores ``+inf``.
+Each swarm iteration simulates all its worlds in one lockstep batch.
+
+The worst distinct worlds where the system did not reach its goal are kept (sorted by cost),
+ready to be written as scenario TOML files.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hybridnav.worldgen import WorldGenerator, _no_narrow_gap, _shape, solvable
+
+__all__ = ["FalsifyResult", "falsify", "world_from_vector"]
+
+
+@dataclass
+class FalsifyResult:
+    """The worlds found (worst first), how many candidates were tried and how many were valid."""
+
+    worlds: list = field(default_factory=list)      # Scenario
+    costs: list[float] = field(default_factory=list)
+    outcomes: list[str] = field(default_factory=list)
+    clearances: list[float] = field(default_factory=list)
+    evaluations: int = 0
+    valid: int = 0
+    failures: int = 0                                # valid worlds where the system failed
+
+
+def bounds(gen: WorldGenerator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The search box of worlds with ``n`` circles."""
+    L, r = gen.size, gen.robot_radius
+    lo = [r, r, r, r, -math.pi] + [0.0, 0.0, gen.radius[0]] * n
+    hi = [L - r, L - r, L - r, L - r, math.pi] + [L, L, gen.radius[1]] * n
+    return np.array(lo), np.array(hi)
+
+
+def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
+    """The scenario of one search vector, or None when it breaks the generator's rules."""
+    from hybridnav.errors import HybridnavError
+    from hybridnav.world import scenario_from_dict
+
+    x = np.asarray(x, dtype=float)
+    start, goal, theta = x[0:2], x[2:4], float(x[4])
+    if math.dist(start, goal) < gen.min_distance:
+        return None
+    keep = gen.robot_radius + gen.margin
+    obstacles, placed = [], []
+    for c in x[5:].reshape(-1, 3):
+        obs = {"type": "circle", "center": [float(c[0]), float(c[1])], "radius": float(c[2])}
+        shape = _shape(obs)
+        if np.any(shape.clearance(np.array([start, goal])) < keep):
+            continue
+        if gen.min_gap > 0 and not _no_narrow_gap(shape, placed, gen.size, gen.min_gap):
+            continue
+        obstacles.append(obs)
+        placed.append(shape)
+    data = {
+        "name": name, "description": "found by hybridnav's falsification search",
+        "units": "m", "dt": gen.dt, "max_time": gen.max_time,
+        "workspace": {"xmin": 0.0, "xmax": gen.size, "ymin": 0.0, "ymax": gen.size},
+        "obstacles": obstacles,
+        "robots": [{"name": "robot", "model": "unicycle",
+                    "start": [float(start[0]), float(start[1])],
+                    "goal": [float(goal[0]), float(goal[1])], "goal_radius": gen.goal_radius,
+                    "radius": gen.robot_radius, "initial": {"theta": theta}}],
+    }
+    try:
+        scen = scenario_from_dict(data, source=f"falsification world {name}")
+    except HybridnavError:
+        return None
+    return scen if solvable(scen, gen.resolution) else None
+
+
+def falsify(job_json: str, genome: np.ndarray, *, budget: int = 300, population: int = 30,
+            obstacles: int = 4, keep: int = 5, optimizer: str = "pso",
+            generator: WorldGenerator | None = None, seed: int = 0,
+            progress=None) -> FalsifyResult:
+    """Search worlds where ``genome`` (of the job's genome space) fails.
+
+    Parameters
+    ----------
+    job_json : str
+        The job (its planner settings and reward define the cost).
+    genome : ndarray
+    budget : int
+        Candidate worlds to try in all (the swarm's ``max_evals``).
+    population : int
+        Swarm size (worlds simulated together per iteration).
+    obstacles : int
+        Circles per world.
+    keep : int
+        Worlds to return (the worst distinct failures).
+    optimizer : str
+        A name of :data:`hybridnav.planners.swarm.OPTIMIZERS`.
+    generator : WorldGenerator, optional
+        The world class (sizes, radii, robot, margins); default EFFC scale with a coarser
+        solvability grid (0.05).
+    seed : int
+        Seeds the swarm.
+    """
+    from hybridnav.planners.swarm import minimize
+    from hybridnav.tuner.evaluate import _context, run_costs, scenario_set, simulate_on
+
+    job = _context(job_json)[0]
+    gen = generator or WorldGenerator(resolution=0.05)
+    lo, hi = bounds(gen, obstacles)
+    seen: list[tuple[float, Any, str, float]] = []
+    count = {"evals": 0, "valid": 0, "fail": 0}
+
+    def f(X: np.ndarray) -> np.ndarray:
+        out = np.full(len(X), np.inf)
+        worlds, rows = [], []
+        for i, x in enumerate(X):
+            w = world_from_vector(x, gen, f"falsified-{count['evals'] + i:04d}")
+            if w is not None:
+                worlds.append(w)
+                rows.append(i)
+        count["evals"] += len(X)
+        if worlds:
+            res, _ = simulate_on(job_json, scenario_set(worlds), np.asarray(genome)[None],
+                                 noise=False)
+            cost = run_costs(job, worlds, res)[:, 0]
+            out[rows] = -cost
+            count["valid"] += len(worlds)
+            for w, c, o, cl in zip(worlds, cost, res.outcome[:, 0], res.min_clearance[:, 0]):
+                if o != "reached":
+                    count["fail"] += 1
+                    seen.append((float(c), w, str(o), float(cl)))
+        if progress:
+            progress(count["evals"], budget)
+        return out
+
+    minimize(optimizer, f, (lo, hi), n=population, iterations=None, max_evals=budget,
+             seed=seed)
+    seen.sort(key=lambda t: -t[0])
+    res = FalsifyResult(evaluations=count["evals"], valid=count["valid"],
+                        failures=count["fail"])
+    kept: list = []
+    for c, w, o, cl in seen:
+        if any(_same(w, k) for k in kept):
+            continue
+        kept.append(w)
+        res.worlds.append(w)
+        res.costs.append(c)
+        res.outcomes.append(o)
+        res.clearances.append(cl)
+        if len(kept) == keep:
+            break
+    return res
+
+
+def _same(a, b, tol: float = 0.05) -> bool:
+    """Two worlds are the same find when start, goal and obstacles differ by less than tol."""
+    ra, rb = a.robots[0], b.robots[0]
+    if math.dist(ra.start, rb.start) > tol or math.dist(ra.goal, rb.goal) > tol:
+        return False
+    ca = sorted((o.center, o.radius) for o in a.world.obstacles)
+    cb = sorted((o.center, o.radius) for o in b.world.obstacles)
+    return len(ca) == len(cb) and all(math.dist(p, q) <= tol and abs(r - s) <= tol
+                                      for (p, r), (q, s) in zip(ca, cb))
