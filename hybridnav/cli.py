@@ -196,8 +196,9 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     def progress(row):
         evals["n"] += row["evals"]
         rate = evals["n"] / row["wall_time"] if row["wall_time"] > 0 else 0.0
+        extra = {"val": f"{row['val_best']:.4g}"} if row.get("val_best") is not None else {}
         bar.set_postfix(gen=row["gen"], best=f"{row['min']:.4g}", mean=f"{row['mean']:.4g}",
-                        evals_s=f"{rate:.0f}")
+                        **extra, evals_s=f"{rate:.0f}")
         bar.update(row["gen"] + 1 - bar.n)
 
     try:
@@ -205,8 +206,10 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     best = result.best.fitness.values[0]
-    print(f"{job.name}: training reward start {result.start_fitness:.4f} -> tuned {best:.4f} "
-          f"({len(result.system.rules)} rules kept)")
+    print(f"{job.name}: training fitness start {result.start_fitness:.4f} -> returned {best:.4f} "
+          f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
+          f"{result.best_generation})")
+    _print_verdict(job, args.out)
     print(f"wrote {args.out}/: {', '.join(files)}")
     return 0
 
@@ -233,6 +236,30 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     print(f"wrote {count} solvable worlds (seed {seed}) to {out}/: {gen.name}-{seed}-000.toml"
           + (f" ... {gen.name}-{seed}-{count - 1:03d}.toml" if count > 1 else ""))
     return 0
+
+
+def _print_verdict(job, out) -> None:
+    """The held-out verdict lines of a finished tuning job."""
+    from pathlib import Path
+
+    import pandas as pd
+
+    from hybridnav.tuner.heldout import verdict
+
+    path = Path(out) / "heldout_summary.csv"
+    if not path.exists():
+        return
+    summary = pd.read_csv(path)
+    radius = job.scenarios("train")[0].robots[0].radius
+    for which in ("validation", "test"):
+        s = summary[summary.set == which].set_index("system")
+        if not {"start", "tuned"} <= set(s.index):
+            continue
+        v = verdict(summary, which, radius)
+        counts = ", ".join(f"{k} {int(s.loc[k, 'reached'])}/{int(s.loc[k, 'worlds'])}"
+                           for k in s.index)
+        print(f"{which}: tuned is {'better' if v['better'] else 'NOT better'} than its start "
+              f"(reached: {counts}; see report.md)")
 
 
 def _cmd_export(args: argparse.Namespace) -> int:

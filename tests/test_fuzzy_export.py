@@ -657,3 +657,41 @@ def test_names_that_the_text_formats_cannot_carry(fmt, where, name, key):
         d2["output"]["name"] = "range"
         with pytest.raises(HybridnavError, match="keyword in FCL"):
             to_fcl(FuzzySystem.from_dict(d2))
+
+
+def test_fis_gaussmf_whose_width_overflows_is_a_clear_error(tmp_path):
+    """A hypothesis run found sigma = 1e308: its square overflows a Python float."""
+    from hybridnav import HybridnavError
+    from hybridnav.fuzzy.export import load_any
+
+    text = """[System]
+Name='z'
+Type='mamdani'
+NumInputs=1
+NumOutputs=1
+NumRules=1
+AndMethod='min'
+OrMethod='max'
+ImpMethod='min'
+AggMethod='max'
+DefuzzMethod='centroid'
+
+[Input1]
+Name='a'
+Range=[-1.0 1.0]
+NumMFs=1
+MF1='mid':'gaussmf',[1e308 0.0]
+
+[Output1]
+Name='y'
+Range=[0.0 100.0]
+NumMFs=1
+MF1='small':'zmf',[10.0 50.0]
+
+[Rules]
+1, 1 (1.0) : 1
+"""
+    p = tmp_path / "g.fis"
+    p.write_text(text)
+    with pytest.raises(HybridnavError, match=r"g\.fis: line 17: term 'mid': gaussmf.*too extreme"):
+        load_any(str(p))

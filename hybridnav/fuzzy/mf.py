@@ -149,8 +149,11 @@ def sample(mf: str, params: Sequence[float], x: FloatArray) -> FloatArray:
         Membership degrees in [0, 1], equal bit for bit to scikit-fuzzy's.
     """
     x = np.asarray(x, dtype=np.float64)
-    with np.errstate(over="ignore", under="ignore", divide="ignore"):
-        y = _FUNCS[mf](x, *(float(v) for v in params))
+    try:
+        with np.errstate(over="ignore", under="ignore", divide="ignore"):
+            y = _FUNCS[mf](x, *(float(v) for v in params))
+    except OverflowError:               # a Python float power, e.g. gaussmf sigma = 1e308
+        raise FloatingPointError(f"{mf}{tuple(params)} overflows") from None
     y = np.asarray(y, dtype=np.float64)
     if not np.all(np.isfinite(y)):  # cannot happen for validated parameters; be loud if it does
         raise FloatingPointError(f"{mf}{tuple(params)} produced non-finite membership values")

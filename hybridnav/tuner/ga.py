@@ -54,7 +54,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["CHECKPOINT_FORMAT", "FitnessMax", "FitnessMin", "Individual", "TuneResult", "tune"]
 
-CHECKPOINT_FORMAT = "hybridnav-tune-checkpoint/1"
+CHECKPOINT_FORMAT = "hybridnav-tune-checkpoint/2"
 
 
 class FitnessMin(base.Fitness):
