@@ -343,7 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("fis", help="describe a fuzzy system; plot its membership functions and "
                                    "control surface")
-    p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule) or a hybridnav-fis/1 file")
+    p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned) or a "
+                                  "hybridnav-fis/1 file")
     p.add_argument("--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 

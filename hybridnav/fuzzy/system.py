@@ -379,8 +379,8 @@ def builtin(name: str) -> FuzzySystem:
     Parameters
     ----------
     name : str
-        One of :func:`builtin_names`: ``effc-5rule`` (the EFFC paper's Table 1) or ``effc-2rule``
-        (its reduced Table 2).
+        One of :func:`builtin_names`: ``effc-5rule`` (the EFFC paper's Table 1), ``effc-2rule``
+        (its reduced Table 2) or ``effc-tuned`` (the main job's result on its defaults).
 
     Returns
     -------

@@ -1,7 +1,8 @@
 """Looking for failures before a user does: a swarm search for worlds where a system fails.
 
 A world of the generator's class is a vector ``x = (sx, sy, gx, gy, theta, (cx, cy, r) * n)``:
-start, goal, initial heading and ``n`` circles. :func:`falsify` minimizes, with one of the
+start, goal, initial heading (an offset from the goal direction, within the generator's
+``heading_jitter``) and ``n`` circles. :func:`falsify` minimizes, with one of the
 project's swarm optimizers (:mod:`hybridnav.planners.swarm`; PSO by default), *minus* the
 deploy cost of the system in that world (:func:`hybridnav.tuner.evaluate.run_costs`: a collision
 costs more than getting stuck, which costs more than any detour) — so the search climbs towards
@@ -42,10 +43,21 @@ class FalsifyResult:
 
 
 def bounds(gen: WorldGenerator, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The search box of worlds with ``n`` circles."""
+    """The search box of worlds with ``n`` circles.
+
+    Start and goal range over the generator's own span (``0.15 size - jitter`` to ``0.85 size +
+    jitter`` for the diagonal layout, the whole workspace less the robot radius otherwise); the
+    heading is an offset from the goal direction within ``heading_jitter`` when the generator
+    heads the robot at its goal, else any angle.
+    """
     L, r = gen.size, gen.robot_radius
-    lo = [r, r, r, r, -math.pi] + [0.0, 0.0, gen.radius[0]] * n
-    hi = [L - r, L - r, L - r, L - r, math.pi] + [L, L, gen.radius[1]] * n
+    if gen.layout == "diagonal":
+        a, b = max(r, 0.15 * L - gen.jitter), min(L - r, 0.85 * L + gen.jitter)
+    else:
+        a, b = r, L - r
+    h = gen.heading_jitter if gen.heading == "goal" else math.pi
+    lo = [a, a, a, a, -h] + [0.0, 0.0, gen.radius[0]] * n
+    hi = [b, b, b, b, h] + [L, L, gen.radius[1]] * n
     return np.array(lo), np.array(hi)
 
 
@@ -56,6 +68,9 @@ def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
 
     x = np.asarray(x, dtype=float)
     start, goal, theta = x[0:2], x[2:4], float(x[4])
+    if gen.heading == "goal":                  # an offset from the direction to the goal
+        theta = math.remainder(math.atan2(goal[1] - start[1], goal[0] - start[0]) + theta,
+                               2 * math.pi)
     if math.dist(start, goal) < gen.min_distance:
         return None
     keep = gen.robot_radius + gen.margin
@@ -86,8 +101,8 @@ def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
     return scen if solvable(scen, gen.resolution) else None
 
 
-def falsify(job_json: str, genome: np.ndarray, *, budget: int = 300, population: int = 30,
-            obstacles: int = 4, keep: int = 5, optimizer: str = "pso",
+def falsify(job_json: str, genome: np.ndarray, *, budget: int = 600, population: int = 30,
+            obstacles: int = 6, keep: int = 5, optimizer: str = "pso",
             generator: WorldGenerator | None = None, seed: int = 0,
             progress=None) -> FalsifyResult:
     """Search worlds where ``genome`` (of the job's genome space) fails.

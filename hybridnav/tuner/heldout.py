@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["compare_systems", "summarize", "verdict", "wilson"]
+__all__ = ["compare_systems", "run_systems", "summarize", "verdict", "wilson"]
 
 SYSTEMS = ("start", "tuned", "apf")
 
@@ -80,6 +80,56 @@ def compare_systems(job, job_json: str, genomes: dict[str, np.ndarray], backend,
         for s, r in zip(scen, backend.map(_apf_rows, args)):
             rows.append({"set": which, "scenario": s.name, "system": "apf", **r,
                          "time": math.nan if r["time"] is None else r["time"]})
+    return pd.DataFrame(rows, columns=["set", "scenario", "system", "outcome", "path_length",
+                                       "time", "min_clearance"])
+
+
+def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
+                max_turn: float = math.pi / 4, stuck_window: float = 10.0,
+                stuck_radius: float = 2.0, apf: bool = True, set_name: str = "test"
+                ) -> pd.DataFrame:
+    """Rows like :func:`compare_systems` for any fuzzy systems (label -> ``FuzzySystem``) on any
+    single-unicycle scenarios of one robot model: each system simulated on all of them in one
+    lockstep batch (exactly what the ``effc`` planner does), plus ``apf`` run by its planner."""
+    from hybridnav import planners
+    from hybridnav.fuzzy.family import SystemFamily
+    from hybridnav.planners.effc import effc_force, effc_inputs_from
+    from hybridnav.planners.lockstep import lockstep_field
+    from hybridnav.planners.worldstack import WorldStack
+
+    scen = list(scenarios)
+    stack = WorldStack([s.world for s in scen])
+    radius = np.array([s.robots[0].radius for s in scen])
+    rows = []
+    for label, system in systems.items():
+        fam = SystemFamily(system)
+        tables = fam.tables_of([system])
+
+        def field(env, members, P, goals, t):
+            clear, near = stack.nearest(P, env, t)
+            d, a, fa, fr = effc_inputs_from(P, goals, clear, near, radius[env])
+            F = effc_force(fam.evaluate(tables, members, {"dtheta": d, "alpha": a}), fa, fr)
+            return np.where(np.isinf(clear)[:, None], fa, F)
+
+        res = lockstep_field(scen, 1, field, model_overrides={
+            "controller": "heading", "speed": speed, "max_turn": max_turn}, speed=speed,
+            stuck_window=stuck_window, stuck_radius=stuck_radius, stack=stack)
+        for e, s in enumerate(scen):
+            ok = res.outcome[e, 0] == "reached"
+            rows.append({"set": set_name, "scenario": s.name, "system": label,
+                         "outcome": str(res.outcome[e, 0]),
+                         "path_length": float(res.path_length[e, 0]),
+                         "time": float(res.time[e, 0]) if ok else math.nan,
+                         "min_clearance": float(res.min_clearance[e, 0])})
+    if apf:
+        p = planners.get("apf", speed=speed, max_turn=max_turn, stuck_window=stuck_window,
+                         stuck_radius=stuck_radius)
+        for s in scen:
+            r = p.run(s).robots[0]
+            rows.append({"set": set_name, "scenario": s.name, "system": "apf",
+                         "outcome": r.outcome, "path_length": r.path_length,
+                         "time": math.nan if r.time_to_goal is None else r.time_to_goal,
+                         "min_clearance": r.min_clearance})
     return pd.DataFrame(rows, columns=["set", "scenario", "system", "outcome", "path_length",
                                        "time", "min_clearance"])
 

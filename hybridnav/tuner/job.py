@@ -58,7 +58,7 @@ DEFAULT_JOB: dict[str, Any] = {
                "repeats": 1, "heading_noise": 0.0, "dtheta_noise": 0.0, "alpha_noise": 0.0},
     "coverage": {"grid": 41, "max_uncovered": 0.0, "penalty": 100.0},
     "validation": {"top": 3, "patience": 10, "tolerance": 0.0, "kfold": 0},
-    "falsify": {"budget": 300, "population": 30, "obstacles": 4, "keep": 5,
+    "falsify": {"budget": 600, "population": 30, "obstacles": 6, "keep": 5,
                 "optimizer": "pso"},
     "planner": {"speed": 0.1, "max_turn": math.pi / 4, "stuck_window": 10.0,
                 "stuck_radius": 2.0},
