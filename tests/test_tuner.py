@@ -533,3 +533,20 @@ def pd_read(records):
     import pandas as pd
 
     return pd.DataFrame(records)
+
+
+def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
+    from hybridnav.cli import main
+
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(KFOLD.replace('validation = [{generate = 3, seed = 2, circles = [1, 3]}]',
+                                      'validation = []'))
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
+    report = (tmp_path / "o" / "report.md").read_text()
+    assert "k-fold over the training worlds (2 folds" in report
+    assert "Cross-validation estimate" in report
+    assert "the last k-fold stage's best on its own fold (fold 1" in report
+    job_file.write_text(KFOLD)
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "v")]) == 0
+    report = (tmp_path / "v" / "report.md").read_text()
+    assert "of k-fold stage" in report and "Cross-validation estimate" in report

@@ -69,7 +69,7 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
     atomic_write_text(out / "logbook.csv", pd.DataFrame(result.logbook).to_csv(index=False))
     atomic_write_text(out / "evaluations.csv", pd.DataFrame(result.records).to_csv(index=False))
     files += ["logbook.csv", "evaluations.csv"]
-    if result.validation:
+    if result.validation.get("candidates"):
         vrows = [dict(e, generation=c["generation"], score=c["score"], uncovered=c["uncovered"])
                  for c in result.validation["candidates"] for e in c["envs"]]
         atomic_write_text(out / "validation.csv", pd.DataFrame(vrows).to_csv(index=False))
@@ -261,22 +261,43 @@ def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray
                   f"{word} than its start.**", ""]
         lines += [f"- {'pass' if ok else 'FAIL'}: {text}" for text, ok in v["checks"]]
         lines.append("")
-    if result.validation:
-        vs, ss = result.validation["best_score"], result.validation["start_score"]
-        beat = vs < ss if sense == "minimize" else vs > ss
+    val = result.validation
+    if "best_score" in val:
+        vs, ss = val["best_score"], val["start_score"]
+        beat = ss is None or (vs < ss if sense == "minimize" else vs > ss)
         lines += [f"Returned system: the best on **validation**, from generation "
-                  f"{result.best_generation} (validation score {vs:.4f}; start {ss:.4f})."]
+                  f"{result.best_generation}"
+                  + (f" of k-fold stage {result.best_stage}" if val.get("folds") else "")
+                  + f" (validation score {vs:.4f}"
+                  + (f"; start {ss:.4f})." if ss is not None else ").")]
         if not beat:
-            lines += ["", "**WARNING: no tuned candidate scored better than the starting "
-                          "system on the validation set. `fis.json` is then the starting "
-                          "system's genome; both `fis.json` and `start.json` are written.**"]
-        stopped = result.validation["stopped"]
-        lines += ["", f"Early stopping: {'stopped at generation ' + str(stopped) if stopped else 'not triggered'} "
-                      f"(patience {job['validation']['patience']}, tolerance "
-                      f"{job['validation']['tolerance']:g})."]
+            lines += ["", "**WARNING: the returned system does not score better than its "
+                          "starting system on the validation set. Both are written: `fis.json` "
+                          "(returned) and `start.json` (start).**"]
+        if not val.get("folds"):
+            stopped = val["stopped"]
+            lines += ["", "Early stopping: "
+                          + (f"stopped at generation {stopped}" if stopped else "not triggered")
+                          + f" (patience {job['validation']['patience']}, tolerance "
+                            f"{job['validation']['tolerance']:g})."]
+    elif val.get("folds"):
+        lines += [f"No validation set: the returned system is the last k-fold stage's best on "
+                  f"its own fold ({result.selected_by}, generation {result.best_generation})."]
     else:
         lines += ["No validation set: the returned system is the best on training (generation "
                   f"{result.best_generation}); nothing checks that it generalizes."]
+    if val.get("folds"):
+        k = len(val["folds"])
+        scores = [f["score"] for f in val["folds"]]
+        lines += ["", f"k-fold over the training worlds ({k} folds; each stage trained on the "
+                      "other folds and was scored on its own):", "",
+                  "| stage | fold | best score on it | generation | early stop |",
+                  "|---|---|---|---|---|"]
+        for f in val["folds"]:
+            lines.append(f"| {f['stage']} | {f['fold']} | {f['score']:.4f} | {f['generation']} "
+                         f"| {f['stopped'] if f['stopped'] is not None else '-'} |")
+        lines += ["", f"Cross-validation estimate (mean of the fold scores): "
+                      f"{float(np.mean(scores)):.4f} (std {float(np.std(scores)):.4f})."]
     best = result.best.fitness.values[0]
     lines += ["", f"Training fitness: start {result.start_fitness:.4f}, returned {best:.4f}.",
               f"The tuned system keeps {len(result.system.rules)} of "
