@@ -17,6 +17,7 @@ from hybridnav.analysis.linearize import (
     is_stable,
     linearize,
     linearize_expression,
+    summarize,
 )
 from hybridnav.analysis.roa import estimate_roa
 from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
@@ -212,3 +213,112 @@ def test_analyze_writes_json_report_and_plots(tmp_path):
     assert "| lyapunov | **proved** |" in (tmp_path / "report.md").read_text()
     for name in data["plots"]:
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+
+
+# ---- sound verdicts (issue 13, first part) ------------------------------------------------------
+
+
+def test_an_indefinite_candidate_is_a_counterexample_not_a_pass():
+    pm = models.get("point_mass")
+    rep = check_lyapunov(pm, lambda z: (z[1] - 5) ** 2 - (z[0] - 45) ** 2, target=(45, 5),
+                         region=BOX)
+    assert rep.status == "counterexample"
+    x, y = rep.counterexample
+    v = (y - 5) ** 2 - (x - 45) ** 2                      # by hand
+    assert v < 0 and rep.details["counterexample_V"] == pytest.approx(v)
+    assert "V < 0" in rep.method and "re-evaluated" in rep.method
+
+
+def test_a_failure_hidden_near_the_target_is_found_by_the_local_check():
+    """V = ex^2 + ey^2 + k(r) ex ey with k = exp(-r^2 / 0.05^2): positive definite everywhere,
+    but with the gains 0.01 and 1, Vdot > 0 in a thin cone within a few centimetres of the target
+    (where k > 0.198) — below the sampling's exclusion floor and too thin for 1e5 samples. The
+    local quadratic part at the target shows it."""
+    pm = models.get("point_mass", alpha1=0.01, alpha2=1.0)
+    x, t = pm.sym.x, pm.sym.target
+    ex, ey = x[0] - t[0], x[1] - t[1]
+    V = ex ** 2 + ey ** 2 + cs.exp(-(ex ** 2 + ey ** 2) / 0.05 ** 2) * ex * ey
+    rep = check_lyapunov(pm, V, target=(45, 5), region=BOX)
+    assert rep.status == "counterexample", rep.method
+    assert "local check" in rep.method
+    cx, cy = rep.counterexample
+    dx, dy = cx - 45, cy - 5
+    k = math.exp(-(dx * dx + dy * dy) / 0.05 ** 2)
+    # Vdot by hand: -a1 dx dV/ddx - a2 dy dV/ddy, with dV/ddx = 2dx + k dy + dk/ddx dx dy
+    dk_dx, dk_dy = -2 * dx / 0.05 ** 2 * k, -2 * dy / 0.05 ** 2 * k
+    vdot = (-0.01 * dx * (2 * dx + k * dy + dk_dx * dx * dy)
+            - 1.0 * dy * (2 * dy + k * dx + dk_dy * dx * dy))
+    assert vdot > 0 and vdot == pytest.approx(rep.details["counterexample_vdot"], rel=1e-9)
+    assert math.hypot(dx, dy) < 0.05
+
+
+def test_V_expression_with_params_uses_the_changed_model():
+    pm = models.get("point_mass")
+    x, t = pm.sym.x, pm.sym.target
+    V = (x[0] - t[0]) ** 2 + (x[1] - t[1]) ** 2
+    rep = check_lyapunov(pm, V, target=(45, 5), region=BOX, params={"alpha1": -0.1})
+    assert rep.status == "counterexample"
+    rep = check_lyapunov(pm, V, target=(45, 5), region=BOX, params={"alpha1": 0.2})
+    assert rep.status == "proved"
+
+
+def _exact_det(a1, a2, k):
+    """det of the Vdot Hessian and of V's, in exact rationals of the floats used."""
+    from fractions import Fraction as F
+
+    a1, a2, k = F(a1), F(a2), F(k)
+    return 16 * a1 * a2 - 4 * k * k * (a1 + a2) ** 2, 4 - 4 * k * k
+
+
+def test_the_near_singular_family_is_never_decided_wrongly():
+    """V = ex^2 + 2k ex ey + ey^2 for the point mass: Vdot's Hessian is singular at
+    k* = 2 sqrt(a1 a2) / (a1 + a2). The status must agree with the exact rational determinant
+    whenever it is decided, and be decided away from k*."""
+    a1, a2 = 0.1, 0.3
+    pm = models.get("point_mass", alpha1=a1, alpha2=a2)
+    kstar = 2 * math.sqrt(a1 * a2) / (a1 + a2)
+    ks = [kstar] + [kstar + s * 10.0 ** -j for j in range(1, 17) for s in (1, -1)]
+    undecided = 0
+    for k in ks:
+        rep = check_lyapunov(pm, lambda z, t, k=k: (z[0] - t[0]) ** 2 + 2 * k * (z[0] - t[0])
+                             * (z[1] - t[1]) + (z[1] - t[1]) ** 2, target=(45, 5), region=BOX,
+                             samples=2000, starts=2)
+        det_d, det_v = _exact_det(a1, a2, k)
+        if rep.status == "proved":
+            assert det_d > 0 and det_v > 0, k
+        elif rep.status == "counterexample":
+            assert det_d <= 0 or det_v <= 0, k
+            assert rep.details["counterexample_vdot"] > 0 or rep.details["counterexample_V"] < 0
+        else:
+            assert rep.status == "undecided", (k, rep.status)
+            undecided += 1
+            assert abs(k - kstar) < 1e-6, k
+    assert 0 < undecided < len(ks)
+
+
+def test_sweep_columns_agree_with_each_other():
+    pm = models.get("point_mass")
+    X0 = np.array([[5.0, 45.0], [40.0, 10.0], [44.0, 5.5]])
+    table, traj, Vt = closed_loop_sweep(pm, X0, target=(45, 5), steps=400, goal_radius=0.5)
+    assert (table.reached == table.time_to_goal.notna()).all()
+    assert ((table.max_V_increase > 0) == ~table.V_monotone).all()
+    # by hand: the first time within the goal radius
+    d = np.hypot(traj[..., 0] - 45, traj[..., 1] - 5)
+    assert table.reached.any() and not table.reached.all()
+    for i in range(len(X0)):
+        if (d[i] <= 0.5).any():
+            k = int(np.argmax(d[i] <= 0.5))
+            assert table.time_to_goal[i] == pytest.approx(k * pm.dt)
+        else:
+            assert np.isnan(table.time_to_goal[i]) and not table.reached[i]
+
+
+def test_a_system_without_inputs_is_not_called_uncontrollable():
+    uni = models.get("unicycle")
+    z, zdot, names = uni.polar_error_dynamics()
+    polar = linearize_expression(z, zdot, [0, 0], names, symbols=uni.sym.p, values=uni.p_value())
+    d = summarize(polar).to_dict()
+    assert d["n_inputs"] == 0 and d["controllable"] is None
+    pm = models.get("point_mass")
+    d = summarize(linearize(pm, [45.0, 5.0], target=[45.0, 5.0])).to_dict()
+    assert d["n_inputs"] == 2 and d["controllable"] is True

@@ -146,7 +146,9 @@ class LinearizationReport:
             "name": self.name, "point": self.point, "A": self.A.tolist(), "B": self.B.tolist(),
             "eigenvalues": [[float(e.real), float(e.imag)] for e in self.eigenvalues],
             "stable": self.stable, "controllability_rank": self.controllability_rank,
-            "n_states": self.n_states, "controllable": self.controllability_rank == self.n_states,
+            "n_states": self.n_states, "n_inputs": int(self.B.shape[1]) if self.B.ndim == 2 else 0,
+            "controllable": (self.controllability_rank == self.n_states
+                             if self.B.ndim == 2 and self.B.shape[1] else None),
             "nominal_rate": self.nominal_rate.tolist(),
         }
 

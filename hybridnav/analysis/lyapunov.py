@@ -14,6 +14,18 @@
 ``"no_counterexample"``
     Neither: sampling (>= 1e5 states through a mapped CasADi function) and the search found none.
     This is evidence, never a proof.
+``"undecided"``
+    Rounding would decide: a quadratic form's Hessian has an eigenvalue within ``tol`` of zero
+    (relative to its largest entry), so neither definiteness nor a counterexample can be claimed
+    from floating-point eigenvalues; the report gives the eigenvalues.
+
+Both conditions are checked on every route: ``V > 0`` (a sampled or optimized state with
+``V < 0`` is a counterexample) and ``Vdot < 0``, including near the equilibrium, where the
+sampling leaves out states with ``V < exclude * max V``: there the local quadratic parts of ``V``
+and ``Vdot`` (their Hessians at the minimizer of ``V``) are checked, and a Hessian of ``V`` with a
+negative eigenvalue or of ``Vdot`` with a positive one (beyond ``tol``) gives a counterexample a
+small step along that eigenvector — re-evaluated, with its ``V`` and ``Vdot`` printed. Every
+reported counterexample is re-evaluated.
 
 For gradient flows ``xdot_i = -c_i dV/dx_i`` with ``c_i > 0`` (the LbCS model), the identity
 ``Vdot = -sum_i c_i (dV/dx_i)^2 <= 0`` is established symbolically (``casadi.is_equal`` on the
@@ -42,7 +54,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["Equilibrium", "LyapunovReport", "check_lyapunov", "find_equilibria", "lyapunov_functions"]
 
-STATUSES = ("proved", "no_counterexample", "counterexample")
+STATUSES = ("proved", "no_counterexample", "counterexample", "undecided")
 _IPOPT = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": 300,
           "ipopt.tol": 1e-10}
 
@@ -54,12 +66,13 @@ class LyapunovReport:
     Attributes
     ----------
     status : str
-        ``"proved"``, ``"no_counterexample"`` or ``"counterexample"``.
+        ``"proved"``, ``"no_counterexample"``, ``"counterexample"`` or ``"undecided"``.
     V, vdot : str
         The candidate and its derivative along the closed loop, as readable expressions (with the
         model's parameter and target symbols ``x1, y1``).
     counterexample : ndarray or None
-        A state with ``Vdot >= 0`` (only when ``status == "counterexample"``).
+        A state with ``Vdot >= 0`` or with ``V < 0`` (only when ``status == "counterexample"``;
+        ``details["counterexample_V"]`` and ``details["counterexample_vdot"]`` hold its values).
     worst_vdot : float
         The largest ``Vdot`` seen in the region away from the equilibrium.
     worst_state : ndarray or None
@@ -126,10 +139,11 @@ def lyapunov_functions(model: Model, V=None, *, target, params: Mapping[str, flo
     V_sym, Vdot_sym : casadi.SX
         With the parameter and target symbols kept (for printing).
     """
+    orig = model
     if params:
         model = model.with_params(**params)
     s = model.sym
-    v_sym = _candidate(model, V)
+    v_sym = _candidate(model, V, orig)
     vdot_sym = cs.jtimes(v_sym, s.x, model.closed_loop())
     target = _target(target)
     keep = cs.vertcat(s.target, s.p)
@@ -205,7 +219,25 @@ def check_lyapunov(
     v_s, d_s = np.asarray(out[0]).ravel(), np.asarray(out[1]).ravel()
     finite_v = np.isfinite(v_s)
     v_floor = exclude * (np.max(v_s[finite_v]) if finite_v.any() else 1.0)
-    keep = finite_v & (v_s >= v_floor) & model.admissible(pts)
+    admissible = model.admissible(pts)
+    vscale = max(1.0, float(np.max(np.abs(v_s[finite_v]))) if finite_v.any() else 1.0)
+    # V > 0: a state with V < 0 contradicts positivity (checked before the floor drops it)
+    in_level = np.ones(len(pts), dtype=bool) if level is None else v_s <= level
+    negative = finite_v & admissible & in_level & (v_s < -1e-12 * vscale)
+    if negative.any():
+        j = int(np.argmin(np.where(negative, v_s, np.inf)))
+        return _counterexample(report, both, pts[j], "dense sampling: V < 0 at this state, so V "
+                               "is not positive definite")
+    xmin = _minimize_v(model, both, v_num, box, level, pts, v_s, finite_v & admissible, rng,
+                       starts)
+    vmin = float(np.asarray(both(xmin)[0]).item())
+    if vmin < -1e-12 * vscale:
+        return _counterexample(report, both, xmin, "multistart IPOPT minimizing V: V < 0 at this "
+                               "state, so V is not positive definite")
+    local = _local_check(model, v_num, vdot_num, both, xmin, box, level, report)
+    if local is not None:
+        return _counterexample(report, both, local[0], local[1])
+    keep = finite_v & (v_s >= v_floor) & admissible
     if level is not None:
         keep &= v_s <= level
     nan = int(np.sum(keep & np.isnan(d_s)))
@@ -275,9 +307,10 @@ def check_lyapunov(
     report.details.update(ipopt_runs=runs, tolerance=tol)
     report.worst_vdot, report.worst_state = best_d, best_x
     if best_d >= -tol:
-        report.status, report.counterexample = "counterexample", best_x
         zero = " (zero to rounding)" if best_d < 0 else ""
-        report.method = f"{how}: Vdot = {best_d:.6g}{zero} >= 0 at this state"
+        _counterexample(report, both, best_x, f"{how}: Vdot = {best_d:.6g}{zero} >= 0 at this "
+                        "state")
+        report.worst_vdot = max(report.worst_vdot, best_d)
     else:
         report.status = "no_counterexample"
         extra = "; Vdot <= 0 is exact (gradient flow)" if grad_flow else ""
@@ -361,8 +394,13 @@ def find_equilibria(
 # ---------------------------------------------------------------------------------------------
 
 
-def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: LyapunovReport) -> bool:
-    """The exact route: V, Vdot quadratic forms with definite constant Hessians."""
+def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: LyapunovReport,
+                        tol: float = 1e-9) -> bool:
+    """The exact route: V, Vdot quadratic forms with definite constant Hessians.
+
+    Definiteness needs every eigenvalue beyond ``tol`` times the largest Hessian entry; an
+    eigenvalue within that band of zero makes the status ``undecided`` (rounding would decide).
+    """
     x = model.sym.x
     if not (cs.is_quadratic(v_num, x) and cs.is_quadratic(vdot_num, x)):
         return False
@@ -371,19 +409,34 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
                                   vdot_num, cs.gradient(vdot_num, x), cs.hessian(vdot_num, x)[0]])
     _, gv0, hv, _, _, hd = (np.asarray(a, dtype=float) for a in fn(z))
     hv, hd = (hv + hv.T) / 2, (hd + hd.T) / 2
-    ev_v = np.linalg.eigvalsh(hv)
+    ev_v, vec_v = np.linalg.eigh(hv)
     ev_d = np.linalg.eigvalsh(hd)
+    scale = max(1.0, float(np.max(np.abs(hv))), float(np.max(np.abs(hd))))
+    band = tol * scale
     report.details.update(hessian_V=hv.tolist(), hessian_vdot=hd.tolist(),
-                          eig_hessian_V=ev_v.tolist(), eig_hessian_vdot=ev_d.tolist())
-    if not np.all(ev_v > 0):
-        return False                      # V is not positive definite: sample instead
+                          eig_hessian_V=ev_v.tolist(), eig_hessian_vdot=ev_d.tolist(),
+                          eigenvalue_tolerance=band)
+    if np.any(ev_v < -band):
+        # V is an indefinite quadratic: V < 0 along that eigenvector, away from its centre
+        try:
+            xs = np.linalg.lstsq(hv, -gv0.ravel(), rcond=None)[0]
+        except np.linalg.LinAlgError:
+            return False
+        state = _inside(xs, vec_v[:, int(np.argmin(ev_v))], box, level, fn)
+        if state is None or float(np.asarray(fn(state)[0]).item()) >= 0:
+            return False
+        _counterexample(report, _both(fn), state,
+                        f"exact: V is a quadratic form whose Hessian has the eigenvalue "
+                        f"{ev_v.min():.6g} < 0; along its eigenvector V < 0")
+        return True
+    if not np.all(ev_v > band):
+        return False                      # V only semidefinite: sample instead
     xs = np.linalg.solve(hv, -gv0.ravel())
     v0, _, _, d0, gd0, _ = (np.asarray(a, dtype=float) for a in fn(xs))
-    scale = max(1.0, float(np.max(np.abs(hv))), float(np.max(np.abs(hd))))
     if max(abs(v0.item()), abs(d0.item()), float(np.max(np.abs(gd0)))) > 1e-9 * scale:
         return False                      # not both centred on the same point
     report.details["equilibrium"] = xs.tolist()
-    if np.all(ev_d < 0):
+    if np.all(ev_d < -band):
         report.status = "proved"
         report.vdot_nonpositive_proved = True
         report.worst_vdot, report.worst_state = 0.0, xs
@@ -391,24 +444,135 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
             "exact: V and Vdot are quadratic forms about x* = "
             f"{np.array2string(xs, precision=6)} with constant Hessians; eig(H_V) = "
             f"{np.array2string(ev_v, precision=6)} > 0 and eig(H_Vdot) = "
-            f"{np.array2string(ev_d, precision=6)} < 0, so V > 0 and Vdot < 0 for every x != x*"
+            f"{np.array2string(ev_d, precision=6)} < 0 (beyond the tolerance {band:.3g}), so "
+            "V > 0 and Vdot < 0 for every x != x*"
         )
         return True
-    # an eigenvector with a non-negative eigenvalue is an exact counterexample direction
+    if np.all(ev_d <= band):
+        # the largest eigenvalue of H_Vdot is zero to rounding: neither claim can be made
+        report.status = "undecided"
+        report.worst_vdot, report.worst_state = 0.0, xs
+        report.method = (
+            f"exact route undecided: V and Vdot are quadratic forms about x*, V is positive "
+            f"definite, but the largest eigenvalue of H_Vdot is {ev_d.max():.3g}, within the "
+            f"tolerance {band:.3g} of zero: whether Vdot < 0 everywhere is decided by rounding "
+            "(check the system with exact arithmetic)"
+        )
+        return True
+    # an eigenvector with a positive eigenvalue is an exact counterexample direction
     w, vecs = np.linalg.eigh(hd)
     direction = vecs[:, int(np.argmax(w))]
     state = _inside(xs, direction, box, level, fn)
     if state is None:
         return False
     d = float(np.asarray(fn(state)[3]).item())
-    report.status = "counterexample"
-    report.counterexample = report.worst_state = state
-    report.worst_vdot = d
-    report.method = (
-        "exact: Vdot is a quadratic form about x* whose Hessian has the eigenvalue "
-        f"{w.max():.6g} >= 0; along its eigenvector Vdot = {d:.6g} >= 0"
-    )
+    if not d > 0:
+        return False
+    _counterexample(report, _both(fn), state,
+                    "exact: Vdot is a quadratic form about x* whose Hessian has the eigenvalue "
+                    f"{w.max():.6g} > 0; along its eigenvector Vdot = {d:.6g} > 0")
     return True
+
+
+def _both(fn: cs.Function):
+    """``x -> (V, Vdot)`` from the quadratic route's function."""
+    def both(x):
+        out = fn(x)
+        return out[0], out[3]
+    return both
+
+
+def _counterexample(report: LyapunovReport, both, state, method: str) -> LyapunovReport:
+    """Record a counterexample after re-evaluating V and Vdot there."""
+    state = np.asarray(state, dtype=float).ravel()
+    v, d = (float(np.asarray(a).item()) for a in both(state))
+    report.status = "counterexample"
+    report.counterexample = state
+    report.worst_state = state
+    report.worst_vdot = d
+    report.details.update(counterexample_V=v, counterexample_vdot=d)
+    report.method = f"{method} (re-evaluated there: V = {v:.6g}, Vdot = {d:.6g})"
+    return report
+
+
+def _minimize_v(model, both, v_num, box: Box, level, pts, v_s, ok, rng, starts) -> np.ndarray:
+    """The minimizer of V over the region: the best samples refined by IPOPT."""
+    x = model.sym.x
+    cons = cs.substitute(model.state_constraints(), model.sym.p, cs.DM(model.p_value()))
+    g = cs.vertcat(v_num, cons) if level is not None else cons
+    solver = cs.nlpsol("v_min", "ipopt", {"x": x, "f": v_num, "g": g}, _IPOPT)
+    ncons = cons.numel()
+    lbg = np.full(ncons, 1e-9)
+    ubg = np.full(ncons, np.inf)
+    if level is not None:
+        lbg, ubg = np.concatenate([[-np.inf], lbg]), np.concatenate([[level], ubg])
+    idx = np.flatnonzero(ok)
+    order = idx[np.argsort(v_s[idx])][:max(1, starts // 4)]
+    best = pts[order[0]] if len(order) else (box.lower + box.upper) / 2
+    best_v = float(np.asarray(both(best)[0]).item())
+    for j in order:
+        try:
+            sol = solver(x0=pts[j], lbx=box.lower, ubx=box.upper, lbg=lbg, ubg=ubg)
+        except RuntimeError:
+            continue
+        xs = np.clip(np.asarray(sol["x"]).ravel(), box.lower, box.upper)
+        if not model.admissible(xs[None])[0]:
+            continue
+        v = float(np.asarray(both(xs)[0]).item())
+        if np.isfinite(v) and v < best_v:
+            best, best_v = xs, v
+    return np.asarray(best, dtype=float)
+
+
+def _local_check(model, v_num, vdot_num, both, xmin, box: Box, level, report,
+                 tol: float = 1e-9):
+    """The quadratic parts of V and Vdot at the minimizer of V (where sampling cannot look).
+
+    Returns (state, method) of a counterexample a small step away, or None.
+    """
+    x = model.sym.x
+    fn = cs.Function("local", [x], [cs.hessian(v_num, x)[0], cs.gradient(vdot_num, x),
+                                    cs.hessian(vdot_num, x)[0]])
+    try:
+        hv, gd, hd = (np.asarray(a, dtype=float) for a in fn(xmin))
+    except RuntimeError:
+        return None
+    if not (np.all(np.isfinite(hv)) and np.all(np.isfinite(hd)) and np.all(np.isfinite(gd))):
+        return None
+    hv, hd = (hv + hv.T) / 2, (hd + hd.T) / 2
+    ev_v, vv = np.linalg.eigh(hv)
+    ev_d, vd = np.linalg.eigh(hd)
+    scale = max(1.0, float(np.max(np.abs(hv))), float(np.max(np.abs(hd))))
+    report.details.update(local_point=xmin.tolist(), local_eig_hessian_V=ev_v.tolist(),
+                          local_eig_hessian_vdot=ev_d.tolist(),
+                          local_grad_vdot=gd.ravel().tolist())
+    span = float(np.min(box.upper - box.lower))
+    candidates = []
+    if ev_v.min() < -tol * scale:
+        candidates.append((vv[:, int(np.argmin(ev_v))], "V", "the Hessian of V there has the "
+                           f"eigenvalue {ev_v.min():.6g} < 0"))
+    gn = float(np.linalg.norm(gd))
+    if gn > tol * scale:
+        candidates.append((gd.ravel() / gn, "Vdot", f"Vdot has the gradient norm {gn:.6g} there, "
+                           "so it is positive on one side"))
+    if ev_d.max() > tol * scale:
+        candidates.append((vd[:, int(np.argmax(ev_d))], "Vdot", "the Hessian of Vdot there has "
+                           f"the eigenvalue {ev_d.max():.6g} > 0"))
+    for direction, which, why in candidates:
+        for h in span * np.array([1e-3, 1e-4, 1e-5]):
+            for sign in (1.0, -1.0):
+                z = xmin + sign * h * direction
+                if not box.contains(z) or not model.admissible(z[None])[0]:
+                    continue
+                v, d = (float(np.asarray(a).item()) for a in both(z))
+                if level is not None and v > level:
+                    continue
+                if (which == "V" and v < 0) or (which == "Vdot" and d > 0):
+                    return z, (f"local check near the minimizer of V "
+                               f"{np.array2string(xmin, precision=6)}: {why}; a step of "
+                               f"{h:.3g} along it gives {which} "
+                               f"{'< 0' if which == 'V' else '> 0'}")
+    return None
 
 
 def _inside(xs, direction, box: Box, level, fn) -> np.ndarray | None:
@@ -448,12 +612,17 @@ def is_gradient_flow(model: Model, v_sym) -> bool:
     return all(cs.is_equal(f[i], -c[i] * g[i], 1000) for i in range(model.nx))
 
 
-def _candidate(model: Model, V) -> cs.SX:
+def _candidate(model: Model, V, orig: Model | None = None) -> cs.SX:
     s = model.sym
     if V is None:
         return model.lyapunov_candidate()
     if isinstance(V, (cs.SX, float, int)):
         expr = cs.SX(V)
+        if orig is not None and orig is not model:
+            # built from the caller's model.sym; params= made a new model with its own symbols
+            o = orig.sym
+            expr = cs.substitute(expr, cs.vertcat(o.x, o.target, o.p),
+                                 cs.vertcat(s.x, s.target, s.p))
     elif callable(V):
         try:
             nparams = len(inspect.signature(V).parameters)

@@ -211,7 +211,10 @@ def _markdown(result: dict[str, Any], table) -> str:
         how = c.get("method") or c.get("reason") or ""
         if "eigenvalues" in c and c["name"].startswith("linearization"):
             how = "eigenvalues " + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in c["eigenvalues"])
-            how += f"; controllability rank {c['controllability_rank']} of {c['n_states']}"
+            if c.get("n_inputs", 1):
+                how += f"; controllability rank {c['controllability_rank']} of {c['n_states']}"
+            else:
+                how += "; no inputs (the closed loop): controllability does not apply"
         if c["name"] == "region of attraction":
             how = (f"level {c['level']:.6g} ({c['bounded_by']}); {c['converged']}/{c['simulated']}"
                    f" simulated starts converged, {c['monotone']} monotone")
@@ -225,6 +228,17 @@ def _markdown(result: dict[str, Any], table) -> str:
         if "final_state" in c:
             how = f"from {c['start']} it ends at {[round(v, 4) for v in c['final_state']]}"
         lines.append(f"| {c['name']} | **{c['status']}** | {how.replace('|', '/')} |")
+    lines += ["", "What the Lyapunov statuses mean:", "",
+              "- **proved**: an exact argument (quadratic forms with definite Hessians, beyond a "
+              "stated tolerance): V > 0 and Vdot < 0 everywhere but the equilibrium.",
+              "- **counterexample**: a state, re-evaluated, where V < 0 or Vdot >= 0 away from "
+              "the equilibrium (its V and Vdot are printed).",
+              "- **no_counterexample**: dense sampling, an optimizer and the local check at the "
+              "equilibrium found none. Evidence, not a proof.",
+              "- **undecided**: floating-point rounding would decide (an eigenvalue within the "
+              "tolerance of zero); no claim is made.", "",
+              "The region of attraction's **proved** is the same kind of argument on the level "
+              "set it names; its simulated starts only confirm it.", ""]
     lines += ["", "Plots: " + ", ".join(f"[{p}]({p})" for p in result["plots"]), ""]
     if "max_gap" in table:
         worst = table.sort_values("max_gap", ascending=False).head(10)

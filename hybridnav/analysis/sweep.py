@@ -61,10 +61,12 @@ def closed_loop_sweep(
 ) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
     """Simulate a batch of closed-loop runs and tabulate ``V`` along each.
 
-    Columns of the table: ``reached`` (ended within ``goal_radius``), ``final_distance``,
-    ``time_to_goal`` (first time within ``goal_radius``, NaN if never), ``V_monotone`` (``V``
-    never increased by more than rounding), ``first_increase_t`` and ``max_V_increase`` (relative
-    to ``V(0)``), and, for models with ``theta0`` and ``theta1``, ``max_gap`` (largest
+    Columns of the table: ``reached`` (came within ``goal_radius``, as a planner's robot stops
+    there), ``ended_within`` (still within it at the end), ``final_distance``, ``time_to_goal``
+    (first time within ``goal_radius``; NaN exactly when not ``reached``), ``V_monotone`` (``V``
+    never increased by more than rounding from one step to the next), ``first_increase_t`` and
+    ``max_V_increase`` (the largest rise of ``V`` above its running minimum, relative to
+    ``V(0)``; positive exactly when ``V_monotone`` is false), and, for models with ``theta0`` and ``theta1``, ``max_gap`` (largest
     ``|theta0 - theta1|``, wrapped) and ``jackknife`` (``max_gap >= jackknife``).
 
     Returns
@@ -88,14 +90,15 @@ def closed_loop_sweep(
     slack = 1e-9 * np.maximum(Vt[:, :1], 1e-300)
     up = dV > slack
     first_up = np.where(up.any(axis=1), np.argmax(up, axis=1), -1)
+    rise = np.max(Vt - np.minimum.accumulate(Vt, axis=1), axis=1)
     table = pd.DataFrame({
-        "reached": dist[:, -1] <= goal_radius,
+        "reached": first >= 0,
+        "ended_within": dist[:, -1] <= goal_radius,
         "final_distance": dist[:, -1],
         "time_to_goal": np.where(first >= 0, t[np.maximum(first, 0)], np.nan),
         "V_monotone": ~up.any(axis=1),
         "first_increase_t": np.where(first_up >= 0, t[np.maximum(first_up, 0)], np.nan),
-        "max_V_increase": np.max(np.maximum.accumulate(Vt, axis=1) - Vt[:, :1], axis=1)
-        / np.maximum(Vt[:, 0], 1e-300),
+        "max_V_increase": np.where(up.any(axis=1), rise, 0.0) / np.maximum(Vt[:, 0], 1e-300),
     })
     if {"theta0", "theta1"} <= set(model.state_names):
         i0, i1 = model.state_names.index("theta0"), model.state_names.index("theta1")
