@@ -322,3 +322,32 @@ def test_a_system_without_inputs_is_not_called_uncontrollable():
     pm = models.get("point_mass")
     d = summarize(linearize(pm, [45.0, 5.0], target=[45.0, 5.0])).to_dict()
     assert d["n_inputs"] == 2 and d["controllable"] is True
+
+
+def test_rk4_stability_limit_and_the_simulated_point_mass():
+    from hybridnav.analysis.linearize import discrete_step, rk4_stability_limit
+
+    z = rk4_stability_limit()
+    R = lambda z: 1 - z + z * z / 2 - z ** 3 / 6 + z ** 4 / 24      # noqa: E731  R(-z) by hand
+    assert abs(R(z)) == pytest.approx(1.0, abs=1e-12) and abs(R(z * 0.999)) < 1 < abs(R(z * 1.001))
+    assert z == pytest.approx(2.785, abs=1e-3)
+    for alpha, stable in ((27.0, True), (28.0, False), (30.0, False)):
+        pm = models.get("point_mass", alpha1=alpha, alpha2=alpha, dt=0.1)
+        rep = discrete_step(pm, [45.0, 5.0], [45.0, 5.0])
+        assert rep.spectral_radius == pytest.approx(abs(R(alpha * 0.1)), rel=1e-12)
+        assert rep.stable is stable and (alpha * 0.1 < z) is stable
+    # at alpha = 30 the continuous loop is proved stable, but the simulated one diverges:
+    pm = models.get("point_mass", alpha1=30.0, alpha2=30.0, dt=0.1)
+    assert check_lyapunov(pm, target=(45, 5), region=BOX).status == "proved"
+    with pytest.raises(HybridnavError, match=r"simulated step \(RK4, dt = 0.1\) is unstable.*"
+                                             r"spectral radius 1.375"):
+        estimate_roa(pm, target=(45, 5), region=BOX)
+    traj = pm.rollout(np.array([[44.0, 5.0]]), np.array([[45.0, 5.0]]), 50)
+    assert abs(traj[0, -1, 0] - 45) > 1.0                     # it really diverges
+
+
+def test_estimate_roa_reports_the_discrete_step():
+    est = estimate_roa(models.get("point_mass"), target=(45, 5), region=BOX, confirm=20)
+    step = est.details["discrete_step"]
+    assert step["status"] == "stable" and step["spectral_radius"] < 1
+    assert step["point"] == pytest.approx([45, 5], abs=1e-6)

@@ -500,6 +500,7 @@ def test_early_stop_returns_the_best_on_validation_and_resume_is_a_no_op(tmp_pat
 
 
 KFOLD = SMALL.replace("generations = 2", "generations = 1").replace(
+    "budget = 60", "budget = 0").replace(
     'train = ["effc-train-1", "effc-train-2"]',
     'train = ["effc-train-1", "effc-train-2", {generate = 2, seed = 5, circles = [1, 2]}]') + """
 [validation]

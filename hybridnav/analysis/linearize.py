@@ -13,8 +13,8 @@ import numpy as np
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
 
-__all__ = ["LinearizationReport", "controllability_rank", "is_stable", "linearize",
-           "linearize_expression", "summarize"]
+__all__ = ["DiscreteStepReport", "LinearizationReport", "controllability_rank", "discrete_step",
+           "is_stable", "linearize", "linearize_expression", "rk4_stability_limit", "summarize"]
 
 
 def linearize(
@@ -171,3 +171,54 @@ def _vector(v, key: str) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise HybridnavError(f"{key}: expected finite numbers, got {a.tolist()}")
     return a
+
+
+def rk4_stability_limit() -> float:
+    """The length of RK4's real stability interval: ``|R(-z)| < 1`` for ``0 < z < z*``, where
+    ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24`` is its amplification factor on ``xdot = lambda x``
+    (``z = -lambda dt``). Computed as the positive real root of ``R(-z) = 1``, i.e. of
+    ``z^3/24 - z^2/6 + z/2 - 1`` (``R(-z)`` stays above -1 for all real ``z``); about 2.7853."""
+    roots = np.roots([1 / 24, -1 / 6, 1 / 2, -1.0])
+    real = roots[np.abs(roots.imag) < 1e-9].real
+    return float(np.min(real[real > 0]))
+
+
+@dataclass
+class DiscreteStepReport:
+    """Stability of the simulated system: one control cycle (RK4, with the model's input hold) as
+    a map ``x_{k+1} = Phi(x_k)`` linearized at an equilibrium."""
+
+    point: list[float]
+    dt: float
+    spectral_radius: float
+    eigenvalues: np.ndarray
+    stable: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"point": self.point, "dt": self.dt, "spectral_radius": self.spectral_radius,
+                "eigenvalues": [[float(e.real), float(e.imag)] for e in self.eigenvalues],
+                "stable": self.stable}
+
+
+def discrete_step(model: Model, x0: Sequence[float], target: Sequence[float]) -> DiscreteStepReport:
+    """Linearize one simulated control cycle at ``x0`` (an equilibrium of the closed loop driving
+    to ``target``): the Jacobian of the RK4 step map, exactly, from CasADi. The simulated system is
+    locally stable there when its spectral radius is below 1 — for the point mass exactly when
+    ``alpha_i dt`` is below :func:`rk4_stability_limit`.
+
+    Raises
+    ------
+    HybridnavError
+        The step map is not differentiable at ``x0`` (a Jacobian entry that is not finite).
+    """
+    x0 = _vector(x0, "x0")
+    s = model.sym
+    J = cs.Function("dstep", [s.x, s.target, s.p], [cs.jacobian(model._rk4_expr(), s.x)])
+    A = np.asarray(J(x0, _vector(target, "target"), model.p_value()), dtype=float)
+    if not np.all(np.isfinite(A)):
+        raise HybridnavError(f"model {model.name}: the step map is not differentiable at "
+                             f"{x0.tolist()}")
+    ev = np.linalg.eigvals(A)
+    rho = float(np.max(np.abs(ev)))
+    return DiscreteStepReport(point=x0.tolist(), dt=float(model.dt), spectral_radius=rho,
+                              eigenvalues=ev, stable=rho < 1.0)

@@ -96,6 +96,17 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
         checks.append({**item, "name": f"linearization: {name}"})
     if reports:
         plot(plot_eigenvalues(reports), "eigenvalues.png")
+    if model_name in ("point_mass", "lbcs"):
+        from hybridnav.analysis.linearize import discrete_step, rk4_stability_limit
+
+        say("simulated step")
+        ds = discrete_step(model, np.asarray(target, dtype=float), target)
+        limit = rk4_stability_limit()
+        checks.append({"name": f"simulated step (RK4, dt = {model.dt:g}) at the target",
+                       "status": "stable" if ds.stable else "unstable", **ds.to_dict(),
+                       "method": f"spectral radius of the exact Jacobian of one control cycle "
+                                 f"{ds.spectral_radius:.6g} ({'<' if ds.stable else '>='} 1); "
+                                 f"RK4 is stable on xdot = -a x for a dt < {limit:.5f}"})
 
     if model_name in ("point_mass", "lbcs"):
         say("region of attraction")

@@ -11,6 +11,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav.analysis.lyapunov import (
+    _candidate,
     check_lyapunov,
     find_equilibria,
     is_gradient_flow,
@@ -103,12 +104,16 @@ def estimate_roa(
     horizon : float, optional
         Simulated time (default: ``20 / (smallest decay rate seen)``, capped at 10000 steps).
     """
+    orig = model
     if params:
         model = model.with_params(**params)
+        if isinstance(V, cs.SX):          # built from the caller's model.sym: move it over
+            V = _candidate(model, V, orig)
     box = as_box(model, region)
     _, v_num, _, _, _ = lyapunov_functions(model, V, target=target)
     vfun = cs.Function("V", [model.sym.x], [v_num])
     rng = np.random.default_rng(seed)
+    step = _discrete_check(model, vfun, v_num, box, target, rng)
     c_box = _min_on_boundary(model, vfun, box, rng)
     check: dict[str, Any] = {"target": target, "region": box, "seed": seed}
     _, _, _, v_sym, _ = lyapunov_functions(model, V, target=target)
@@ -149,7 +154,37 @@ def estimate_roa(
     return RoaEstimate(level=float(level), status=status, bounded_by=bounded, counterexample=cex,
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
-                       details={"boundary_level": float(c_box), **sim.get("details", {})})
+                       details={"boundary_level": float(c_box), "discrete_step": step,
+                                **sim.get("details", {})})
+
+
+def _discrete_check(model, vfun, v_num, box: Box, target, rng) -> dict[str, Any]:
+    """The simulated step at the equilibrium (the minimizer of V); refuse when it is unstable:
+    simulations that confirm a level would then only show the integrator diverging."""
+    from hybridnav.analysis.linearize import discrete_step
+    from hybridnav.analysis.lyapunov import _minimize_v
+
+    pts = box.sample(4000, rng)
+    v = np.asarray(vfun.map(len(pts))(pts.T)).ravel()
+    ok = np.isfinite(v) & model.admissible(pts)
+    if not ok.any():
+        return {"status": "not_checked", "reason": "no finite V sampled"}
+
+    def both(x):
+        return vfun(x), vfun(x)
+
+    x_star = _minimize_v(model, both, v_num, box, None, pts, v, ok, rng, 8)
+    try:
+        rep = discrete_step(model, x_star, target)
+    except (HybridnavError, RuntimeError) as exc:
+        return {"status": "not_differentiable", "reason": str(exc), "point": x_star.tolist()}
+    if not rep.stable:
+        raise HybridnavError(
+            f"model {model.name}: the simulated step (RK4, dt = {model.dt:g}) is unstable at "
+            f"the equilibrium {np.round(x_star, 6).tolist()} (spectral radius "
+            f"{rep.spectral_radius:.4g} >= 1): simulated runs diverge whatever the continuous "
+            "system does; lower dt or the gains before estimating a region of attraction")
+    return {"status": "stable", **rep.to_dict()}
 
 
 def _min_on_boundary(model, vfun: cs.Function, box: Box, rng, per_face: int = 4000) -> float:
