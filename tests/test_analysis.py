@@ -351,3 +351,24 @@ def test_estimate_roa_reports_the_discrete_step():
     step = est.details["discrete_step"]
     assert step["status"] == "stable" and step["spectral_radius"] < 1
     assert step["point"] == pytest.approx([45, 5], abs=1e-6)
+
+
+def test_linearize_raises_at_kinks_and_jumps():
+    uni = models.get("unicycle")
+    # facing straight away from the target: the heading error wraps at pi
+    with pytest.raises(HybridnavError, match=r"unicycle is not differentiable at .*along (x|y|theta).*"
+                                             r"one-sided derivatives"):
+        linearize(uni, [1.0, 1.0, math.pi / 4], target=[0.0, 0.0])
+    tt = models.get("tractor_trailer")
+    # |theta0 - theta1| = pi / 3: the kink of fmax(0, 0.5 - cos(gap)) in its controller
+    with pytest.raises(HybridnavError, match="tractor_trailer is not differentiable"):
+        linearize(tt, [0.0, 0.0, math.pi / 3, 0.0, 0.0], target=[5.0, 5.0])
+    # away from them the linearization stands, and agrees with central differences
+    x0 = np.array([0.0, 0.0, 0.4, 0.1, 0.0])
+    sys = linearize(tt, x0, target=[5.0, 5.0])
+    f = tt.function("closed_loop")
+    h = 1e-6
+    num = np.column_stack([(np.asarray(f(x0 + h * e, [5.0, 5.0], tt.p_value())).ravel()
+                            - np.asarray(f(x0 - h * e, [5.0, 5.0], tt.p_value())).ravel())
+                           / (2 * h) for e in np.eye(5)])
+    np.testing.assert_allclose(sys.A, num, rtol=1e-6, atol=1e-8)

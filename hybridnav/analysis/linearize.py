@@ -67,6 +67,7 @@ def linearize(
         fn = cs.Function("lin", [xs, s.u], [f, cs.jacobian(f, xs), cs.jacobian(f, s.u)])
         rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, u0))
         states, inputs = list(model.plant_state_names), list(model.input_names)
+        point, args = (x0, u0), cs.Function("f", [xs, s.u], [f])
     else:
         t = _vector(target, "target")
         if x0.size != model.nx or t.size != 2:
@@ -79,17 +80,44 @@ def linearize(
                          [f, cs.jacobian(f, s.x), cs.jacobian(f, s.target)])
         rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, t))
         states, inputs = list(model.state_names), ["x1", "y1"]
+        point, args = (x0, t), cs.Function("f", [s.x, s.target], [f])
     bad = sorted({states[i] for i in np.argwhere(~np.isfinite(np.hstack([A, B])))[:, 0]})
     if bad:
         raise HybridnavError(
             f"x0: {model.name} is not differentiable at {x0.tolist()}: the Jacobian rows of "
             f"{', '.join(bad)} are not finite there"
         )
+    _one_sided(model.name, args, point, [states, inputs], x0)
     n = len(states)
     sys = control.ss(A, B, np.eye(n), np.zeros((n, B.shape[1])), states=states, inputs=inputs,
                      outputs=list(states), name=name or f"{model.name}_lin")
     sys.nominal_rate = rate.ravel()
     return sys
+
+
+def _one_sided(what: str, f: cs.Function, point, names, x0, rtol: float = 1e-3) -> None:
+    """Raise where the one-sided difference quotients of ``f`` disagree: a kink (``fmax``,
+    ``fabs``) or a jump (an angle wrapping at pi) that CasADi's Jacobian, a one-sided derivative
+    itself, does not show."""
+    point = [np.asarray(p, dtype=float).ravel() for p in point]
+    f0 = np.asarray(f(*point), dtype=float).ravel()
+    for a, (p, labels) in enumerate(zip(point, names)):
+        for j in range(p.size):
+            h = 1e-6 * (1.0 + abs(p[j]))
+            quot = []
+            for sign in (1.0, -1.0):
+                q = [v.copy() for v in point]
+                q[a][j] += sign * h
+                quot.append(sign * (np.asarray(f(*q), dtype=float).ravel() - f0) / h)
+            dp, dm = quot
+            gap = np.abs(dp - dm)
+            bad = gap > rtol * (1.0 + np.abs(dp) + np.abs(dm))
+            if np.any(bad):
+                i = int(np.argmax(np.where(bad, gap, -np.inf)))
+                raise HybridnavError(
+                    f"x0: {what} is not differentiable at {np.asarray(x0).tolist()}: along "
+                    f"{labels[j]}, the one-sided derivatives of row {i} are {dp[i]:.6g} and "
+                    f"{dm[i]:.6g} (a kink or a jump there)")
 
 
 def linearize_expression(
@@ -107,6 +135,8 @@ def linearize_expression(
     rate, A = (np.asarray(a, dtype=float) for a in fn(_vector(z0, "z0")))
     if not np.all(np.isfinite(A)):
         raise HybridnavError(f"z0: the vector field is not differentiable at {list(z0)}")
+    _one_sided("the vector field", cs.Function("f", [z], [zdot]), (_vector(z0, "z0"),),
+               [list(names)], list(z0))
     n = A.shape[0]
     sys = control.ss(A, np.zeros((n, 0)), np.eye(n), np.zeros((n, 0)), states=list(names),
                      outputs=list(names), name=name)
