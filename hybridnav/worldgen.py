@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -217,13 +217,6 @@ class WorldGenerator:
                         "goal_radius": self.goal_radius, "radius": r,
                         "initial": {"theta": float(theta)}}],
         }
-
-    def settings(self) -> dict[str, Any]:
-        """The settings as a plain dict (lists for ranges)."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-    def with_settings(self, **settings: Any) -> WorldGenerator:
-        return replace(self, **settings)
 
 
 def _shape(obs: dict):

@@ -228,8 +228,8 @@ def check_lyapunov(
         j = int(np.argmin(np.where(negative, v_s, np.inf)))
         return _counterexample(report, both, pts[j], "dense sampling: V < 0 at this state, so V "
                                "is not positive definite")
-    xmin = _minimize_v(model, both, v_num, box, level, pts, v_s, finite_v & admissible, rng,
-                       starts)
+    xmin = _minimize_v(model, lambda z: both(z)[0], v_num, box, level, pts, v_s,
+                       finite_v & admissible, starts)
     vmin = float(np.asarray(both(xmin)[0]).item())
     if vmin < -1e-12 * vscale:
         return _counterexample(report, both, xmin, "multistart IPOPT minimizing V: V < 0 at this "
@@ -495,8 +495,9 @@ def _counterexample(report: LyapunovReport, both, state, method: str) -> Lyapuno
     return report
 
 
-def _minimize_v(model, both, v_num, box: Box, level, pts, v_s, ok, rng, starts) -> np.ndarray:
-    """The minimizer of V over the region: the best samples refined by IPOPT."""
+def _minimize_v(model, v_of, v_num, box: Box, level, pts, v_s, ok, starts) -> np.ndarray:
+    """The minimizer of V over the region: the best samples refined by IPOPT (``v_of(x)`` is
+    V at a state)."""
     x = model.sym.x
     cons = cs.substitute(model.state_constraints(), model.sym.p, cs.DM(model.p_value()))
     g = cs.vertcat(v_num, cons) if level is not None else cons
@@ -509,7 +510,7 @@ def _minimize_v(model, both, v_num, box: Box, level, pts, v_s, ok, rng, starts) 
     idx = np.flatnonzero(ok)
     order = idx[np.argsort(v_s[idx])][:max(1, starts // 4)]
     best = pts[order[0]] if len(order) else (box.lower + box.upper) / 2
-    best_v = float(np.asarray(both(best)[0]).item())
+    best_v = float(np.asarray(v_of(best)).item())
     for j in order:
         try:
             sol = solver(x0=pts[j], lbx=box.lower, ubx=box.upper, lbg=lbg, ubg=ubg)
@@ -518,7 +519,7 @@ def _minimize_v(model, both, v_num, box: Box, level, pts, v_s, ok, rng, starts) 
         xs = np.clip(np.asarray(sol["x"]).ravel(), box.lower, box.upper)
         if not model.admissible(xs[None])[0]:
             continue
-        v = float(np.asarray(both(xs)[0]).item())
+        v = float(np.asarray(v_of(xs)).item())
         if np.isfinite(v) and v < best_v:
             best, best_v = xs, v
     return np.asarray(best, dtype=float)

@@ -170,10 +170,7 @@ def _discrete_check(model, vfun, v_num, box: Box, target, rng) -> dict[str, Any]
     if not ok.any():
         return {"status": "not_checked", "reason": "no finite V sampled"}
 
-    def both(x):
-        return vfun(x), vfun(x)
-
-    x_star = _minimize_v(model, both, v_num, box, None, pts, v, ok, rng, 8)
+    x_star = _minimize_v(model, vfun, v_num, box, None, pts, v, ok, 8)
     try:
         rep = discrete_step(model, x_star, target)
     except (HybridnavError, RuntimeError) as exc:

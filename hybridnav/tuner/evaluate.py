@@ -57,8 +57,8 @@ from hybridnav.planners.effc import effc_force, effc_inputs_from
 from hybridnav.planners.lockstep import LockstepResult, lockstep_field
 from hybridnav.planners.worldstack import WorldStack
 
-__all__ = ["VALIDATION_KEY", "evaluate_chunk", "run_costs", "scenario_set", "simulate_genomes",
-           "simulate_on"]
+__all__ = ["VALIDATION_KEY", "evaluate_chunk", "lockstep_effc", "run_costs", "scenario_set",
+           "simulate_genomes", "simulate_on"]
 
 #: First spawn-key entry of the validation noise streams (training uses the generation there).
 VALIDATION_KEY = 2**31 - 1
@@ -167,30 +167,48 @@ def simulate_on(job_json: str, st: _Set, genomes: np.ndarray,
     steps = int(math.ceil(max(s.max_time for s in scenarios) / dt - 1e-9)) + 1
     keys = keys if keys is not None else [(VALIDATION_KEY, 0)] * K
     nz = _noise(job, E, keys, repeats, steps) if noise else None
+    res = lockstep_effc(st, family, tables, K * repeats, pl, repeats=repeats, noise=nz,
+                        record_paths=record_paths)
+    return res, repeats
+
+
+def lockstep_effc(st: _Set, family: SystemFamily, tables, n_members: int,
+                  planner: dict[str, Any], *, repeats: int = 1, noise: np.ndarray | None = None,
+                  record_paths: bool = False) -> LockstepResult:
+    """``n_members`` EFFC controllers on every world of ``st``, in one lockstep batch.
+
+    Member ``m`` uses the fuzzy system ``m // repeats`` of ``tables`` (a ``family`` table set);
+    ``noise`` (``(3, E, n_members, steps)``: heading, ``dtheta``, relative ``alpha``) perturbs
+    each cycle. ``planner`` holds ``speed``, ``max_turn``, ``stuck_window`` and
+    ``stuck_radius``. Without noise this is exactly what the ``effc`` planner does, run by run.
+    """
+    scenarios = st.scenarios
+    dt = scenarios[0].dt
     radius = st.radius
+    last = None if noise is None else noise.shape[3] - 1
 
     def field(env, members, P, goals, t):
         clear, near = st.stack.nearest(P, env, t)
         dtheta, alpha, f_att, f_rep = effc_inputs_from(P, goals, clear, near, radius[env])
-        if nz is not None:
-            i = min(int(round(t / dt)), steps - 1)
-            dtheta = dtheta + nz[1, env, members, i]
-            alpha = np.maximum(alpha * (1.0 + nz[2, env, members, i]), 0.0)
+        if noise is not None:
+            i = min(int(round(t / dt)), last)
+            dtheta = dtheta + noise[1, env, members, i]
+            alpha = np.maximum(alpha * (1.0 + noise[2, env, members, i]), 0.0)
         w = family.evaluate(tables, members // repeats, {"dtheta": dtheta, "alpha": alpha})
         F = effc_force(w, f_att, f_rep)
         F = np.where(np.isinf(clear)[:, None], f_att, F)     # no obstacle: go to the goal
-        if nz is not None:
-            ang = nz[0, env, members, min(int(round(t / dt)), steps - 1)]
+        if noise is not None:
+            ang = noise[0, env, members, i]
             c, s_ = np.cos(ang), np.sin(ang)
             F = np.stack([c * F[:, 0] - s_ * F[:, 1], s_ * F[:, 0] + c * F[:, 1]], axis=1)
         return F
 
-    overrides = {"controller": "heading", "speed": pl["speed"], "max_turn": pl["max_turn"]}
-    res = lockstep_field(scenarios, K * repeats, field, model_overrides=overrides,
-                         speed=pl["speed"], stuck_window=pl["stuck_window"],
-                         stuck_radius=pl["stuck_radius"], record_paths=record_paths,
-                         stack=st.stack)
-    return res, repeats
+    overrides = {"controller": "heading", "speed": planner["speed"],
+                 "max_turn": planner["max_turn"]}
+    return lockstep_field(scenarios, n_members, field, model_overrides=overrides,
+                          speed=planner["speed"], stuck_window=planner["stuck_window"],
+                          stuck_radius=planner["stuck_radius"], record_paths=record_paths,
+                          stack=st.stack)
 
 
 def run_costs(job, scenarios, res: LockstepResult) -> np.ndarray:

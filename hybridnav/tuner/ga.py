@@ -400,21 +400,16 @@ def tune(job: Job, out: str | Path, *, backend: Backend | None = None, resume: b
         best.fitness.values = (float(chosen["train_fitness"]),)
         best_gen = chosen["generation"]
     else:
-        best, best_gen = hof[0], _first_generation(records, logbook, hof[0])
+        best, best_gen = hof[0], _first_generation(logbook, hof[0])
     best_stage = chosen.get("stage", 0) if chosen is not None else stage
-    system = space.system(np.array(best), name=f"{job.name}-tuned")
-    d = system.to_dict()
-    d["description"] = (
+    system = space.system(np.array(best), name=f"{job.name}-tuned", description=(
         f"Tuned by hybridnav {__version__} (job {job.name!r}, seed {job.seed}) from "
         f"{job.start_system().name!r}: generation {best_gen}"
         + (f" of stage {best_stage}" if kfold else "")
         + f", chosen by its {selected} score over {len(job.scenarios('train'))} training and "
         f"{len(job.scenarios('validation'))} validation worlds. Inputs: dtheta = |direction "
         "to target - direction to nearest obstacle| (rad); alpha = d_obstacle / d_target. "
-        "Output: w, the weight of the repulsive force in F_w = w F_rep + (1 - w) F_att.")
-    from hybridnav.fuzzy import FuzzySystem
-
-    system = FuzzySystem.from_dict(d)
+        "Output: w, the weight of the repulsive force in F_w = w F_rep + (1 - w) F_att."))
     vinfo: dict[str, Any] = {}
     if has_val:
         start_entry = st["val"]["cache"].get(_gkey(start_genome))
@@ -455,7 +450,7 @@ def _load_track(state: dict[str, Any]) -> dict[str, Any]:
             "last_improvement": state["last_improvement"], "gen_best": state["gen_best"]}
 
 
-def _first_generation(records, logbook, ind) -> int:
+def _first_generation(logbook, ind) -> int:
     """The generation in which the best training fitness was first reached."""
     target = ind.fitness.values[0]
     for r in logbook:

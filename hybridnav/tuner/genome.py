@@ -161,12 +161,15 @@ class GenomeSpace:
         n_in = len(self.template.inputs)
         return ([p[:n_in] for p in params], [p[n_in] for p in params], weights, cons, switches)
 
-    def system(self, x: np.ndarray, name: str | None = None) -> FuzzySystem:
+    def system(self, x: np.ndarray, name: str | None = None,
+               description: str | None = None) -> FuzzySystem:
         """The fuzzy system of one genome (switched-off rules removed)."""
         inp, out, weights, cons, switches = self.arrays(np.asarray(x)[None])
         d = copy.deepcopy(self.template.to_dict())
         if name:
             d["name"] = name
+        if description is not None:
+            d["description"] = description
         for vi, v in enumerate(d["inputs"]):
             for ti, t in enumerate(v["terms"]):
                 t["params"] = [float(p) for p in inp[0][vi][ti]]

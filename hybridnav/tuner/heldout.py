@@ -19,18 +19,39 @@ import pandas as pd
 
 __all__ = ["compare_systems", "run_systems", "summarize", "verdict", "wilson"]
 
-SYSTEMS = ("start", "tuned", "apf")
+COLUMNS = ["set", "scenario", "system", "outcome", "path_length", "time", "min_clearance"]
 
 
-def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """The 95 % Wilson score interval of a success rate ``k / n``."""
+def _lockstep_rows(which: str, scen, labels, res) -> list[dict[str, Any]]:
+    """Rows of a lockstep result whose member ``m`` is the system ``labels[m]``."""
+    rows = []
+    for e, s in enumerate(scen):
+        for m, label in enumerate(labels):
+            reached = res.outcome[e, m] == "reached"
+            rows.append({"set": which, "scenario": s.name, "system": label,
+                         "outcome": str(res.outcome[e, m]),
+                         "path_length": float(res.path_length[e, m]),
+                         "time": float(res.time[e, m]) if reached else math.nan,
+                         "min_clearance": float(res.min_clearance[e, m])})
+    return rows
+
+
+def _robot_row(which: str, scenario: str, label: str, r) -> dict[str, Any]:
+    """The row of one robot of a planner's ``Result``."""
+    return {"set": which, "scenario": scenario, "system": label, "outcome": r.outcome,
+            "path_length": r.path_length,
+            "time": math.nan if r.time_to_goal is None else r.time_to_goal,
+            "min_clearance": r.min_clearance}
+
+
+def wilson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The Wilson score interval of a success rate ``k / n`` (scipy's ``binomtest``)."""
     if n == 0:
         return (math.nan, math.nan)
-    p = k / n
-    den = 1 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, mid - half), min(1.0, mid + half))
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=confidence, method="wilson")
+    return (float(ci.low), float(ci.high))
 
 
 def _apf_rows(scenario_json: str, params: dict[str, Any]) -> dict[str, Any]:
@@ -56,9 +77,6 @@ def compare_systems(job, job_json: str, genomes: dict[str, np.ndarray], backend,
 
     rows = []
     labels = list(genomes)
-    pl = job["planner"]
-    apf_params = {"speed": pl["speed"], "max_turn": pl["max_turn"],
-                  "stuck_window": pl["stuck_window"], "stuck_radius": pl["stuck_radius"]}
     for which in sets:
         scen = job.scenarios(which)
         if not scen:
@@ -66,22 +84,14 @@ def compare_systems(job, job_json: str, genomes: dict[str, np.ndarray], backend,
         G = np.array([genomes[k] for k in labels])
         if _uniform(scen):
             res, _ = simulate_genomes(job_json, which, G, noise=False)
-            for e, s in enumerate(scen):
-                for m, label in enumerate(labels):
-                    reached = res.outcome[e, m] == "reached"
-                    rows.append({"set": which, "scenario": s.name, "system": label,
-                                 "outcome": str(res.outcome[e, m]),
-                                 "path_length": float(res.path_length[e, m]),
-                                 "time": float(res.time[e, m]) if reached else math.nan,
-                                 "min_clearance": float(res.min_clearance[e, m])})
+            rows += _lockstep_rows(which, scen, labels, res)
         else:                               # robots of different models: one run at a time
             rows += _planner_runs(job, which, scen, genomes)
-        args = [(json.dumps(scenario_to_dict(s)), apf_params) for s in scen]
+        args = [(json.dumps(scenario_to_dict(s)), dict(job["planner"])) for s in scen]
         for s, r in zip(scen, backend.map(_apf_rows, args)):
             rows.append({"set": which, "scenario": s.name, "system": "apf", **r,
                          "time": math.nan if r["time"] is None else r["time"]})
-    return pd.DataFrame(rows, columns=["set", "scenario", "system", "outcome", "path_length",
-                                       "time", "min_clearance"])
+    return pd.DataFrame(rows, columns=COLUMNS)
 
 
 def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
@@ -93,45 +103,21 @@ def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
     lockstep batch (exactly what the ``effc`` planner does), plus ``apf`` run by its planner."""
     from hybridnav import planners
     from hybridnav.fuzzy.family import SystemFamily
-    from hybridnav.planners.effc import effc_force, effc_inputs_from
-    from hybridnav.planners.lockstep import lockstep_field
-    from hybridnav.planners.worldstack import WorldStack
+    from hybridnav.tuner.evaluate import lockstep_effc, scenario_set
 
     scen = list(scenarios)
-    stack = WorldStack([s.world for s in scen])
-    radius = np.array([s.robots[0].radius for s in scen])
+    st = scenario_set(scen)
+    pl = {"speed": speed, "max_turn": max_turn, "stuck_window": stuck_window,
+          "stuck_radius": stuck_radius}
     rows = []
     for label, system in systems.items():
         fam = SystemFamily(system)
-        tables = fam.tables_of([system])
-
-        def field(env, members, P, goals, t):
-            clear, near = stack.nearest(P, env, t)
-            d, a, fa, fr = effc_inputs_from(P, goals, clear, near, radius[env])
-            F = effc_force(fam.evaluate(tables, members, {"dtheta": d, "alpha": a}), fa, fr)
-            return np.where(np.isinf(clear)[:, None], fa, F)
-
-        res = lockstep_field(scen, 1, field, model_overrides={
-            "controller": "heading", "speed": speed, "max_turn": max_turn}, speed=speed,
-            stuck_window=stuck_window, stuck_radius=stuck_radius, stack=stack)
-        for e, s in enumerate(scen):
-            ok = res.outcome[e, 0] == "reached"
-            rows.append({"set": set_name, "scenario": s.name, "system": label,
-                         "outcome": str(res.outcome[e, 0]),
-                         "path_length": float(res.path_length[e, 0]),
-                         "time": float(res.time[e, 0]) if ok else math.nan,
-                         "min_clearance": float(res.min_clearance[e, 0])})
+        res = lockstep_effc(st, fam, fam.tables_of([system]), 1, pl)
+        rows += _lockstep_rows(set_name, scen, [label], res)
     if apf:
-        p = planners.get("apf", speed=speed, max_turn=max_turn, stuck_window=stuck_window,
-                         stuck_radius=stuck_radius)
-        for s in scen:
-            r = p.run(s).robots[0]
-            rows.append({"set": set_name, "scenario": s.name, "system": "apf",
-                         "outcome": r.outcome, "path_length": r.path_length,
-                         "time": math.nan if r.time_to_goal is None else r.time_to_goal,
-                         "min_clearance": r.min_clearance})
-    return pd.DataFrame(rows, columns=["set", "scenario", "system", "outcome", "path_length",
-                                       "time", "min_clearance"])
+        p = planners.get("apf", **pl)
+        rows += [_robot_row(set_name, s.name, "apf", p.run(s).robots[0]) for s in scen]
+    return pd.DataFrame(rows, columns=COLUMNS)
 
 
 def _uniform(scen) -> bool:
@@ -145,18 +131,11 @@ def _planner_runs(job, which, scen, genomes):
     from hybridnav.tuner.genome import GenomeSpace
 
     space = GenomeSpace(job.start_system(), job["free"])
-    pl = job["planner"]
     rows = []
     for s in scen:
         for label, g in genomes.items():
-            p = planners.get("effc", fis=space.system(np.asarray(g)), speed=pl["speed"],
-                             max_turn=pl["max_turn"], stuck_window=pl["stuck_window"],
-                             stuck_radius=pl["stuck_radius"])
-            for r in p.run(s).robots:
-                rows.append({"set": which, "scenario": s.name, "system": label,
-                             "outcome": r.outcome, "path_length": r.path_length,
-                             "time": math.nan if r.time_to_goal is None else r.time_to_goal,
-                             "min_clearance": r.min_clearance})
+            p = planners.get("effc", fis=space.system(np.asarray(g)), **job["planner"])
+            rows += [_robot_row(which, s.name, label, r) for r in p.run(s).robots]
     return rows
 
 

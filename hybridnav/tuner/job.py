@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import check_value
 
 __all__ = ["DEFAULT_JOB", "Job", "load_job", "quick"]
 
@@ -257,7 +258,7 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             raise fail(f"{section}.{bad[0]}", "unknown key; expected one of: "
                        + ", ".join(sorted(schema)))
         for key, value in table.items():
-            data[section][key] = _check(fail, f"{section}.{key}", value, *schema[key])
+            data[section][key] = check_value(where, f"{section}.{key}", value, *schema[key])
     ga = data["ga"]
     if ga["elite"] >= ga["population"]:
         raise fail("ga.elite", f"expected fewer elites than the population "
@@ -354,15 +355,6 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             data["free"][k] for k in ("rule_switches", "rule_weights", "rule_consequents")):
         raise fail("free", "nothing is free: set free.mf or a free.rule_* switch")
     return job
-
-
-def _check(fail, key: str, value: Any, kind: type, lo, hi, choices):
-    from hybridnav.params import check_value
-
-    try:
-        return check_value("", key, value, kind, lo, hi, choices)
-    except HybridnavError as exc:
-        raise fail(key, str(exc).split(": ", 1)[1]) from None
 
 
 @functools.lru_cache(maxsize=16)

@@ -99,7 +99,6 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
                 out / "coverage.png")
     files += ["convergence.png", "mfs.png", "surface.png", "coverage.png"]
     # paths: the paper's worlds and a few generated test worlds
-    pl = job["planner"]
     shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
     test = job.scenarios("test")
     shown += [("test", s) for s in test if not s.name.startswith("gen-")]
@@ -110,9 +109,7 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
         for row, (kind, s) in enumerate(shown):
             for col, (label, system) in enumerate((("start", start),
                                                    ("tuned", result.system))):
-                res = planners.get("effc", fis=system, speed=pl["speed"],
-                                   max_turn=pl["max_turn"], stuck_window=pl["stuck_window"],
-                                   stuck_radius=pl["stuck_radius"]).run(s)
+                res = planners.get("effc", fis=system, **job["planner"]).run(s)
                 plot_result(s, res, ax=axes[row, col])
                 axes[row, col].set_title(f"{s.name} ({kind}): {label}", fontsize=9)
         save_figure(fig, out / "paths.png")
@@ -146,11 +143,7 @@ def _falsify(job: Job, jj: str, genomes: dict[str, np.ndarray], backend: Backend
         folder = out / "falsified"
         folder.mkdir(exist_ok=True)
         sim, _ = simulate_on(jj, scenario_set(res.worlds), genomes["start"][None], noise=False)
-        pl = job["planner"]
-        apf = backend.map(_apf_rows, [(json.dumps(scenario_to_dict(w)),
-                                       {"speed": pl["speed"], "max_turn": pl["max_turn"],
-                                        "stuck_window": pl["stuck_window"],
-                                        "stuck_radius": pl["stuck_radius"]})
+        apf = backend.map(_apf_rows, [(json.dumps(scenario_to_dict(w)), dict(job["planner"]))
                                       for w in res.worlds])
         for i, w in enumerate(res.worlds):
             name = f"falsified/{w.name}.toml"
