@@ -157,11 +157,13 @@ def test_closed_loop_linearizations_at_the_target():
 # ---- regions of attraction and sweeps ------------------------------------------------------
 
 
-def test_point_mass_roa_is_the_whole_inscribed_level_set():
+def test_point_mass_roa_is_global_when_the_proof_is():
+    """The quadratic argument holds on the whole plane: no level caps the region of attraction
+    (the old answer, the inscribed level 200, was capped by the box for no reason)."""
     est = estimate_roa(models.get("point_mass"), target=(20, 30), region=BOX, confirm=100)
-    assert est.status == "proved" and est.bounded_by == "box"
-    assert est.level == pytest.approx(0.5 * 20.0 ** 2, rel=1e-3)   # nearest side x = 0
-    assert est.confirmed and est.simulated == 100
+    assert est.status == "proved" and est.bounded_by == "none"
+    assert est.level == math.inf and est.to_dict()["level"] is None
+    assert est.confirmed and est.simulated == 100        # starts anywhere in the box
 
 
 def test_lbcs_roa_stops_at_the_saddle_behind_an_obstacle():
@@ -171,8 +173,10 @@ def test_lbcs_roa_stops_at_the_saddle_behind_an_obstacle():
     saddle = [e for e in eqs if not e.is_target]
     assert len(saddle) == 1 and saddle[0].kind == "saddle"
     est = estimate_roa(lb, target=(45, 25), region=region, confirm=100)
-    assert est.bounded_by == "counterexample"
-    assert est.level == pytest.approx(saddle[0].V, rel=2e-3)
+    assert est.bounded_by == "equilibrium"
+    assert est.level == pytest.approx(saddle[0].V, rel=2e-3) and est.level < saddle[0].V
+    np.testing.assert_allclose(est.counterexample, saddle[0].state)
+    assert est.status == "proved" and est.details["route"] == "certificate"
     assert est.confirmed
 
 

@@ -3,17 +3,28 @@
 :func:`check_lyapunov` decides, for a candidate ``V`` and a region, one of three statuses:
 
 ``"proved"``
-    Only from an exact argument: ``V`` and ``Vdot`` are quadratic forms (checked symbolically with
-    ``casadi.is_quadratic``) about the same point, with constant Hessians that are positive and
-    negative definite (eigenvalues), so ``V > 0`` and ``Vdot < 0`` everywhere else.
+    Only from an exact argument, and ``report.claim`` says what was proved on which set:
+
+    - *quadratic*: ``V`` and ``Vdot`` are quadratic forms (checked symbolically with
+      ``casadi.is_quadratic``) about the same point, with constant Hessians that are positive and
+      negative definite beyond a tolerance, so ``V > 0`` and ``Vdot < 0`` everywhere else;
+    - *certificate*: interval branch and bound over the region (or level set) proves ``V > 0`` and
+      ``Vdot < 0`` on it, with a small box around the equilibrium handled by interval bounds on
+      the Hessians (:func:`hybridnav.analysis.certificate.certify`); non-quadratic ``V`` included;
+    - *lasalle*: ``Vdot`` is zero somewhere away from the equilibrium (so not a strict Lyapunov
+      function), but branch and bound proves ``Vdot <= 0`` and that no trajectory can stay where
+      ``Vdot = 0`` (a Lie derivative of ``Vdot`` is nonzero there), so by LaSalle's invariance
+      principle trajectories from the set end near ``V = 0``; the ``Vdot = 0`` state is kept in
+      ``details["vdot_zero_state"]``.
 ``"counterexample"``
     A concrete state in the region, away from the equilibrium, with ``Vdot >= 0`` — found by
     dense sampling, by a multistart IPOPT search maximizing ``Vdot``, from an indefinite quadratic
     form, or (for gradient flows such as LbCS) at a stationary point other than the target, where
     ``Vdot = 0`` exactly.
 ``"no_counterexample"``
-    Neither: sampling (>= 1e5 states through a mapped CasADi function) and the search found none.
-    This is evidence, never a proof.
+    Neither: sampling (>= 1e5 states through a mapped CasADi function) and the search found none,
+    and the certificate route (run by default for up to 3 states) could not decide within its
+    budget. This is evidence, never a proof.
 ``"undecided"``
     Rounding would decide: a quadratic form's Hessian has an eigenvalue within ``tol`` of zero
     (relative to its largest entry), so neither definiteness nor a counterexample can be claimed
@@ -80,7 +91,14 @@ class LyapunovReport:
     method : str
         How the status was decided.
     vdot_nonpositive_proved : bool
-        ``Vdot <= 0`` everywhere was established exactly (quadratic forms or a gradient flow).
+        ``Vdot <= 0`` everywhere was established exactly (quadratic forms, a gradient flow or a
+        certificate).
+    claim : str
+        When ``status == "proved"``: what was proved and on which set.
+    route : str
+        Which argument decided: ``"quadratic"``, ``"certificate"`` (interval branch and bound),
+        ``"lasalle"`` (branch and bound on LaSalle's conditions), ``"sampling"``, ``"ipopt"``,
+        ``"gradient_flow"`` or ``"local"``.
     details : dict
         Numbers behind the decision (eigenvalues, sample counts, optimizer runs, ...).
     """
@@ -93,12 +111,16 @@ class LyapunovReport:
     worst_state: np.ndarray | None
     method: str
     vdot_nonpositive_proved: bool = False
+    claim: str = ""
+    route: str = ""
     details: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
         return {
             "status": self.status,
+            "claim": self.claim,
+            "route": self.route,
             "V": self.V,
             "vdot": self.vdot,
             "counterexample": None if self.counterexample is None else self.counterexample.tolist(),
@@ -166,6 +188,8 @@ def check_lyapunov(
     starts: int = 16,
     exclude: float = 1e-6,
     equilibria: Sequence[Equilibrium] | None = None,
+    certificate: bool | None = None,
+    max_boxes: int = 100_000,
 ) -> LyapunovReport:
     """Check that ``V`` decreases along the closed loop of ``model`` driving to ``target``.
 
@@ -196,6 +220,12 @@ def check_lyapunov(
     equilibria : list of Equilibrium, optional
         For gradient flows: the stationary points, when already known (from
         :func:`find_equilibria` on the same model, target and region); found here otherwise.
+    certificate : bool, optional
+        Run the certificate route (:func:`hybridnav.analysis.certificate.certify`) when sampling
+        and the search find no counterexample, and LaSalle's route when ``Vdot`` only reaches
+        zero. Default: for models with at most 3 states.
+    max_boxes : int
+        Budget of the certificate route (boxes evaluated).
 
     Returns
     -------
@@ -226,16 +256,19 @@ def check_lyapunov(
     negative = finite_v & admissible & in_level & (v_s < -1e-12 * vscale)
     if negative.any():
         j = int(np.argmin(np.where(negative, v_s, np.inf)))
+        report.route = "sampling"
         return _counterexample(report, both, pts[j], "dense sampling: V < 0 at this state, so V "
                                "is not positive definite")
     xmin = _minimize_v(model, lambda z: both(z)[0], v_num, box, level, pts, v_s,
                        finite_v & admissible, starts)
     vmin = float(np.asarray(both(xmin)[0]).item())
     if vmin < -1e-12 * vscale:
+        report.route = "ipopt"
         return _counterexample(report, both, xmin, "multistart IPOPT minimizing V: V < 0 at this "
                                "state, so V is not positive definite")
     local = _local_check(model, v_num, vdot_num, both, xmin, box, level, report)
     if local is not None:
+        report.route = "local"
         return _counterexample(report, both, local[0], local[1])
     keep = finite_v & (v_s >= v_floor) & admissible
     if level is not None:
@@ -267,6 +300,7 @@ def check_lyapunov(
             e = min(others, key=lambda e: e.V)
             d = float(np.asarray(both(e.state)[1]).item())
             report.status, report.counterexample = "counterexample", e.state
+            report.route = "gradient_flow"
             report.worst_vdot, report.worst_state = max(d, best_d), e.state
             report.method = (
                 "gradient flow: Vdot = -sum_i c_i (dV/dx_i)^2 <= 0 holds identically (symbolic); "
@@ -306,19 +340,101 @@ def check_lyapunov(
             best_d, best_x, how = d, xs, "multistart IPOPT"
     report.details.update(ipopt_runs=runs, tolerance=tol)
     report.worst_vdot, report.worst_state = best_d, best_x
+    use_cert = model.nx <= 3 if certificate is None else bool(certificate)
     if best_d >= -tol:
-        zero = " (zero to rounding)" if best_d < 0 else ""
+        zero = " (zero to rounding)" if best_d <= tol else ""
         _counterexample(report, both, best_x, f"{how}: Vdot = {best_d:.6g}{zero} >= 0 at this "
                         "state")
+        report.route = "ipopt" if how == "multistart IPOPT" else "sampling"
         report.worst_vdot = max(report.worst_vdot, best_d)
+        if use_cert and best_d <= tol:
+            # Vdot only reaches zero: V may still decide convergence through LaSalle
+            _lasalle_route(report, model, v_num, box, level, max_boxes)
     else:
         report.status = "no_counterexample"
+        report.route = "sampling"
         extra = "; Vdot <= 0 is exact (gradient flow)" if grad_flow else ""
         report.method = (
             f"dense sampling ({int(keep.sum())} states in the region) and {runs} IPOPT runs found "
             f"no Vdot >= 0 (max {best_d:.6g}){extra}; not a proof"
         )
+        if use_cert:
+            _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes)
     return report
+
+
+def _certificate_inputs(model: Model, target):
+    """The closed loop and the admissibility constraints in the state only; periodic states."""
+    s = model.sym
+    values = cs.DM(np.concatenate([_target(target), model.p_value()]))
+    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
+    g = cs.substitute(model.state_constraints(), s.p, cs.DM(model.p_value()))
+    return f, g
+
+
+def _periodic(model: Model, box: Box) -> list[int]:
+    """Angle states whose bounds span a whole turn: their faces are the same states."""
+    angles = set(getattr(model, "angle_state_names", ()))
+    return [i for i, n in enumerate(box.names)
+            if n in angles and box.upper[i] - box.lower[i] >= 2 * np.pi * (1 - 1e-12)]
+
+
+def _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes) -> None:
+    """Interval branch and bound for V > 0 and Vdot < 0; updates the report in place."""
+    from hybridnav.analysis.certificate import certify
+
+    f, g = _certificate_inputs(model, target)
+    center = _equilibrium_guess(model, both, xmin, target, box)
+    cert = certify(model.sym.x, f, v_num, box, level=level, constraints=g, center=center,
+                   periodic=_periodic(model, box), max_boxes=max_boxes)
+    report.details["certificate"] = cert.to_dict()
+    if cert.status == "proved":
+        report.status, report.route = "proved", "certificate"
+        report.claim = cert.claim
+        report.vdot_nonpositive_proved = True
+        report.method = f"certificate: {cert.method}; {cert.claim}"
+    elif cert.status == "counterexample":
+        _counterexample(report, both, cert.counterexample, cert.method)
+        report.route = "certificate"
+    else:
+        report.method += f"; the certificate route is {cert.status}: {cert.method}"
+
+
+def _lasalle_route(report, model, v_num, box, level, max_boxes) -> None:
+    """Branch and bound on LaSalle's conditions after a Vdot = 0 counterexample."""
+    from hybridnav.analysis.certificate import certify
+
+    target = report.details.get("target")
+    if target is None:
+        return
+    f, g = _certificate_inputs(model, target)
+    cert = certify(model.sym.x, f, v_num, box, level=level, constraints=g, lasalle=True,
+                   periodic=_periodic(model, box), max_boxes=max_boxes)
+    report.details["lasalle"] = cert.to_dict()
+    if cert.status == "proved":
+        report.details["vdot_zero_state"] = report.counterexample.tolist()
+        report.status, report.route = "proved", "lasalle"
+        report.claim = cert.claim
+        report.vdot_nonpositive_proved = True
+        report.method = (f"LaSalle: V is not strictly decreasing ({report.method}); "
+                         f"{cert.method}; {cert.claim}")
+        report.counterexample = None
+    else:
+        report.method += f"; LaSalle's route is {cert.status}: {cert.method}"
+
+
+def _equilibrium_guess(model, both, xmin, target, box) -> np.ndarray:
+    """Where V vanishes: the minimizer of V, or the same with its position at the target when V
+    is smaller there (the certificate's local ball is centred on it)."""
+    snapped = np.asarray(xmin, dtype=float).copy()
+    snapped[:2] = _target(target)
+    best = np.asarray(xmin, dtype=float)
+    if box.contains(snapped):
+        v0 = abs(float(np.asarray(both(best)[0]).item()))
+        v1 = abs(float(np.asarray(both(snapped)[0]).item()))
+        if v1 <= v0:
+            best = snapped
+    return best
 
 
 def find_equilibria(
@@ -425,6 +541,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
         state = _inside(xs, vec_v[:, int(np.argmin(ev_v))], box, level, fn)
         if state is None or float(np.asarray(fn(state)[0]).item()) >= 0:
             return False
+        report.route = "quadratic"
         _counterexample(report, _both(fn), state,
                         f"exact: V is a quadratic form whose Hessian has the eigenvalue "
                         f"{ev_v.min():.6g} < 0; along its eigenvector V < 0")
@@ -437,7 +554,9 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
         return False                      # not both centred on the same point
     report.details["equilibrium"] = xs.tolist()
     if np.all(ev_d < -band):
-        report.status = "proved"
+        report.status, report.route = "proved", "quadratic"
+        report.claim = ("V > 0 and Vdot < 0 for every state other than x* (quadratic forms: the "
+                        "argument is global)")
         report.vdot_nonpositive_proved = True
         report.worst_vdot, report.worst_state = 0.0, xs
         report.method = (
@@ -450,7 +569,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
         return True
     if np.all(ev_d <= band):
         # the largest eigenvalue of H_Vdot is zero to rounding: neither claim can be made
-        report.status = "undecided"
+        report.status, report.route = "undecided", "quadratic"
         report.worst_vdot, report.worst_state = 0.0, xs
         report.method = (
             f"exact route undecided: V and Vdot are quadratic forms about x*, V is positive "
@@ -468,6 +587,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
     d = float(np.asarray(fn(state)[3]).item())
     if not d > 0:
         return False
+    report.route = "quadratic"
     _counterexample(report, _both(fn), state,
                     "exact: Vdot is a quadratic form about x* whose Hessian has the eigenvalue "
                     f"{w.max():.6g} > 0; along its eigenvector Vdot = {d:.6g} > 0")

@@ -15,7 +15,7 @@ from hybridnav.analysis.region import Box, as_box
 from hybridnav.models.base import Model
 from hybridnav.plotting import save_figure
 
-__all__ = ["plot_eigenvalues", "plot_lbcs_field", "plot_phase_portrait", "plot_sweep",
+__all__ = ["plot_basin", "plot_eigenvalues", "plot_lbcs_field", "plot_phase_portrait", "plot_sweep",
            "plot_V_time", "plot_vdot_map", "save_figure"]
 
 
@@ -187,4 +187,65 @@ def plot_sweep(table, traj: np.ndarray, *, target: Sequence[float], ax=None,
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.legend(fontsize=8, loc="best")
+    return fig
+
+
+def plot_basin(model: Model, *, target: Sequence[float], region, levels: Mapping[str, tuple]
+               = {}, fixed: Mapping[str, float] | None = None, n: int = 101, ax=None,
+               basin_grid=None) -> Figure:
+    """The true region of attraction (batched simulation on a grid) beside certified level sets.
+
+    Parameters
+    ----------
+    levels : dict
+        ``{label: (V, level)}``: each certified sublevel set ``{V <= level}`` (``V`` a candidate as
+        accepted by :func:`hybridnav.analysis.check_lyapunov`, ``None`` for the model's own) is
+        drawn as a contour (``level = inf``: the whole plot, noted in the legend).
+    basin_grid : tuple, optional
+        ``(xs, ys, converged)`` from :func:`hybridnav.analysis.roa.basin`, when already computed.
+    """
+    from matplotlib.colors import ListedColormap
+    from matplotlib.lines import Line2D
+
+    from hybridnav.analysis.roa import basin
+
+    box = as_box(model, region)
+    xs, ys, conv = basin_grid if basin_grid is not None else basin(
+        model, target=target, region=box, fixed=fixed, n=n)
+    XX, YY = np.meshgrid(xs, ys)
+    grid = np.zeros((XX.size, model.nx))
+    grid[:, 0], grid[:, 1] = XX.ravel(), YY.ravel()
+    for k, v in (fixed or {}).items():
+        grid[:, model.state_names.index(k)] = v
+    free = model.admissible(grid).reshape(XX.shape)
+    img = np.where(free, conv.astype(float), np.nan)
+    fig = Figure(figsize=(6.4, 5.6)) if ax is None else ax.figure
+    ax = ax or fig.add_subplot()
+    ax.pcolormesh(XX, YY, img, cmap=ListedColormap(["#d9d9d9", "#a6dba0"]), vmin=0, vmax=1,
+                  shading="auto")
+    handles = [Line2D([], [], color="#a6dba0", lw=8,
+                      label=f"converges in simulation ({100 * np.nanmean(img):.0f} % of the grid)"),
+               Line2D([], [], color="#d9d9d9", lw=8, label="does not converge")]
+    colors = ["k", "tab:blue", "tab:purple", "tab:red"]
+    for i, (label, (V, level)) in enumerate(levels.items()):
+        c = colors[i % len(colors)]
+        if level is None or not np.isfinite(level):
+            handles.append(Line2D([], [], color=c, lw=2, label=f"{label}: all of the plane"))
+            continue
+        _, v_num, _, _, _ = lyapunov_functions(model, V, target=target)
+        vals = np.asarray(cs.Function("V", [model.sym.x], [v_num]).map(len(grid))(grid.T))
+        vals = np.where(free.ravel(), vals.ravel(), np.nan).reshape(XX.shape)
+        if np.nanmin(vals) <= level <= np.nanmax(vals):
+            ax.contour(XX, YY, vals, levels=[level], colors=c, linewidths=1.8)
+        handles.append(Line2D([], [], color=c, lw=2, label=f"{label}: V <= {level:.4g}"))
+    for ox, oy, r in model.options.get("obstacles", ()):
+        ax.add_patch(CirclePatch((ox, oy), r, color="0.3", zorder=3))
+    ax.plot(*target, marker="*", color="gold", markersize=14, markeredgecolor="k")
+    ax.set_xlim(xs[0], xs[-1])
+    ax.set_ylim(ys[0], ys[-1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(f"{model.name}: region of attraction, simulated and certified")
+    ax.legend(handles=handles, loc="upper left", fontsize=7)
     return fig

@@ -12,11 +12,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from hybridnav import __version__, models
 from hybridnav.analysis.linearize import linearize, linearize_expression, summarize
 from hybridnav.analysis.lyapunov import check_lyapunov, find_equilibria
 from hybridnav.analysis.plots import (
+    plot_basin,
     plot_eigenvalues,
     plot_lbcs_field,
     plot_phase_portrait,
@@ -25,7 +27,7 @@ from hybridnav.analysis.plots import (
     plot_vdot_map,
     save_figure,
 )
-from hybridnav.analysis.roa import estimate_roa
+from hybridnav.analysis.roa import basin, estimate_roa, lyapunov_equation_candidate
 from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, dumps_json, json_ready
@@ -33,6 +35,9 @@ from hybridnav.fileio import atomic_write_text, dumps_json, json_ready
 log = logging.getLogger(__name__)
 
 __all__ = ["ANALYZABLE", "analyze"]
+
+#: initial trailer folds (theta1 - theta0, degrees) of the tractor-trailer sweep
+TRAILER_FOLDS_DEG = (0, 60, 90, 120, 150)
 
 #: Models ``analyze`` knows, and the scenario used when none is given.
 ANALYZABLE = {"point_mass": "fastep-s1", "unicycle": "effc-train-1",
@@ -89,6 +94,10 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     plot(plot_vdot_map(model, target=target, region=region, report=rep, fixed=fixed),
          "vdot_map.png")
 
+    if model_name == "unicycle":
+        say("LaSalle, polar error coordinates")
+        checks.append(_unicycle_lasalle(model, target, region))
+
     say("linearization")
     lin = _linearizations(model, target)
     reports = {k: v.pop("_report") for k, v in lin.items() if "_report" in v}
@@ -112,6 +121,32 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
         say("region of attraction")
         roa = estimate_roa(model, target=target, region=region, seed=seed)
         checks.append({**roa.to_dict(), "name": "region of attraction", "status": roa.status})
+        levels = {"certified, V": (None, roa.level)}
+        try:
+            V_lyap, P = lyapunov_equation_candidate(model, target)
+        except HybridnavError as exc:
+            checks.append({"name": "region of attraction (control.lyap candidate)",
+                           "status": "not_applicable", "reason": str(exc)})
+        else:
+            say("region of attraction, Lyapunov-equation candidate")
+            roa2 = estimate_roa(model, V_lyap, target=target, region=region, seed=seed)
+            checks.append({**roa2.to_dict(), "name": "region of attraction (control.lyap "
+                           "candidate)", "status": roa2.status, "P": P.tolist()})
+            levels["certified, V = dx' P dx (A'P + PA = -I)"] = (V_lyap, roa2.level)
+        say("basin of attraction (simulated)")
+        grid = basin(model, target=target, region=region, n=81)
+        rk4 = basin(model, target=target, region=region, n=81, method="simulated")[2]
+        share, share_rk4 = float(grid[2].mean()), float(rk4.mean())
+        checks.append({"name": "basin of attraction (simulated grid)",
+                       "status": "all_converge" if grid[2].all() else "partial",
+                       "grid": int(grid[2].size), "converged_share": share,
+                       "converged_share_rk4": share_rk4,
+                       "method": f"{grid[2].size} starts on an 81 x 81 grid over the workspace: "
+                                 f"{100 * share:.1f} % converge under the closed-loop ODE "
+                                 f"(CVODES), {100 * share_rk4:.1f} % under the simulated RK4 "
+                                 f"step at dt = {model.dt:g}"})
+        plot(plot_basin(model, target=target, region=region, levels=levels, basin_grid=grid),
+             "basin.png")
     if model_name == "lbcs":
         say("stationary points")
         eqs = find_equilibria(model, target=target, region=region, seed=seed)
@@ -139,6 +174,10 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     if "jackknife" in table:
         summary.update(jackknife=int(table["jackknife"].sum()),
                        max_gap=float(table["max_gap"].max()))
+    if "fold_deg" in table:
+        summary["by_fold"] = {str(int(f)): {"runs": int(len(g)), "reached": int(g["reached"].sum()),
+                                            "jackknife": int(g["jackknife"].sum())}
+                              for f, g in table.groupby("fold_deg")}
     checks.append({"name": "closed-loop sweep (V = 1/2 distance^2)" if model_name != "lbcs"
                    else "closed-loop sweep (V = L)",
                    "status": "all_monotone" if summary["V_monotone"] == summary["runs"]
@@ -156,6 +195,23 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     atomic_write_text(out / "analysis.json", dumps_json(result))
     atomic_write_text(out / "report.md", _markdown(result, table))
     return result
+
+
+def _unicycle_lasalle(model, target, region) -> dict[str, Any]:
+    """LaSalle's argument for V = 1/2 rho^2 on the polar error dynamics (smooth in rho, e)."""
+    import casadi as cs
+
+    from hybridnav.analysis.certificate import certify
+    from hybridnav.analysis.region import Box
+
+    z, zdot, names = model.polar_error_dynamics()
+    zdot = cs.substitute(zdot, model.sym.p, cs.DM(model.p_value()))
+    corners = [(region["x"][i], region["y"][j]) for i in (0, 1) for j in (0, 1)]
+    rmax = max(math.hypot(cx - target[0], cy - target[1]) for cx, cy in corners)
+    box = Box(names, np.array([0.0, -math.pi]), np.array([rmax, math.pi]))
+    cert = certify(z, zdot, 0.5 * z[0] ** 2, box, lasalle=True)
+    return {"name": "LaSalle: V = 1/2 rho^2 in polar error coordinates (rho, e)",
+            **cert.to_dict(), "method": cert.method}
 
 
 def _linearizations(model, target) -> dict[str, dict[str, Any]]:
@@ -205,6 +261,18 @@ def _sweep(model, target, region, scen):
     elif "theta0" in model.state_names:
         init = {"theta0": headings, "theta1": "theta0"}
     X0, starts = grid_starts(model, target, pos, init)
+    if "theta1" in model.state_names:
+        # the trailer also starts folded (theta1 = theta0 + fold), so the jackknife claims are
+        # checked here and not only with the trailer aligned
+        i1 = model.state_names.index("theta1")
+        parts, tables = [], []
+        for fold in TRAILER_FOLDS_DEG:
+            X = X0.copy()
+            X[:, i1] = X0[:, i1] + math.radians(fold)
+            parts.append(X)
+            tables.append(starts.assign(fold_deg=fold, theta1=starts["theta1"] + math.radians(fold)))
+        X0 = np.vstack(parts)
+        starts = pd.concat(tables, ignore_index=True)
     keep = model.admissible(X0)
     X0, starts = X0[keep], starts[keep].reset_index(drop=True)
     steps = min(scen.max_steps, 3000)
@@ -226,13 +294,23 @@ def _markdown(result: dict[str, Any], table) -> str:
                 how += f"; controllability rank {c['controllability_rank']} of {c['n_states']}"
             else:
                 how += "; no inputs (the closed loop): controllability does not apply"
-        if c["name"] == "region of attraction":
-            how = (f"level {c['level']:.6g} ({c['bounded_by']}); {c['converged']}/{c['simulated']}"
-                   f" simulated starts converged, {c['monotone']} monotone")
+        if c["name"].startswith("region of attraction") and "bounded_by" in c:
+            lev = "unbounded (the proof is global)" if c["level"] is None else \
+                f"level {c['level']:.6g} (bounded by: {c['bounded_by']})"
+            how = (f"{lev}; {c['converged']}/{c['simulated']} simulated starts converged, "
+                   f"{c['monotone']} monotone")
+            if c["details"].get("claim"):
+                how += f". Proved: {c['details']['claim']}"
+        if c.get("claim") and c["claim"] not in how:
+            how += f". Proved: {c['claim']}"
         if c["name"].startswith("closed-loop sweep"):
             how = f"{c['reached']}/{c['runs']} reached, {c['V_monotone']} with V monotone"
             if "jackknife" in c:
                 how += f", {c['jackknife']} jackknifed (max |th0 - th1| {c['max_gap']:.3f} rad)"
+            if "by_fold" in c:
+                how += "; by initial fold: " + ", ".join(
+                    f"{f} deg {v['reached']}/{v['runs']} reached, {v['jackknife']} jackknifed"
+                    for f, v in c["by_fold"].items())
         if c["name"].startswith("stationary points"):
             how = "; ".join(f"{p['kind']} at ({p['state'][0]:.4g}, {p['state'][1]:.4g})"
                             for p in c["points"]) or "none"
@@ -240,16 +318,23 @@ def _markdown(result: dict[str, Any], table) -> str:
             how = f"from {c['start']} it ends at {[round(v, 4) for v in c['final_state']]}"
         lines.append(f"| {c['name']} | **{c['status']}** | {how.replace('|', '/')} |")
     lines += ["", "What the Lyapunov statuses mean:", "",
-              "- **proved**: an exact argument (quadratic forms with definite Hessians, beyond a "
-              "stated tolerance): V > 0 and Vdot < 0 everywhere but the equilibrium.",
+              "- **proved**: an exact argument, and the row says what was proved on which set: "
+              "quadratic forms with definite Hessians beyond a stated tolerance (global); an "
+              "interval branch-and-bound certificate (V > 0 and Vdot < 0 on every box of the "
+              "set, the equilibrium's neighbourhood by interval bounds on the Hessians); or "
+              "LaSalle's invariance principle (Vdot <= 0 proved, and no trajectory can stay "
+              "where Vdot = 0, so trajectories end near V = 0).",
               "- **counterexample**: a state, re-evaluated, where V < 0 or Vdot >= 0 away from "
               "the equilibrium (its V and Vdot are printed).",
-              "- **no_counterexample**: dense sampling, an optimizer and the local check at the "
-              "equilibrium found none. Evidence, not a proof.",
+              "- **no_counterexample**: dense sampling, an optimizer, the local check at the "
+              "equilibrium and (up to 3 states) the certificate's branch and bound found none, "
+              "but the certificate did not close. Evidence, not a proof.",
               "- **undecided**: floating-point rounding would decide (an eigenvalue within the "
               "tolerance of zero); no claim is made.", "",
-              "The region of attraction's **proved** is the same kind of argument on the level "
-              "set it names; its simulated starts only confirm it.", ""]
+              "A region of attraction's **proved** is the same kind of argument on the level "
+              "set it names (the certificate route); its simulated starts only confirm it. The "
+              "basin row simulates a grid of starts: the true region of attraction, against "
+              "which the certified level sets are drawn in basin.png.", ""]
     lines += ["", "Plots: " + ", ".join(f"[{p}]({p})" for p in result["plots"]), ""]
     if "max_gap" in table:
         worst = table.sort_values("max_gap", ascending=False).head(10)

@@ -23,7 +23,7 @@ from hybridnav.models.base import Model
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RoaEstimate", "estimate_roa"]
+__all__ = ["RoaEstimate", "basin", "estimate_roa", "lyapunov_equation_candidate"]
 
 
 @dataclass
@@ -34,12 +34,15 @@ class RoaEstimate:
     ----------
     level : float
         ``Vdot < 0`` was found on ``{V <= level}`` away from the equilibrium (no counterexample by
-        sampling and IPOPT; ``proved`` when the check was exact).
+        sampling and IPOPT; ``proved`` when the quadratic route or the certificate closed);
+        ``inf`` when the proof is global.
     status : str
         The Lyapunov check's status at ``level``.
     bounded_by : str
-        ``"counterexample"`` (a state with ``Vdot >= 0`` just above ``level``), ``"box"`` (the level
-        set reaches the region's boundary) or ``"simulation"`` (a simulated start inside the
+        ``"none"`` (global proof), ``"counterexample"`` (a state with ``Vdot >= 0`` just above
+        ``level``), ``"equilibrium"`` (an equilibrium other than the target at ``V`` just above
+        ``level``), ``"box"`` (the level set reaches the boundary of the region, grown as far as
+        allowed) or ``"simulation"`` (a simulated start inside the
         level set did not converge; the level was lowered below where it ended).
     counterexample : ndarray or None
         The counterexample that bounds the level, if any.
@@ -64,7 +67,7 @@ class RoaEstimate:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
-        return {"level": self.level, "status": self.status, "bounded_by": self.bounded_by,
+        return {"level": self.level if np.isfinite(self.level) else None, "status": self.status, "bounded_by": self.bounded_by,
                 "counterexample": None if self.counterexample is None
                 else self.counterexample.tolist(),
                 "simulated": self.simulated, "converged": self.converged,
@@ -83,26 +86,46 @@ def estimate_roa(
     samples: int = 20_000,
     confirm: int = 200,
     horizon: float | None = None,
+    grow: int = 4,
+    certificate: bool | None = None,
 ) -> RoaEstimate:
     """Estimate the region of attraction of ``target`` as a sublevel set ``{V <= c}``.
 
-    Bisection on ``c`` between 0 and the smallest ``V`` on the region's boundary (so that the
-    level set stays inside the region): each candidate level is checked with
-    :func:`check_lyapunov` (sampling + multistart IPOPT). The final level is re-checked with
-    ``>= 1e5`` samples, then ``confirm`` starts sampled inside it are simulated with the model's
-    batched rollout for ``horizon`` seconds to confirm convergence and monotone decrease; a start
-    that does not converge lowers the level below ``V`` where it ended, and the check repeats.
+    1. When ``V`` is proved a Lyapunov function on the whole state space (the quadratic route),
+       the level is unbounded: ``level = inf``, ``bounded_by = "none"``.
+    2. Otherwise the level is bounded by what the sublevel set must not contain: states with
+       ``Vdot >= 0`` (bisection on ``c`` with :func:`check_lyapunov`, sampling + multistart IPOPT)
+       and equilibria other than the target (:func:`find_equilibria`: below the lowest ``V`` of
+       one). The region is only where the search looks: the models are defined beyond it, so
+       where the level set would reach the region's boundary the position bounds are doubled
+       about the target (up to ``grow`` times) before the boundary caps the level
+       (``bounded_by = "box"``).
+    3. The final level is checked with the certificate route (interval branch and bound), so its
+       status is ``proved`` when the certificate closes; then ``confirm`` starts sampled inside it
+       are simulated with the model's batched rollout for ``horizon`` seconds to confirm
+       convergence and monotone decrease; a start that does not converge lowers the level below
+       ``V`` where it ended, and the check repeats.
 
     Parameters
     ----------
     rtol : float
-        Bisection stops when the bracket is narrower than ``rtol`` times the upper bound.
+        Bisection stops when the bracket is narrower than ``rtol`` times the upper bound; levels
+        below an equilibrium's ``V`` are that ``V`` times ``1 - rtol``.
     samples : int
         Samples per bisection step.
     confirm : int
         Number of simulated starts.
     horizon : float, optional
-        Simulated time (default: ``20 / (smallest decay rate seen)``, capped at 10000 steps).
+        Simulated time (default: 10000 control cycles).
+    grow : int
+        How many times the position bounds may double about the target.
+    certificate : bool, optional
+        Check the final level with the certificate route (default: up to 3 states).
+
+    Returns
+    -------
+    RoaEstimate
+        ``details["region"]`` is the region the level refers to (grown or not).
     """
     orig = model
     if params:
@@ -110,25 +133,53 @@ def estimate_roa(
         if isinstance(V, cs.SX):          # built from the caller's model.sym: move it over
             V = _candidate(model, V, orig)
     box = as_box(model, region)
-    _, v_num, _, _, _ = lyapunov_functions(model, V, target=target)
+    _, v_num, _, v_sym, _ = lyapunov_functions(model, V, target=target)
     vfun = cs.Function("V", [model.sym.x], [v_num])
     rng = np.random.default_rng(seed)
     step = _discrete_check(model, vfun, v_num, box, target, rng)
+    details: dict[str, Any] = {"discrete_step": step}
+    check: dict[str, Any] = {"target": target, "seed": seed}
+    full = check_lyapunov(model, V, region=box, certificate=False, **check)
+    if full.status == "proved" and full.route == "quadratic":
+        sim = _confirm(model, vfun, box, target, np.inf, confirm, rng, horizon)
+        details.update(region=box.to_dict(), claim=full.claim, **sim.get("details", {}))
+        return RoaEstimate(level=np.inf, status="proved", bounded_by="none", counterexample=None,
+                           simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
+                           monotone=sim.get("monotone", 0), details=details)
+    grad_flow = is_gradient_flow(model, v_sym)
     c_box = _min_on_boundary(model, vfun, box, rng)
-    check: dict[str, Any] = {"target": target, "region": box, "seed": seed}
-    _, _, _, v_sym, _ = lyapunov_functions(model, V, target=target)
-    if is_gradient_flow(model, v_sym):     # its stationary points, found once for every level
-        check["equilibria"] = find_equilibria(model, target=target, region=box, seed=seed)
-    full = check_lyapunov(model, V, level=c_box, **check)
-    if full.status != "counterexample":
-        level, status, bounded, cex = c_box, full.status, "box", None
-    else:
-        lo, hi, cex = 0.0, c_box, full.counterexample
+    eqs = find_equilibria(model, target=target, region=box, seed=seed)
+    c_eq = _lowest_other(eqs, vfun)
+    grown = 0
+    while grown < grow and c_box < c_eq:
+        wider = _doubled(box, target)
+        c_wide = _min_on_boundary(model, vfun, wider, rng)
+        if not c_wide > c_box * (1 + rtol):
+            break
+        box, c_box, grown = wider, c_wide, grown + 1
+    if grown:                            # the grown region may hold other equilibria
+        eqs = find_equilibria(model, target=target, region=box, seed=seed)
+        c_eq = _lowest_other(eqs, vfun)
+    details.update(boundary_level=float(c_box), grown=grown, region=box.to_dict())
+    if np.isfinite(c_eq):
+        details["equilibrium_level"] = float(c_eq)
+    check["region"] = box
+    if grad_flow:
+        check["equilibria"] = eqs
+    top = min(c_box, c_eq * (1 - rtol))
+    bounded = "box" if c_box <= c_eq * (1 - rtol) else "equilibrium"
+    cex = None if bounded == "box" else min(
+        (e for e in eqs if not e.is_target), key=lambda e: _v_at(vfun, e.state)).state
+    first = check_lyapunov(model, V, level=top, certificate=False, **check)
+    level, status = top, first.status
+    if first.status == "counterexample":
+        lo, hi, cex = 0.0, top, first.counterexample
         status = "no_counterexample"
         while hi - lo > rtol * hi:
             mid = (lo + hi) / 2
             try:
-                rep = check_lyapunov(model, V, level=mid, samples=samples, starts=8, **check)
+                rep = check_lyapunov(model, V, level=mid, samples=samples, starts=8,
+                                     certificate=False, **check)
             except HybridnavError as exc:   # no sampled state below a tiny level: go up
                 log.debug("level %g: %s", mid, exc)
                 lo = mid
@@ -138,8 +189,17 @@ def estimate_roa(
             else:
                 lo, status = mid, rep.status
         level, bounded = lo, "counterexample"
-        if level > 0:
-            status = check_lyapunov(model, V, level=level, **check).status
+    final = None
+    for _ in range(10):
+        if not level > 0:
+            break
+        final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
+        status = final.status
+        if status != "counterexample":
+            break
+        # the certificate found what the bisection's sampling missed: go below it
+        cex, bounded = final.counterexample, "counterexample"
+        level = min(level, final.details.get("counterexample_V", level)) * (1 - rtol)
     sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon) if level > 0 else {}
     for _ in range(5):
         # a start inside {V <= level} that did not converge ended near a state with Vdot >= 0
@@ -149,13 +209,184 @@ def estimate_roa(
             break
         bounded, cex = "simulation", sim["stuck_state"]
         level = float(np.min(stuck)) * (1 - rtol)
-        status = check_lyapunov(model, V, level=level, **check).status
+        final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
+        status = final.status
         sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon)
+    if final is not None:
+        details.update(claim=final.claim, route=final.route, method=final.method)
     return RoaEstimate(level=float(level), status=status, bounded_by=bounded, counterexample=cex,
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
-                       details={"boundary_level": float(c_box), "discrete_step": step,
-                                **sim.get("details", {})})
+                       details={**details, **sim.get("details", {})})
+
+
+def _v_at(vfun, state) -> float:
+    return float(np.asarray(vfun(state)).item())
+
+
+def _lowest_other(eqs, vfun) -> float:
+    """The lowest V (the candidate's) at an equilibrium other than the target (inf: none)."""
+    others = [_v_at(vfun, e.state) for e in eqs if not e.is_target]
+    others = [v for v in others if np.isfinite(v)]
+    return float(min(others)) if others else np.inf
+
+
+def _doubled(box: Box, target) -> Box:
+    """The box with its position bounds (the first two states) twice as far from the target."""
+    t = np.asarray(target, dtype=float)
+    lower, upper = box.lower.copy(), box.upper.copy()
+    lower[:2] = t - 2 * (t - lower[:2])
+    upper[:2] = t + 2 * (upper[:2] - t)
+    return Box(box.names, lower, upper)
+
+
+def lyapunov_equation_candidate(model: Model, target: Sequence[float], Q=None,
+                                params: Mapping[str, float] | None = None):
+    """A quadratic candidate from the linearization at the target: ``V = dx' P dx``.
+
+    ``P`` solves the Lyapunov equation ``A' P + P A = -Q`` (``control.lyap``) for the closed
+    loop's Jacobian ``A`` at ``x* = target`` (the model's remaining states at 0), so that
+    ``Vdot = -dx' Q dx + O(|dx|^3)`` near the target.
+
+    Parameters
+    ----------
+    model : Model
+    target : (2,) array_like
+    Q : (nx, nx) array_like, optional
+        Symmetric positive definite weight (default: the identity).
+    params : dict, optional
+        Parameter overrides.
+
+    Returns
+    -------
+    V : casadi.SX
+        In ``model.sym.x`` (of ``model`` with ``params`` applied).
+    P : ndarray
+
+    Raises
+    ------
+    HybridnavError
+        When ``A`` is not Hurwitz (no positive definite solution) or ``Q`` is not symmetric
+        positive definite.
+    """
+    import control
+
+    from hybridnav.analysis.linearize import linearize
+
+    if params:
+        model = model.with_params(**params)
+    x0 = np.zeros(model.nx)
+    x0[:2] = np.asarray(target, dtype=float)
+    A = np.asarray(linearize(model, x0, target=target).A, dtype=float)
+    Q = np.eye(model.nx) if Q is None else np.asarray(Q, dtype=float)
+    if Q.shape != A.shape or not np.allclose(Q, Q.T) or np.linalg.eigvalsh(Q).min() <= 0:
+        raise HybridnavError(f"Q: expected a symmetric positive definite {A.shape} matrix")
+    eig = np.linalg.eigvals(A)
+    if not np.all(eig.real < 0):
+        raise HybridnavError(
+            f"model {model.name}: the linearization at the target is not Hurwitz (eigenvalues "
+            f"{np.round(eig, 6).tolist()}): A' P + P A = -Q has no positive definite solution")
+    P = np.asarray(control.lyap(A.T, Q), dtype=float)
+    P = (P + P.T) / 2
+    dx = model.sym.x - cs.DM(x0)
+    return cs.mtimes([dx.T, cs.DM(P), dx]), P
+
+
+def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, float] | None
+          = None, n: int = 101, horizon: float | None = None, radius: float | None = None,
+          method: str = "continuous"):
+    """The true region of attraction on a grid of the first two states, by batched simulation.
+
+    Every grid point (the other states from ``fixed``, default 0; inadmissible points excluded)
+    is simulated for ``horizon`` seconds (default ``20000 dt``); it *converged* when it ends within
+    ``radius`` of the target (default 1e-3 of the region's diagonal).
+
+    Parameters
+    ----------
+    method : str
+        ``"continuous"`` (default): the closed-loop ODE, the system the Lyapunov certificates are
+        about, integrated by CVODES (CasADi's ``integrator``, tolerances 1e-7 relative and 1e-9
+        absolute) mapped over the grid on two threads. ``"simulated"``: the model's own RK4
+        control cycle at ``model.dt``, what the planners run (it can differ: large steps near
+        LbCS obstacles jump where the flow would not go).
+
+    Returns
+    -------
+    xs, ys : (n,) arrays
+    converged : (n, n) bool array, indexed ``[iy, ix]``
+    """
+    if method not in ("continuous", "simulated"):
+        raise HybridnavError(f"method: expected 'continuous' or 'simulated', got {method!r}")
+    box = as_box(model, region)
+    xs = np.linspace(box.lower[0], box.upper[0], n)
+    ys = np.linspace(box.lower[1], box.upper[1], n)
+    X, Y = np.meshgrid(xs, ys)
+    Z = np.zeros((X.size, model.nx))
+    Z[:, 0], Z[:, 1] = X.ravel(), Y.ravel()
+    for name, value in (fixed or {}).items():
+        Z[:, model.state_names.index(name)] = value
+    t = np.asarray(target, dtype=float)
+    tg = np.tile(t, (len(Z), 1))
+    Z = model.retarget(Z, tg)
+    r = radius if radius is not None else 1e-3 * float(np.hypot(*(box.upper[:2] - box.lower[:2])))
+    T = 20_000 * model.dt if horizon is None else float(horizon)
+    ok = model.admissible(Z)
+    idx = np.flatnonzero(ok)
+    end = np.full_like(Z, np.nan)
+    if method == "continuous":
+        end[idx] = _integrate(model, t, Z[idx], T)
+    else:
+        end[idx] = _rk4_ends(model, t, Z[idx], int(np.ceil(T / model.dt)), box, r)
+    with np.errstate(invalid="ignore"):
+        done = np.hypot(end[:, 0] - t[0], end[:, 1] - t[1]) <= r
+    return xs, ys, (done & ok).reshape(n, n)
+
+
+def _integrate(model: Model, target, Z: np.ndarray, T: float) -> np.ndarray:
+    """End states of the closed-loop ODE from each row of ``Z`` after ``T`` seconds (CVODES)."""
+    s = model.sym
+    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p),
+                      cs.DM(np.concatenate([target, model.p_value()])))
+    opts = {"abstol": 1e-9, "reltol": 1e-7, "max_num_steps": 200_000}
+    integ = cs.integrator("basin", "cvodes", {"x": s.x, "ode": f}, 0.0, T, opts)
+    if not len(Z):
+        return Z.copy()
+    try:
+        return np.asarray(integ.map(len(Z), "thread", 2)(x0=Z.T)["xf"]).T
+    except RuntimeError:              # one start failed (a singular state): integrate one by one
+        out = np.full_like(Z, np.nan)
+        for i, z in enumerate(Z):
+            try:
+                out[i] = np.asarray(integ(x0=z)["xf"]).ravel()
+            except RuntimeError:
+                pass
+        return out
+
+
+def _rk4_ends(model: Model, target, Z: np.ndarray, steps: int, box: Box, radius: float
+              ) -> np.ndarray:
+    """End states of the simulated (RK4) loop; a run that enters an inadmissible state ends
+    there (NaN). Chunks of cycles; runs that arrived or stopped moving are dropped early."""
+    Z = Z.copy()
+    tg = np.tile(target, (len(Z), 1))
+    span = float(np.max(box.upper - box.lower)) or 1.0
+    r = 1e-9 * span
+    active = np.arange(len(Z))
+    chunk, done_steps = 200, 0
+    with np.errstate(all="ignore"):
+        while len(active) and done_steps < steps:
+            k = min(chunk, steps - done_steps)
+            traj = model.rollout(Z[active], tg[active], k)
+            hit = ~model.admissible(traj.reshape(-1, model.nx)).reshape(len(active), -1).all(1)
+            Z[active] = traj[:, -1]
+            Z[active[hit]] = np.nan
+            done_steps += k
+            last = traj[:, -1]
+            still = np.max(np.abs(last - traj[:, max(0, k - 100)]), axis=1) < r
+            lost = hit | ~np.all(np.isfinite(last), axis=1)
+            arrived = np.hypot(last[:, 0] - target[0], last[:, 1] - target[1]) <= radius
+            active = active[~(still | lost | arrived)]
+    return Z
 
 
 def _discrete_check(model, vfun, v_num, box: Box, target, rng) -> dict[str, Any]:
@@ -214,9 +445,10 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon) -> dict[str,
     traj = model.rollout(X0, tgt, min(steps, 10_000))
     flat = traj.reshape(-1, model.nx)
     V = np.asarray(vfun.map(len(flat))(flat.T)).reshape(len(X0), -1)
-    slack = 1e-9 * max(level, 1e-300)
+    ref = level if np.isfinite(level) else float(np.max(V[:, 0]))   # global: the largest start
+    slack = 1e-9 * max(ref, 1e-300)
     monotone = np.all(np.diff(V, axis=1) <= slack, axis=1)
-    converged = V[:, -1] <= 1e-3 * level
+    converged = V[:, -1] <= 1e-3 * ref
     lowest = int(np.argmin(np.where(converged, np.inf, V[:, -1])))
     return {"stuck_V": V[~converged, -1], "stuck_state": traj[lowest, -1],
             "simulated": len(X0), "converged": int(converged.sum()),

@@ -210,6 +210,9 @@ class Model(ABC):
     description: ClassVar[str] = ""
     plant_state_names: ClassVar[tuple[str, ...]] = ()
     controller_state_names: ClassVar[tuple[str, ...]] = ()
+    #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces
+    #: -pi and pi of a region spanning a whole turn)
+    angle_state_names: ClassVar[tuple[str, ...]] = ()
     input_names: ClassVar[tuple[str, ...]] = ()
     defaults: ClassVar[dict[str, float]] = {}
     param_docs: ClassVar[dict[str, str]] = {}

@@ -38,6 +38,7 @@ class Unicycle(Model):
     name = "unicycle"
     description = "differential drive (TurtleBot3-like), wheel speeds vl, vr"
     plant_state_names = ("x", "y", "theta")
+    angle_state_names = ("theta",)
     input_names = ("vl", "vr")
     defaults = {
         "L": 0.16,

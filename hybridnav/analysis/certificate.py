@@ -1,0 +1,474 @@
+"""Proofs of Lyapunov conditions on a region by interval branch and bound.
+
+:func:`certify` proves, for ``xdot = f(x)``, a candidate ``V`` and the set
+``K = box ∩ {V <= level} ∩ {g(x) > 0}`` (``g``: the model's admissibility constraints), one of:
+
+strict (Lyapunov)
+    ``V > 0`` and ``Vdot < 0`` on ``K`` except at the equilibrium ``x*``. Boxes are split until, on
+    each, interval arithmetic (:class:`~hybridnav.analysis.interval.IntervalFunction`) shows the
+    box outside the free space (``g <= 0``), outside the level set (``V > level``), or
+    ``V > 0`` and ``Vdot < 0`` on all of it. Near ``x*``, where ``Vdot`` vanishes, a small box
+    ``B`` around ``x*`` is handled by the linearization: with interval enclosures of the Hessians
+    of ``V`` and ``Vdot`` over ``B`` (positive / negative definite for every matrix in them, by
+    the eigenvalues of the midpoint matrix and the norm of the radius matrix) and of their values
+    and gradients at ``x*``, Taylor's theorem gives ``V > 0 > Vdot`` on ``B`` outside a radius
+    ``r0`` (zero when ``V``, ``Vdot`` and their gradients vanish exactly at ``x*``).
+LaSalle
+    ``Vdot <= 0`` on ``K`` (``V`` need not be positive definite), and every box either has ``Vdot < 0`` or a Lie derivative
+    ``L_f^k Vdot`` (``k = 1..K``) that is nonzero throughout, so no trajectory can stay in
+    ``{Vdot = 0}`` there; boxes inside ``{V < eps}`` are left out. By LaSalle's invariance principle
+    every trajectory that starts in ``K`` (when ``K`` is positively invariant) ends in ``{V < eps}``.
+
+Invariance of ``K`` is checked on the box's faces: on each face either ``V > level``, the state is
+outside the free space, or the flow points into the box (``f_i >= 0`` on a lower face, ``<= 0`` on
+an upper one) — with ``Vdot <= 0`` inside, no trajectory leaves ``K`` (Nagumo's theorem). Faces of
+coordinates declared periodic (an angle spanning a whole turn) are skipped.
+
+A box that cannot be decided down to ``min_width`` is *undecided*; its centre is evaluated, and a
+centre that violates the condition is returned as a counterexample (re-evaluated in floating point).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as cs
+import numpy as np
+
+from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+from hybridnav.analysis.region import Box
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Certificate", "certify"]
+
+
+@dataclass
+class Certificate:
+    """What :func:`certify` established.
+
+    Attributes
+    ----------
+    status : str
+        ``"proved"``, ``"counterexample"`` or ``"undecided"`` (``"not_applicable"`` when an
+        operation has no interval extension).
+    claim : str
+        What was proved and on which set (empty unless ``status == "proved"``).
+    method : str
+        How: the number of boxes, the local ball, the faces.
+    counterexample : ndarray or None
+        A state violating the condition (from an undecided box's centre).
+    invariant : bool or None
+        Whether the faces showed ``K`` positively invariant (None: not checked).
+    boxes : int
+        Boxes evaluated.
+    undecided : int
+        Boxes left undecided (at ``min_width`` or when the budget ran out).
+    details : dict
+        The ball (centre, half-widths, ``r0``), counts per reason, undecided boxes (a few).
+    """
+
+    status: str
+    claim: str
+    method: str
+    counterexample: np.ndarray | None = None
+    invariant: bool | None = None
+    boxes: int = 0
+    undecided: int = 0
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        from hybridnav.fileio import json_ready
+
+        return json_ready({"status": self.status, "claim": self.claim, "method": self.method,
+                           "counterexample": None if self.counterexample is None
+                           else self.counterexample.tolist(),
+                           "invariant": self.invariant, "boxes": self.boxes,
+                           "undecided": self.undecided, "details": self.details})
+
+
+def certify(
+    x: cs.SX,
+    f: cs.SX,
+    V: cs.SX,
+    box: Box,
+    *,
+    level: float | None = None,
+    constraints: cs.SX | None = None,
+    center: np.ndarray | None = None,
+    lasalle: bool = False,
+    lie_order: int = 3,
+    eps: float | None = None,
+    periodic: Sequence[int] = (),
+    ball: float = 1e-3,
+    max_boxes: int = 300_000,
+    batch: int = 4096,
+    min_width: float = 1e-9,
+    faces: bool = True,
+) -> Certificate:
+    """Prove the Lyapunov (or LaSalle) conditions on ``K = box ∩ {V <= level} ∩ {g > 0}``.
+
+    Parameters
+    ----------
+    x : casadi.SX
+        State symbols (a column of ``nx``).
+    f : casadi.SX
+        The closed loop ``xdot = f(x)``, in ``x`` only (parameters substituted).
+    V : casadi.SX
+        The candidate, in ``x`` only.
+    box : Box
+        The region.
+    level : float, optional
+        Restrict to ``{V <= level}``.
+    constraints : casadi.SX, optional
+        ``g(x)``; only states with every ``g_j > 0`` count (the model's free space).
+    center : array_like, optional
+        The equilibrium ``x*`` (strict route: the local ball sits there).
+    lasalle : bool
+        Prove ``Vdot <= 0`` and LaSalle's condition instead of strict decrease.
+    lie_order : int
+        Highest Lie derivative of ``Vdot`` used by the LaSalle route.
+    eps : float, optional
+        LaSalle route: boxes inside ``{V < eps}`` are left out (default ``1e-6`` times ``level``,
+        or times the largest ``V`` on the box's corners).
+    periodic : sequence of int
+        Coordinates whose faces are identified (angles over a whole turn): no face check.
+    ball : float
+        Half-width of the local box around ``center``, as a fraction of each side of ``box``.
+    max_boxes : int
+        Budget of evaluated boxes.
+    batch : int
+        Boxes evaluated per vectorized call.
+    min_width : float
+        Boxes narrower than this (relative to the box's sides) are not split further.
+    faces : bool
+        Check the faces for positive invariance.
+
+    Returns
+    -------
+    Certificate
+    """
+    nx = int(x.numel())
+    g = cs.SX(0, 1) if constraints is None else cs.vec(cs.SX(constraints))
+    ng = int(g.numel())
+    vdot = cs.jtimes(V, x, f)
+    outs = [V, vdot, g, f]
+    lie = []
+    if lasalle:
+        d = vdot
+        for _ in range(lie_order):
+            d = cs.jtimes(d, x, f)
+            lie.append(d)
+        outs += lie
+    try:
+        F = IntervalFunction(x, outs)
+    except UnsupportedOperation as exc:
+        return Certificate("not_applicable", "", f"interval arithmetic: {exc}")
+    point = cs.Function("point", [x], [V, vdot, g, f])
+    iv, idot = 0, 1
+    ig = slice(2, 2 + ng)
+    if_ = slice(2 + ng, 2 + ng + nx)
+    il = slice(2 + ng + nx, 2 + ng + nx + len(lie))
+    clamp = {2 + j: (0.0, np.inf) for j in range(ng)}
+    lower, upper = box.lower.astype(float), box.upper.astype(float)
+    width = np.where(upper > lower, upper - lower, 1.0)
+    cap = np.inf if level is None else float(level)
+
+    # Vdot's scale, for what counts as zero to rounding at a sampled state (LaSalle's counterexample
+    # needs Vdot clearly positive)
+    probe = box.sample(1024, np.random.default_rng(0))
+    dprobe = np.asarray(point.map(len(probe))(probe.T)[1]).ravel()
+    dprobe = dprobe[np.isfinite(dprobe)]
+    zero_tol = 1e-12 * max(1.0, float(np.max(np.abs(dprobe))) if len(dprobe) else 1.0)
+    details: dict[str, Any] = {"region": box.to_dict(), "level": level, "zero_tol": zero_tol,
+                               "route": "lasalle" if lasalle else "strict"}
+    # ---- the local ball around x*
+    local = None
+    if center is not None and not lasalle:
+        local = _local_ball(x, V, vdot, np.asarray(center, dtype=float), width * ball, lower,
+                            upper)
+        details["ball"] = local["details"]
+        if not local["ok"]:
+            local = None
+    if lasalle:
+        if eps is None:
+            corners = _corners(lower, upper)
+            vc = np.asarray(cs.Function("v", [x], [V]).map(len(corners))(corners.T)).ravel()
+            top = cap if np.isfinite(cap) else float(np.nanmax(np.abs(vc)))
+            eps = 1e-6 * max(top, 1e-300)
+        details["eps"] = eps
+
+    # ---- the queue: the interior box, and the faces (tag 2 i + side), as arrays
+    los, his, tags = [lower[None]], [upper[None]], [np.array([-1])]
+    if faces:
+        for i in range(nx):
+            if i in periodic or upper[i] == lower[i]:
+                continue
+            for side, val in ((0, lower[i]), (1, upper[i])):
+                lo_f, hi_f = lower.copy(), upper.copy()
+                lo_f[i] = hi_f[i] = val
+                los.append(lo_f[None])
+                his.append(hi_f[None])
+                tags.append(np.array([2 * i + side]))
+    stack = [(np.vstack(los), np.vstack(his), np.concatenate(tags))]
+    counts = {"outside_free_space": 0, "outside_level": 0, "local_ball": 0, "decreasing": 0,
+              "lasalle_lie": 0, "eps_set": 0, "face_above_level": 0, "face_inward": 0}
+    evaluated = 0
+    leftovers: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    face_cex = None
+    cex = None
+    while stack and evaluated < max_boxes:
+        lo, hi, tag = _take(stack, batch)
+        evaluated += len(lo)
+        ol, oh, _ = F(lo, hi, clamp)
+        v_lo, v_hi = ol[:, iv], oh[:, iv]
+        d_hi = oh[:, idot]
+        done = np.zeros(len(lo), dtype=bool)
+        if ng:
+            out = np.any(oh[:, ig] <= 0, axis=1)
+            counts["outside_free_space"] += int(out.sum())
+            done |= out
+        above = ~done & (v_lo > cap)
+        is_face = tag >= 0
+        counts["outside_level"] += int((above & ~is_face).sum())
+        counts["face_above_level"] += int((above & is_face).sum())
+        done |= above
+        # faces: the flow points into the box
+        if is_face.any():
+            dim, side = tag // 2, tag % 2
+            rows = np.flatnonzero(is_face & ~done)
+            fl, fh = ol[rows, if_][np.arange(len(rows)), dim[rows]], \
+                oh[rows, if_][np.arange(len(rows)), dim[rows]]
+            inward = np.where(side[rows] == 0, fl >= 0, fh <= 0)
+            done[rows[inward]] = True
+            counts["face_inward"] += int(inward.sum())
+        interior = ~is_face & ~done
+        if local is not None:
+            inside = interior & np.all((lo >= local["lo"]) & (hi <= local["hi"]), axis=1)
+            counts["local_ball"] += int(inside.sum())
+            done |= inside
+            interior &= ~inside
+        if lasalle:
+            small = interior & (v_hi < eps)
+            counts["eps_set"] += int(small.sum())
+            done |= small
+            interior &= ~small
+            strict = interior & (d_hi < 0)
+            nonzero = np.zeros(len(lo), dtype=bool)
+            for k in range(len(lie)):
+                lk_lo, lk_hi = ol[:, il][:, k], oh[:, il][:, k]
+                nonzero |= (lk_lo > 0) | (lk_hi < 0)
+            leaves = interior & ~strict & (d_hi <= 0) & nonzero
+            counts["decreasing"] += int(strict.sum())
+            counts["lasalle_lie"] += int(leaves.sum())
+            done |= strict | leaves
+        else:
+            ok = interior & (v_lo > 0) & (d_hi < 0)
+            counts["decreasing"] += int(ok.sum())
+            done |= ok
+        rest = np.flatnonzero(~done)
+        if not len(rest):
+            continue
+        lo, hi, tag = lo[rest], hi[rest], tag[rest]
+        # a centre that violates the condition is a counterexample
+        mid = (lo + hi) / 2
+        bad, bad_face = _violations(point, mid, tag, ng, cap, center, width, lasalle, local,
+                                    zero_tol)
+        if bad is not None:
+            cex = mid[bad]
+            break
+        if bad_face is not None and face_cex is None:
+            face_cex = mid[bad_face]
+        rel = (hi - lo) / width
+        tiny = rel.max(axis=1) < min_width
+        if tiny.any():
+            leftovers.append((lo[tiny], hi[tiny], tag[tiny]))
+        keep = ~tiny
+        if keep.any():
+            stack.append(_bisect(lo[keep], hi[keep], tag[keep], rel[keep]))
+    remaining = sum(len(s[0]) for s in stack)
+    undecided = remaining + sum(len(s[0]) for s in leftovers)
+    faces_undecided = sum(int(np.sum(s[2] >= 0)) for s in stack + leftovers)
+    details.update(counts=counts, boxes=evaluated, budget=max_boxes, min_width=min_width,
+                   undecided_faces=faces_undecided)
+    if leftovers or stack:
+        sample = np.vstack([s[0] for s in (leftovers + stack)][:1] or [np.empty((0, nx))])[:5]
+        details["undecided_examples_lo"] = sample.tolist()
+    invariant = None
+    if faces:
+        invariant = face_cex is None and faces_undecided == 0
+        if face_cex is not None:
+            details["face_counterexample"] = face_cex.tolist()
+    where = _set_text(box, level, ng)
+    if cex is not None:
+        v, d = (float(a) for a in np.asarray(point(cex)[:2]).ravel()[:2])
+        return Certificate("counterexample", "", f"interval branch and bound: after {evaluated} "
+                           f"boxes, the centre of an undecided box violates the condition "
+                           f"(V = {v:.6g}, Vdot = {d:.6g})", counterexample=np.asarray(cex),
+                           invariant=invariant, boxes=evaluated, undecided=undecided,
+                           details=details)
+    interior_left = undecided - faces_undecided
+    if interior_left:
+        why = "the budget ran out" if stack else f"boxes reached the minimum width {min_width:g}"
+        return Certificate("undecided", "", f"interval branch and bound: {interior_left} of "
+                           f"{evaluated} boxes undecided ({why})", invariant=invariant,
+                           boxes=evaluated, undecided=undecided, details=details)
+    ball_text = ""
+    if local is not None:
+        r0 = local["details"]["r0"]
+        ball_text = (f"; within the box |x - x*| <= {np.array2string(local['half'], precision=3)}"
+                     f" around x* = {np.array2string(local['center'], precision=6)} by the "
+                     f"interval Hessians (Taylor), outside the radius r0 = {r0:.3g} of x*")
+    inv_text = {True: "; K is positively invariant (faces: V > level or the flow points "
+                      "inward)",
+                False: "; positive invariance of K was not shown on the faces",
+                None: ""}[invariant]
+    if lasalle:
+        claim = (f"Vdot <= 0 on K = {where}, and outside {{V < {eps:.3g}}} no trajectory stays "
+                 f"in {{Vdot = 0}} (Vdot < 0 or a Lie derivative L_f^k Vdot, k <= {len(lie)}, is "
+                 f"nonzero): by LaSalle's invariance principle every trajectory starting in K "
+                 f"ends in {{V < {eps:.3g}}}{inv_text}")
+    else:
+        claim = (f"V > 0 and Vdot < 0 on K = {where}, except at x*{ball_text}{inv_text}")
+    method = (f"interval branch and bound over {evaluated} boxes "
+              f"({', '.join(f'{k} {v}' for k, v in counts.items() if v)})")
+    return Certificate("proved", claim, method, invariant=invariant, boxes=evaluated,
+                       undecided=undecided, details=details)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _take(stack, n):
+    """Up to ``n`` boxes from the top of the stack (depth first)."""
+    lo, hi, tag = stack.pop()
+    if len(lo) > n:
+        stack.append((lo[n:], hi[n:], tag[n:]))
+        lo, hi, tag = lo[:n], hi[:n], tag[:n]
+    return lo, hi, tag
+
+
+def _bisect(lo, hi, tag, rel):
+    """Split each box in two across its widest side (relative to the region)."""
+    k = np.argmax(rel, axis=1)
+    r = np.arange(len(lo))
+    mid = (lo[r, k] + hi[r, k]) / 2
+    lo2, hi1 = lo.copy(), hi.copy()
+    hi1[r, k] = mid
+    lo2[r, k] = mid
+    return (np.vstack([lo, lo2]), np.vstack([hi1, hi]), np.concatenate([tag, tag]))
+
+
+def _violations(point, mid, tag, ng, cap, center, width, lasalle, local, zero_tol):
+    """Index of an interior centre violating the condition, and of a face centre (inside the
+    level set and the free space) where the flow leaves the box; None where there is none."""
+    nx = mid.shape[1]
+    out = point.map(len(mid))(mid.T)
+    v = np.asarray(out[0]).ravel()
+    d = np.asarray(out[1]).ravel()
+    free = np.ones(len(mid), dtype=bool)
+    if ng:
+        free = np.all(np.asarray(out[2]).reshape(ng, -1) > 0, axis=0)
+    inside = free & np.isfinite(v) & (v <= cap)
+    away = np.ones(len(mid), dtype=bool)
+    if center is not None:
+        away = np.max(np.abs(mid - center) / width, axis=1) > 1e-9
+    if local is not None:
+        away &= ~np.all((mid >= local["lo"]) & (mid <= local["hi"]), axis=1)
+    violated = (d > zero_tol) if lasalle else ((v <= 0) | (d >= 0))
+    bad = np.flatnonzero((tag < 0) & inside & away & violated & ~np.isnan(d))
+    fv = np.asarray(out[3]).reshape(nx, -1).T
+    rows = np.flatnonzero((tag >= 0) & inside)
+    dim, side = tag[rows] // 2, tag[rows] % 2
+    fi = fv[rows, dim]
+    leaving = rows[np.where(side == 0, fi < 0, fi > 0)]
+    return (int(bad[0]) if len(bad) else None), (int(leaving[0]) if len(leaving) else None)
+
+
+def _local_ball(x, V, vdot, center, half, lower, upper) -> dict[str, Any]:
+    """The Taylor argument on the box ``center +- half`` (shrunk up to 3 times by 10)."""
+    nx = int(x.numel())
+    HV, gV = cs.hessian(V, x)
+    HD, gD = cs.hessian(vdot, x)
+    F = IntervalFunction(x, [V, gV, HV, vdot, gD, HD])
+    c = center[None]
+    pl, ph, _ = F(c, c)
+    info: dict[str, Any] = {"center": center.tolist()}
+    for shrink in range(4):
+        h = half / 10.0 ** shrink
+        lo = np.maximum(center - h, lower)[None]
+        hi = np.minimum(center + h, upper)[None]
+        ol, oh, smooth = F(lo, hi)
+        if not smooth[0]:
+            info.update(ok=False, reason="V or Vdot is not smooth on the ball")
+            continue
+        m_v = _min_eig(ol[0, 1 + nx:1 + nx + nx * nx], oh[0, 1 + nx:1 + nx + nx * nx], nx)
+        base = 2 + 2 * nx + nx * nx
+        m_d = -_max_eig(ol[0, base:], oh[0, base:], nx)
+        if not (m_v > 0 and m_d > 0):
+            info.update(ok=False, reason=f"Hessian bounds not definite (V: {m_v:.3g}, "
+                                         f"-Vdot: {m_d:.3g})")
+            continue
+        gv = float(np.linalg.norm(np.maximum(np.abs(pl[0, 1:1 + nx]), np.abs(ph[0, 1:1 + nx]))))
+        c_v = max(0.0, -float(pl[0, 0]))
+        i_d = 1 + nx + nx * nx
+        gd = float(np.linalg.norm(np.maximum(np.abs(pl[0, i_d + 1:i_d + 1 + nx]),
+                                             np.abs(ph[0, i_d + 1:i_d + 1 + nx]))))
+        c_d = max(0.0, float(ph[0, i_d]))
+        r0 = max(_root(m_v / 2, gv, c_v), _root(m_d / 2, gd, c_d))
+        if r0 >= float(np.min(h)):
+            info.update(ok=False, reason=f"rounding radius r0 = {r0:.3g} exceeds the ball")
+            continue
+        info.update(ok=True, reason="", half=h.tolist(), r0=r0, min_eig_hessian_V=m_v,
+                    min_eig_minus_hessian_vdot=m_d)
+        return {"ok": True, "lo": lo[0], "hi": hi[0], "half": h, "center": center,
+                "details": info}
+    return {"ok": False, "details": info}
+
+
+def _root(a, b, c) -> float:
+    """The positive root of a s^2 - b s - c (a > 0, b, c >= 0)."""
+    return float((b + np.sqrt(b * b + 4 * a * c)) / (2 * a))
+
+
+def _sym_interval(lo, hi, n):
+    lo, hi = lo.reshape(n, n), hi.reshape(n, n)
+    lo, hi = np.maximum(lo, lo.T), np.minimum(hi, hi.T)   # the true Hessian is symmetric
+    return (lo + hi) / 2, (hi - lo) / 2
+
+
+def _min_eig(lo, hi, n) -> float:
+    """A lower bound on the smallest eigenvalue of every symmetric matrix in [lo, hi]."""
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        return -np.inf
+    mid, rad = _sym_interval(lo, hi, n)
+    if np.abs(rad).max() > 1e150:
+        return -np.inf
+    ev = float(np.linalg.eigvalsh(mid).min())
+    return ev - float(np.linalg.norm(rad, "fro")) - 1e-12 * (np.abs(mid).max() + 1.0)
+
+
+def _max_eig(lo, hi, n) -> float:
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        return np.inf
+    return -_min_eig(-hi, -lo, n)
+
+
+def _corners(lower, upper) -> np.ndarray:
+    n = len(lower)
+    grid = np.array(np.meshgrid(*[[0, 1]] * n, indexing="ij")).reshape(n, -1).T
+    return lower + grid * (upper - lower)
+
+
+def _set_text(box: Box, level, ng) -> str:
+    parts = [" x ".join(f"{n} in [{lo:g}, {hi:g}]" for n, lo, hi in
+                        zip(box.names, box.lower, box.upper))]
+    if level is not None:
+        parts.append(f"V <= {level:.6g}")
+    if ng:
+        parts.append("the free space")
+    return "{" + "; ".join(parts) + "}"

@@ -1,0 +1,401 @@
+"""Interval arithmetic over CasADi SX functions, vectorized over many boxes at once.
+
+:class:`IntervalFunction` walks the algorithm of an SX :class:`casadi.Function` (its instruction
+list) and evaluates every operation on intervals ``[lo, hi]`` held as numpy arrays, one entry per
+box. The result encloses every value the function takes on each box: this is what the certificate
+route of :func:`hybridnav.analysis.check_lyapunov` builds its proofs on.
+
+Soundness
+    Every operation returns an interval containing the exact image of its input intervals, widened
+    outward by 4 units in the last place plus ``1e-300`` (IEEE arithmetic rounds +, -, *, / and
+    sqrt correctly; numpy's exp, log, sin, cos, atan2, ... are accurate to about one ulp).
+    Operations that are exact (negation, absolute value, min/max, comparisons, selections) are not
+    widened. Domain errors (``log`` of a negative interval, ``sqrt`` of one entirely negative) give
+    ``[-inf, inf]``, so no box is ever decided from them.
+Smoothness
+    Each evaluation also reports, per box, whether every operation was smooth on its input
+    interval (no ``fabs`` at 0, no ``fmin``/``fmax`` switching, no ``atan2`` across its branch cut
+    or at the origin, no ``sqrt`` at 0, no jump of ``floor``, ``sign`` or a comparison). Taylor
+    arguments (the local ball of the certificate) are only used where it is.
+Constraints
+    ``clamp={k: (lo, hi)}`` intersects the value of output ``k`` with ``[lo, hi]`` where it is
+    computed, so every later use of the same subexpression sees the narrower interval: used for the
+    model's admissibility constraints ``g(x) > 0`` (inside the LbCS obstacles ``1/FO`` would
+    otherwise be unbounded on boxes touching them). The function is built with common-subexpression
+    elimination so that equal subexpressions are shared.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import casadi as cs
+import numpy as np
+
+__all__ = ["IntervalFunction", "UnsupportedOperation"]
+
+_EPS = 4 * np.finfo(float).eps
+_TINY = 1e-300
+_OPS = {getattr(cs, n): n[3:].lower() for n in dir(cs) if n.startswith("OP_")}
+_TWO_PI = 2 * np.pi
+
+
+class UnsupportedOperation(NotImplementedError):
+    """The expression uses an operation without an interval extension here."""
+
+
+def _widen(lo, hi):
+    """Outward by 4 ulp; zero endpoints stay (see :func:`_round_out`)."""
+    return (np.where(lo != 0, lo - _EPS * np.abs(lo) - _TINY, lo),
+            np.where(hi != 0, hi + _EPS * np.abs(hi) + _TINY, hi))
+
+
+#: operations whose result can round to zero from a nonzero exact value however large the inputs
+_UNDERFLOW = {"exp", "pow"}
+
+
+def _round_out(name, lo, hi, inputs):
+    """Outward rounding of an operation's result.
+
+    Nonzero endpoints move out by 4 ulp (and 1e-300). A zero endpoint is exact (IEEE sums are zero
+    only when exact; products, quotients and odd functions of exact values are zero only from an
+    exact zero) unless an input endpoint was so small (below 1e-150 in magnitude) that the result
+    may have underflowed, or the operation can underflow anyway (exp, pow): then it moves out by
+    1e-300. Exact zeros matter: LaSalle's argument needs ``Vdot <= 0`` with equality.
+    """
+    tiny = np.zeros(lo.shape, dtype=bool)
+    for arr in inputs:
+        tiny |= (arr != 0) & (np.abs(arr) < 1e-150)
+    if name in _UNDERFLOW:
+        tiny[:] = True
+    lo, hi = _widen(lo, hi)
+    return np.where((lo == 0) & tiny, -_TINY, lo), np.where((hi == 0) & tiny, _TINY, hi)
+
+
+def _mul(a, b, c, d):
+    with np.errstate(invalid="ignore", over="ignore"):
+        p = np.stack([a * c, a * d, b * c, b * d])
+    p = np.where(np.isnan(p), 0.0, p)           # 0 * inf = 0 for interval endpoints
+    return p.min(axis=0), p.max(axis=0)
+
+
+def _inv(a, b):
+    """1 / [a, b]; unbounded where the interval holds 0."""
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        ra, rb = 1.0 / a, 1.0 / b
+    pos, neg = a > 0, b < 0
+    lo = np.where(pos | neg, rb, np.where((a == 0) & (b > 0), rb, -np.inf))
+    hi = np.where(pos | neg, ra, np.where((b == 0) & (a < 0), ra, np.inf))
+    return lo, hi
+
+
+def _trig(fn, a, b, peak: float, trough: float):
+    """sin or cos over [a, b]: the endpoints' values, and 1 / -1 where the interval holds a peak
+    ``peak + 2 k pi`` / a trough ``trough + 2 k pi`` (tested with a margin, so conservatively)."""
+    fa, fb = fn(a), fn(b)
+    lo, hi = np.minimum(fa, fb), np.maximum(fa, fb)
+
+    def holds(phase):
+        return np.ceil((a - phase) / _TWO_PI - 1e-9) <= np.floor((b - phase) / _TWO_PI + 1e-9)
+
+    wide = ~np.isfinite(a) | ~np.isfinite(b) | (b - a >= _TWO_PI)
+    hi = np.where(holds(peak) | wide, 1.0, hi)
+    lo = np.where(holds(trough) | wide, -1.0, lo)
+    return lo, hi
+
+
+def _monotone(fn, a, b, increasing=True):
+    with np.errstate(all="ignore"):
+        fa, fb = fn(a), fn(b)
+    return (fa, fb) if increasing else (fb, fa)
+
+
+def _atan2(ya, yb, xa, xb):
+    """atan2(y, x) over a box: continuous unless the box meets the branch cut (x <= 0, y = 0)."""
+    corners = np.stack([np.arctan2(ya, xa), np.arctan2(ya, xb), np.arctan2(yb, xa),
+                        np.arctan2(yb, xb)])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    cut = (xa <= 0) & (ya <= 0) & (yb >= 0)
+    lo = np.where(cut, -np.pi, lo)
+    hi = np.where(cut, np.pi, hi)
+    return lo, hi, ~cut
+
+
+def _powi(a, b, n: int):
+    """x ** n for an integer n (even powers are not monotone)."""
+    if n == 0:
+        return np.ones_like(a), np.ones_like(b)
+    if n < 0:
+        lo, hi = _powi(a, b, -n)
+        return _inv(lo, hi)
+    with np.errstate(over="ignore"):
+        pa, pb = a ** n, b ** n
+    if n % 2:
+        return pa, pb
+    contains = (a <= 0) & (b >= 0)
+    lo = np.where(contains, 0.0, np.minimum(pa, pb))
+    return lo, np.maximum(pa, pb)
+
+
+class IntervalFunction:
+    """The interval extension of an SX function of one vector input.
+
+    Parameters
+    ----------
+    x : casadi.SX
+        The input symbols (a column).
+    outputs : sequence of casadi.SX
+        Expressions in ``x``; each becomes one output (flattened).
+
+    Raises
+    ------
+    UnsupportedOperation
+        When an expression uses an operation without an interval extension here (the message names
+        it).
+    """
+
+    def __init__(self, x: cs.SX, outputs: Sequence[cs.SX]) -> None:
+        self.sizes = [int(o.numel()) for o in outputs]
+        flat = cs.vertcat(*[cs.vec(cs.densify(cs.SX(o))) for o in outputs])
+        flat = cs.cse(flat)
+        fn = cs.Function("interval", [x], [flat], {"live_variables": False})
+        self.nx = int(x.numel())
+        self.n_out = int(flat.numel())
+        self._program = []
+        self._out_slot = {}
+        # wrapped angles: w = atan2(sin u, cos u) has cos w = cos u and sin w = sin u exactly,
+        # which interval arithmetic cannot see across the jump of w at +-pi
+        made: dict[int, tuple[str, int]] = {}
+        wraps: dict[int, tuple[int, int]] = {}
+        for k in range(fn.n_instructions()):
+            op = fn.instruction_id(k)
+            name = _OPS.get(op, str(op))
+            ins, outs = fn.instruction_input(k), fn.instruction_output(k)
+            const = fn.instruction_constant(k) if op == cs.OP_CONST else None
+            if name == "output":
+                self._out_slot[outs[1]] = ins[0]
+            elif name not in _SUPPORTED:
+                raise UnsupportedOperation(f"no interval extension for the CasADi operation "
+                                           f"{name!r}")
+            extra = None
+            if name in ("sin", "cos"):
+                made[outs[0]] = (name, ins[0])
+                if ins[0] in wraps:
+                    extra = wraps[ins[0]][0 if name == "sin" else 1]
+            elif name == "atan2":
+                ys, xs = made.get(ins[0]), made.get(ins[1])
+                if ys and xs and ys[0] == "sin" and xs[0] == "cos" and ys[1] == xs[1]:
+                    wraps[outs[0]] = (ins[0], ins[1])
+            self._program.append((name, ins, outs, const, extra))
+        self.sz_w = fn.sz_w()
+
+    def __call__(self, lo: np.ndarray, hi: np.ndarray, clamp: Mapping[int, tuple[float, float]]
+                 | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Enclosures of the outputs on each box ``[lo[i], hi[i]]``.
+
+        Parameters
+        ----------
+        lo, hi : (N, nx) arrays
+        clamp : dict, optional
+            ``{flat output index: (lo, hi)}`` known bounds on those outputs (constraints).
+
+        Returns
+        -------
+        out_lo, out_hi : (N, n_out) arrays
+        smooth : (N,) bool array
+        """
+        lo = np.asarray(lo, dtype=float)
+        hi = np.asarray(hi, dtype=float)
+        n = lo.shape[0]
+        wl: list = [None] * self.sz_w
+        wh: list = [None] * self.sz_w
+        smooth = np.ones(n, dtype=bool)
+        clamp_slot = {self._out_slot[k]: v for k, v in (clamp or {}).items()
+                      if k in self._out_slot}
+        out_lo = np.empty((n, self.n_out))
+        out_hi = np.empty((n, self.n_out))
+        for name, ins, outs, const, same in self._program:
+            if name == "input":
+                wl[outs[0]], wh[outs[0]] = lo[:, ins[1]], hi[:, ins[1]]
+                if outs[0] in clamp_slot:
+                    cl, ch = clamp_slot[outs[0]]
+                    wl[outs[0]] = np.maximum(wl[outs[0]], cl)
+                    wh[outs[0]] = np.minimum(wh[outs[0]], ch)
+                continue
+            if name == "output":
+                out_lo[:, outs[1]], out_hi[:, outs[1]] = wl[ins[0]], wh[ins[0]]
+                continue
+            if name == "const":
+                v = np.full(n, float(const))
+                wl[outs[0]], wh[outs[0]] = v, v
+                continue
+            a, b = wl[ins[0]], wh[ins[0]]
+            c = d = None
+            if len(ins) > 1 and ins[1] >= 0 and name in _BINARY:
+                c, d = wl[ins[1]], wh[ins[1]]
+            rl, rh, ok = _apply(name, a, b, c, d)
+            if name not in _EXACT:
+                rl, rh = _round_out(name, rl, rh, (a, b) if c is None else (a, b, c, d))
+            if same is not None:           # sin/cos of a wrapped angle: that of the angle itself
+                rl, rh = np.maximum(rl, wl[same]), np.minimum(rh, wh[same])
+                ok = None
+            if ok is not None:
+                smooth &= ok
+            slot = outs[0]
+            if slot in clamp_slot:
+                cl, ch = clamp_slot[slot]
+                rl, rh = np.maximum(rl, cl), np.minimum(rh, ch)
+            wl[slot], wh[slot] = rl, rh
+        return out_lo, out_hi, smooth
+
+
+_BINARY = {"add", "sub", "mul", "div", "pow", "constpow", "atan2", "fmin", "fmax", "lt", "le",
+           "eq", "ne", "and", "or", "if_else_zero"}
+_EXACT = {"neg", "fabs", "fmin", "fmax", "lt", "le", "eq", "ne", "not", "and", "or",
+          "if_else_zero", "sign", "floor", "ceil", "assign"}
+
+
+def _truth(a, b):
+    """(surely nonzero, surely zero) of an interval used as a condition."""
+    return (a > 0) | (b < 0), (a == 0) & (b == 0)
+
+
+def _apply(name, a, b, c, d):
+    ok = None
+    with np.errstate(all="ignore"):
+        if name == "add":
+            lo, hi = a + c, b + d
+        elif name == "sub":
+            lo, hi = a - d, b - c
+        elif name == "mul":
+            lo, hi = _mul(a, b, c, d)
+        elif name == "div":
+            il, ih = _inv(c, d)
+            lo, hi = _mul(a, b, il, ih)
+            lo, hi = _widen(lo, hi)          # two roundings (1/y, then the product)
+        elif name == "inv":
+            lo, hi = _inv(a, b)
+        elif name == "neg":
+            lo, hi = -b, -a
+        elif name == "twice":
+            lo, hi = 2 * a, 2 * b
+        elif name == "assign":
+            lo, hi = a, b
+        elif name == "sq":
+            lo, hi = _powi(a, b, 2)
+        elif name == "constpow":
+            if np.all(c == d) and np.all(c == np.round(c)) and np.all(c == c[0]):
+                lo, hi = _powi(a, b, int(c[0]))
+            else:
+                lo, hi = _pow(a, b, c, d)
+        elif name == "pow":
+            lo, hi = _pow(a, b, c, d)
+            ok = a > 0
+        elif name == "sqrt":
+            lo, hi = np.sqrt(np.maximum(a, 0.0)), np.sqrt(np.maximum(b, 0.0))
+            bad = b < 0
+            lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
+            ok = a > 0
+        elif name == "exp":
+            lo, hi = _monotone(np.exp, a, b)
+        elif name == "log":
+            lo, hi = _monotone(np.log, np.maximum(a, 0.0), b)
+            bad = b <= 0
+            lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
+        elif name == "tanh":
+            lo, hi = _monotone(np.tanh, a, b)
+        elif name == "atan":
+            lo, hi = _monotone(np.arctan, a, b)
+        elif name == "asin":
+            lo, hi = _monotone(np.arcsin, np.clip(a, -1, 1), np.clip(b, -1, 1))
+        elif name == "acos":
+            lo, hi = _monotone(np.arccos, np.clip(a, -1, 1), np.clip(b, -1, 1), False)
+        elif name == "sinh":
+            lo, hi = _monotone(np.sinh, a, b)
+        elif name == "cosh":
+            lo, hi = _powi_like_cosh(a, b)
+        elif name == "cos":
+            lo, hi = _trig(np.cos, a, b, 0.0, np.pi)
+        elif name == "sin":
+            lo, hi = _trig(np.sin, a, b, np.pi / 2, -np.pi / 2)
+        elif name == "atan2":
+            lo, hi, ok = _atan2(a, b, c, d)
+            ok = ok & ~((a <= 0) & (b >= 0) & (c <= 0) & (d >= 0))
+        elif name == "fabs":
+            lo = np.where((a <= 0) & (b >= 0), 0.0, np.minimum(np.abs(a), np.abs(b)))
+            hi = np.maximum(np.abs(a), np.abs(b))
+            ok = (a > 0) | (b < 0)
+        elif name == "fmin":
+            lo, hi = np.minimum(a, c), np.minimum(b, d)
+            ok = (b < c) | (d < a)
+        elif name == "fmax":
+            lo, hi = np.maximum(a, c), np.maximum(b, d)
+            ok = (b < c) | (d < a)
+        elif name == "sign":
+            lo, hi = np.sign(a), np.sign(b)
+            ok = (a > 0) | (b < 0)
+        elif name in ("floor", "ceil"):
+            f = np.floor if name == "floor" else np.ceil
+            lo, hi = f(a), f(b)
+            ok = lo == hi
+        elif name in ("lt", "le", "eq", "ne"):
+            lo, hi, ok = _compare(name, a, b, c, d)
+        elif name == "not":
+            yes, no = _truth(a, b)
+            lo, hi = np.where(yes, 0.0, np.where(no, 1.0, 0.0)), np.where(yes, 0.0, 1.0)
+            ok = yes | no
+        elif name in ("and", "or"):
+            y1, n1 = _truth(a, b)
+            y2, n2 = _truth(c, d)
+            if name == "and":
+                sure1, sure0 = y1 & y2, n1 | n2
+            else:
+                sure1, sure0 = y1 | y2, n1 & n2
+            lo, hi = np.where(sure1, 1.0, 0.0), np.where(sure0, 0.0, 1.0)
+            ok = sure1 | sure0
+        elif name == "if_else_zero":
+            yes, no = _truth(a, b)
+            lo = np.where(yes, c, np.where(no, 0.0, np.minimum(c, 0.0)))
+            hi = np.where(yes, d, np.where(no, 0.0, np.maximum(d, 0.0)))
+            ok = yes | no
+        else:                                 # pragma: no cover - filtered at construction
+            raise UnsupportedOperation(name)
+    nan = np.isnan(lo) | np.isnan(hi)
+    if nan.any():
+        lo, hi = np.where(nan, -np.inf, lo), np.where(nan, np.inf, hi)
+        ok = ~nan if ok is None else ok & ~nan
+    return lo, hi, ok
+
+
+def _pow(a, b, c, d):
+    """x ** y = exp(y log x) for x > 0; [-inf, inf] where x may be <= 0."""
+    ll, lh = _monotone(np.log, np.maximum(a, 0.0), b)
+    pl, ph = _mul(ll, lh, c, d)
+    lo, hi = np.exp(pl), np.exp(ph)
+    bad = a <= 0
+    return np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
+
+
+def _powi_like_cosh(a, b):
+    ca, cb = np.cosh(a), np.cosh(b)
+    lo = np.where((a <= 0) & (b >= 0), 1.0, np.minimum(ca, cb))
+    return lo, np.maximum(ca, cb)
+
+
+def _compare(name, a, b, c, d):
+    if name == "lt":
+        yes, no = b < c, a >= d
+    elif name == "le":
+        yes, no = b <= c, a > d
+    elif name == "eq":
+        yes, no = (a == b) & (c == d) & (a == c), (b < c) | (d < a)
+    else:
+        no, yes = (a == b) & (c == d) & (a == c), (b < c) | (d < a)
+    lo, hi = np.where(yes, 1.0, 0.0), np.where(no, 0.0, 1.0)
+    return lo, hi, yes | no
+
+
+_SUPPORTED = {"input", "output", "const", "add", "sub", "mul", "div", "inv", "neg", "twice",
+              "assign", "sq", "constpow", "pow", "sqrt", "exp", "log", "tanh", "atan", "asin",
+              "acos", "sinh", "cosh", "cos", "sin", "atan2", "fabs", "fmin", "fmax", "sign",
+              "floor", "ceil", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero"}
