@@ -61,7 +61,10 @@ def test_interval_keeps_exact_zeros_and_sees_through_wrapped_angles():
     # across the jump of wrap(e) at pi, cos(wrap(e)) is cos(e), near -1 (not [-1, 1])
     lo, hi, smooth = F(np.array([[1.0, 3.0]]), np.array([[2.0, 3.3]]))
     assert hi[0, 1] < -0.98 and lo[0, 1] >= -1 - 1e-12
-    assert not smooth[0]                       # atan2 across its branch cut
+    assert smooth[0, 1]                        # wrap(e) jumps, cos(wrap(e)) = cos(e) does not
+    F2 = IntervalFunction(z, [wrap_angle(e)])
+    assert not F2(np.array([[1.0, 3.0]]), np.array([[2.0, 3.3]]))[2][0, 0]   # the jump itself
+    assert F2(np.array([[1.0, 1.0]]), np.array([[2.0, 2.0]]))[2][0, 0]
     with pytest.raises(UnsupportedOperation, match="erf"):
         IntervalFunction(z, [cs.erf(rho)])
 

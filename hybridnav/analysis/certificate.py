@@ -24,6 +24,10 @@ outside the free space, or the flow points into the box (``f_i >= 0`` on a lower
 an upper one) — with ``Vdot <= 0`` inside, no trajectory leaves ``K`` (Nagumo's theorem). Faces of
 coordinates declared periodic (an angle spanning a whole turn) are skipped.
 
+``Vdot`` and the Lie derivatives are CasADi's derivatives; a box is only decided by them where
+the expressions they differentiate are smooth on it (see
+:class:`~hybridnav.analysis.interval.IntervalFunction`); boxes over a kink stay undecided.
+
 A box that cannot be decided down to ``min_width`` is *undecided*; its centre is evaluated, and a
 centre that violates the condition is returned as a counterexample (re-evaluated in floating point).
 """
@@ -224,7 +228,8 @@ def certify(
     while stack and evaluated < max_boxes:
         lo, hi, tag = _take(stack, batch)
         evaluated += len(lo)
-        ol, oh, _ = F(lo, hi, clamp)
+        ol, oh, sm = F(lo, hi, clamp)
+        v_smooth = sm[:, iv]                 # Vdot = grad V . f is V's derivative where V is
         v_lo, v_hi = ol[:, iv], oh[:, iv]
         d_hi = oh[:, idot]
         done = np.zeros(len(lo), dtype=bool)
@@ -257,17 +262,17 @@ def certify(
             counts["eps_set"] += int(small.sum())
             done |= small
             interior &= ~small
-            strict = interior & (d_hi < 0)
+            strict = interior & (d_hi < 0) & v_smooth
             nonzero = np.zeros(len(lo), dtype=bool)
             for k in range(len(lie)):
                 lk_lo, lk_hi = ol[:, il][:, k], oh[:, il][:, k]
-                nonzero |= (lk_lo > 0) | (lk_hi < 0)
-            leaves = interior & ~strict & (d_hi <= 0) & nonzero
+                nonzero |= ((lk_lo > 0) | (lk_hi < 0)) & sm[:, il][:, k]
+            leaves = interior & ~strict & (d_hi <= 0) & nonzero & v_smooth
             counts["decreasing"] += int(strict.sum())
             counts["lasalle_lie"] += int(leaves.sum())
             done |= strict | leaves
         else:
-            ok = interior & (v_lo > 0) & (d_hi < 0)
+            ok = interior & (v_lo > 0) & (d_hi < 0) & v_smooth
             counts["decreasing"] += int(ok.sum())
             done |= ok
         rest = np.flatnonzero(~done)
@@ -403,7 +408,7 @@ def _local_ball(x, V, vdot, center, half, lower, upper) -> dict[str, Any]:
         lo = np.maximum(center - h, lower)[None]
         hi = np.minimum(center + h, upper)[None]
         ol, oh, smooth = F(lo, hi)
-        if not smooth[0]:
+        if not smooth[0].all():
             info.update(ok=False, reason="V or Vdot is not smooth on the ball")
             continue
         m_v = _min_eig(ol[0, 1 + nx:1 + nx + nx * nx], oh[0, 1 + nx:1 + nx + nx * nx], nx)

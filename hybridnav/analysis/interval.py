@@ -13,10 +13,11 @@ Soundness
     widened. Domain errors (``log`` of a negative interval, ``sqrt`` of one entirely negative) give
     ``[-inf, inf]``, so no box is ever decided from them.
 Smoothness
-    Each evaluation also reports, per box, whether every operation was smooth on its input
-    interval (no ``fabs`` at 0, no ``fmin``/``fmax`` switching, no ``atan2`` across its branch cut
-    or at the origin, no ``sqrt`` at 0, no jump of ``floor``, ``sign`` or a comparison). Taylor
-    arguments (the local ball of the certificate) are only used where it is.
+    Each evaluation also reports, per box and output, whether every operation the output depends
+    on was smooth on its input interval (no ``fabs`` at 0, no ``fmin``/``fmax`` switching, no
+    ``atan2`` across its branch cut or at the origin, no ``sqrt`` at 0, no jump of ``floor``,
+    ``sign`` or a comparison). Derivatives computed by CasADi (``Vdot``, Lie derivatives,
+    Hessians) are only trusted where the expressions they differentiate are smooth.
 Constraints
     ``clamp={k: (lo, hi)}`` intersects the value of output ``k`` with ``[lo, hi]`` where it is
     computed, so every later use of the same subexpression sees the narrower interval: used for the
@@ -202,18 +203,20 @@ class IntervalFunction:
         Returns
         -------
         out_lo, out_hi : (N, n_out) arrays
-        smooth : (N,) bool array
+        smooth : (N, n_out) bool array
+            Whether every operation each output depends on was smooth on the box.
         """
         lo = np.asarray(lo, dtype=float)
         hi = np.asarray(hi, dtype=float)
         n = lo.shape[0]
         wl: list = [None] * self.sz_w
         wh: list = [None] * self.sz_w
-        smooth = np.ones(n, dtype=bool)
+        ws: list = [None] * self.sz_w           # smoothness per slot (None: smooth everywhere)
         clamp_slot = {self._out_slot[k]: v for k, v in (clamp or {}).items()
                       if k in self._out_slot}
         out_lo = np.empty((n, self.n_out))
         out_hi = np.empty((n, self.n_out))
+        smooth = np.ones((n, self.n_out), dtype=bool)
         for name, ins, outs, const, same in self._program:
             if name == "input":
                 wl[outs[0]], wh[outs[0]] = lo[:, ins[1]], hi[:, ins[1]]
@@ -224,6 +227,8 @@ class IntervalFunction:
                 continue
             if name == "output":
                 out_lo[:, outs[1]], out_hi[:, outs[1]] = wl[ins[0]], wh[ins[0]]
+                if ws[ins[0]] is not None:
+                    smooth[:, outs[1]] = ws[ins[0]]
                 continue
             if name == "const":
                 v = np.full(n, float(const))
@@ -231,22 +236,31 @@ class IntervalFunction:
                 continue
             a, b = wl[ins[0]], wh[ins[0]]
             c = d = None
-            if len(ins) > 1 and ins[1] >= 0 and name in _BINARY:
+            binary = len(ins) > 1 and ins[1] >= 0 and name in _BINARY
+            if binary:
                 c, d = wl[ins[1]], wh[ins[1]]
             rl, rh, ok = _apply(name, a, b, c, d)
             if name not in _EXACT:
                 rl, rh = _round_out(name, rl, rh, (a, b) if c is None else (a, b, c, d))
-            if same is not None:           # sin/cos of a wrapped angle: that of the angle itself
+            if same is not None:
+                # sin/cos of a wrapped angle: that of the angle itself, as smooth as it is
                 rl, rh = np.maximum(rl, wl[same]), np.minimum(rh, wh[same])
-                ok = None
-            if ok is not None:
-                smooth &= ok
+                flag = ws[same]
+            else:
+                flag = _and(ws[ins[0]], ws[ins[1]] if binary else None)
+                flag = _and(flag, ok)
             slot = outs[0]
             if slot in clamp_slot:
                 cl, ch = clamp_slot[slot]
                 rl, rh = np.maximum(rl, cl), np.minimum(rh, ch)
-            wl[slot], wh[slot] = rl, rh
+            wl[slot], wh[slot], ws[slot] = rl, rh, flag
         return out_lo, out_hi, smooth
+
+
+def _and(a, b):
+    if a is None:
+        return b
+    return a if b is None else a & b
 
 
 _BINARY = {"add", "sub", "mul", "div", "pow", "constpow", "atan2", "fmin", "fmax", "lt", "le",

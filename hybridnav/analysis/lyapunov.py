@@ -46,6 +46,7 @@ at the stationary points, which :func:`find_equilibria` locates.
 
 from __future__ import annotations
 
+import copy
 import inspect
 import logging
 from collections.abc import Mapping, Sequence
@@ -457,8 +458,23 @@ def find_equilibria(
     :meth:`hybridnav.models.Model.state_constraints`).
     """
     box = as_box(model, region)
-    s = model.sym
     tgt = _target(target)
+    key = (model._key(), tuple(tgt), tuple(box.lower), tuple(box.upper), int(seed), int(starts))
+    if key not in _EQUILIBRIA:
+        if len(_EQUILIBRIA) >= 32:
+            _EQUILIBRIA.pop(next(iter(_EQUILIBRIA)))
+        _EQUILIBRIA[key] = _find_equilibria(model, tgt, box, seed, starts)
+    return copy.deepcopy(_EQUILIBRIA[key])
+
+
+#: find_equilibria's results, by model, target, region, seed and starts (deterministic, and the
+#: analysis asks the same question several times: the check, the ROA, its candidates)
+_EQUILIBRIA: dict[tuple, list[Equilibrium]] = {}
+
+
+def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts: int
+                     ) -> list[Equilibrium]:
+    s = model.sym
     values = cs.DM(np.concatenate([tgt, model.p_value()]))
     f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
     v = cs.substitute(model.lyapunov_candidate(), cs.vertcat(s.target, s.p), values)

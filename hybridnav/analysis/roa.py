@@ -133,14 +133,14 @@ def estimate_roa(
         if isinstance(V, cs.SX):          # built from the caller's model.sym: move it over
             V = _candidate(model, V, orig)
     box = as_box(model, region)
-    _, v_num, _, v_sym, _ = lyapunov_functions(model, V, target=target)
+    _, v_num, vdot_num, v_sym, _ = lyapunov_functions(model, V, target=target)
     vfun = cs.Function("V", [model.sym.x], [v_num])
     rng = np.random.default_rng(seed)
     step = _discrete_check(model, vfun, v_num, box, target, rng)
     details: dict[str, Any] = {"discrete_step": step}
     check: dict[str, Any] = {"target": target, "seed": seed}
-    full = check_lyapunov(model, V, region=box, certificate=False, **check)
-    if full.status == "proved" and full.route == "quadratic":
+    full = _quadratic_proof(model, v_num, vdot_num, box)
+    if full is not None:
         sim = _confirm(model, vfun, box, target, np.inf, confirm, rng, horizon)
         details.update(region=box.to_dict(), claim=full.claim, **sim.get("details", {}))
         return RoaEstimate(level=np.inf, status="proved", bounded_by="none", counterexample=None,
@@ -200,24 +200,41 @@ def estimate_roa(
         # the certificate found what the bisection's sampling missed: go below it
         cex, bounded = final.counterexample, "counterexample"
         level = min(level, final.details.get("counterexample_V", level)) * (1 - rtol)
-    sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon) if level > 0 else {}
+    dfun = cs.Function("Vdot", [model.sym.x], [vdot_num])
+    sim = (_confirm(model, vfun, box, target, level, confirm, rng, horizon, dfun)
+           if level > 0 else {})
     for _ in range(5):
-        # a start inside {V <= level} that did not converge ended near a state with Vdot >= 0
-        # that the search missed: lower the level below V there and confirm again
-        stuck = sim.get("stuck_V")
-        if stuck is None or not len(stuck):
+        # a start inside {V <= level} that did not converge ended near a state with Vdot >= 0,
+        # or V rose along it where Vdot >= 0: a state the search missed; lower the level below
+        # V there and confirm again
+        stuck, rise = sim.get("stuck_V", np.empty(0)), sim.get("rise_V", np.empty(0))
+        if not len(stuck) and not len(rise):
             break
-        bounded, cex = "simulation", sim["stuck_state"]
-        level = float(np.min(stuck)) * (1 - rtol)
+        if len(rise) and (not len(stuck) or rise.min() < stuck.min()):
+            cex, low = sim["rise_state"], float(rise.min())
+        else:
+            cex, low = sim["stuck_state"], float(stuck.min())
+        bounded = "simulation"
+        level = low * (1 - rtol)
         final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
         status = final.status
-        sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon)
+        sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon, dfun)
     if final is not None:
         details.update(claim=final.claim, route=final.route, method=final.method)
     return RoaEstimate(level=float(level), status=status, bounded_by=bounded, counterexample=cex,
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
                        details={**details, **sim.get("details", {})})
+
+
+def _quadratic_proof(model, v_num, vdot_num, box: Box):
+    """The quadratic route's report when it proves V globally, else None."""
+    from hybridnav.analysis.lyapunov import LyapunovReport, _quadratic_argument
+
+    rep = LyapunovReport("no_counterexample", "", "", None, -np.inf, None, "")
+    if _quadratic_argument(model, v_num, vdot_num, box, None, rep) and rep.status == "proved":
+        return rep
+    return None
 
 
 def _v_at(vfun, state) -> float:
@@ -428,7 +445,12 @@ def _min_on_boundary(model, vfun: cs.Function, box: Box, rng, per_face: int = 40
     return float(np.min(v[np.isfinite(v) & model.admissible(P)]))
 
 
-def _confirm(model, vfun, box: Box, target, level, n, rng, horizon) -> dict[str, Any]:
+def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
+             ) -> dict[str, Any]:
+    """Simulate ``n`` starts sampled in ``{V <= level}``. Runs that do not converge give
+    ``stuck_V``; a run whose ``V`` rises is checked at the state before its largest rise: where the
+    continuous ``Vdot`` (``dfun``) is >= 0 there it is a counterexample the search missed
+    (``rise_V``, ``rise_state``), otherwise the rise is the RK4 step's (counted in details)."""
     starts = []
     tries = 0
     while sum(len(s) for s in starts) < n and tries < 200:
@@ -450,8 +472,21 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon) -> dict[str,
     monotone = np.all(np.diff(V, axis=1) <= slack, axis=1)
     converged = V[:, -1] <= 1e-3 * ref
     lowest = int(np.argmin(np.where(converged, np.inf, V[:, -1])))
+    rise_V, rise_state, step_rises = np.empty(0), None, 0
+    if dfun is not None and not monotone.all():
+        rows = np.flatnonzero(~monotone)
+        k = np.argmax(np.diff(V[rows], axis=1), axis=1)
+        states = traj[rows, k]
+        d = np.asarray(dfun.map(len(states))(states.T)).ravel()
+        real = d >= 0
+        step_rises = int((~real).sum())
+        if real.any():
+            rise_V = V[rows[real], k[real]]
+            rise_state = states[np.flatnonzero(real)[np.argmin(rise_V)]]
     return {"stuck_V": V[~converged, -1], "stuck_state": traj[lowest, -1],
+            "rise_V": rise_V, "rise_state": rise_state,
             "simulated": len(X0), "converged": int(converged.sum()),
             "monotone": int(monotone.sum()),
             "details": {"simulated_time": float(traj.shape[1] - 1) * model.dt,
-                        "worst_final_V": float(np.max(V[:, -1]))}}
+                        "worst_final_V": float(np.max(V[:, -1])),
+                        "rises_of_the_rk4_step": step_rises}}

@@ -330,11 +330,14 @@ class Model(ABC):
     def admissible(self, X) -> np.ndarray:
         """Whether each state of a batch ``(N, nx)`` satisfies :meth:`state_constraints`."""
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        g = self.state_constraints()
-        if g.numel() == 0:
+        fn = self.__dict__.get("_admissible_fn")
+        if fn is None:                       # built once per model: called in tight loops
+            g = self.state_constraints()
+            fn = False if g.numel() == 0 else cs.Function("g", [self.sym.x, self.sym.p], [g])
+            self.__dict__["_admissible_fn"] = fn
+        if fn is False:
             return np.ones(len(X), dtype=bool)
-        fn = cs.Function("g", [self.sym.x, self.sym.p], [g]).map(len(X))
-        vals = np.asarray(fn(X.T, self.p_value())).reshape(-1, len(X))
+        vals = np.asarray(fn.map(len(X))(X.T, self.p_value())).reshape(-1, len(X))
         return np.all(vals > 0, axis=0)
 
     def p_value(self) -> np.ndarray:
