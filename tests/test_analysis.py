@@ -215,8 +215,26 @@ def test_analyze_writes_json_report_and_plots(tmp_path):
     assert statuses["linearization: closed loop at the target"] == "stable"
     assert statuses["region of attraction"] == "proved"
     assert "| lyapunov | **proved** |" in (tmp_path / "report.md").read_text()
+    assert statuses["basin of attraction (simulated grid)"] == "all_converge"
+    assert statuses["region of attraction (control.lyap candidate)"] == "proved"
+    assert "basin.png" in data["plots"]
     for name in data["plots"]:
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_analyze_unicycle_reports_lasalle_in_polar_coordinates(tmp_path):
+    from hybridnav.analysis.report import analyze
+
+    data = analyze("unicycle", out=tmp_path)
+    rows = {c["name"]: c for c in data["checks"]}
+    las = rows["LaSalle: V = 1/2 rho^2 in polar error coordinates (rho, e)"]
+    assert las["status"] == "proved" and "LaSalle's invariance principle" in las["claim"]
+    assert rows["lyapunov"]["status"] == "counterexample"     # not a strict Lyapunov function
+    x, y, th = rows["lyapunov"]["counterexample"]
+    tx, ty = data["target"]
+    assert abs(math.cos(math.atan2(ty - y, tx - x) - th)) < 1e-3   # facing sideways: Vdot = 0
+    report = (tmp_path / "report.md").read_text()
+    assert "LaSalle" in report and "Proved: Vdot <= 0 on K" in report
 
 
 # ---- sound verdicts (issue 13, first part) ------------------------------------------------------

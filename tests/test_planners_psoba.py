@@ -327,7 +327,11 @@ def test_pso_ba_dynamic_robot2_reaches_robot1_without_collisions():
         rad = s.robot(r.name).radius
         assert _obstacle_clearance(s.world, r) > rad           # moving circles at the same t
         assert r.metrics["path_points"] > 0 and r.metrics["pso_ba_runs"] > 0
-        assert 0 < r.metrics["planning_time"] <= r.compute_time
+        assert r.metrics["planning_time"] > 0
+    # planning happens inside the loop whose wall time compute_time shares equally among the
+    # active robots: the robots' planning together fits in it (one robot's need not fit its share)
+    assert sum(r.metrics["planning_time"] for r in res.robots) <= sum(
+        r.compute_time for r in res.robots)
     # robot2 ends within its goal radius of robot1's position at that time
     r1, r2 = out["robot1"], out["robot2"]
     k = np.searchsorted(r1.t, r2.t[-1])

@@ -109,7 +109,8 @@ Metrics and diagnostics
 -----------------------
 Per robot: ``path_points`` (planned points), ``pso_ba_runs`` (searches), ``ls_repairs``,
 ``wall_episodes``, ``direction_changes`` (room-boundary reversals), ``memory_refusals`` (leaves
-refused by the memory), ``planning_time`` (seconds, included in ``compute_time``).
+refused by the memory), ``planning_time`` (seconds, part of the loop's wall time that
+``compute_time`` shares equally among the robots active each cycle).
 :meth:`PSOBAPlanner.diagnostics` gives ``pso_ba.png`` (the run with the path points by mode, and
 the fitness and tuned ``(alpha, gamma)`` of every search) and ``path_points_<robot>.csv``.
 """
