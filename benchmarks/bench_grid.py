@@ -35,7 +35,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from hybridnav.grid import (
+from hybridnav.world.grid import (
     MovingAIQuery,
     OccupancyGrid,
     load_movingai_map,

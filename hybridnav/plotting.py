@@ -53,7 +53,7 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
     span = max(xmax - xmin, ymax - ymin)
 
     if show_grid and scenario.grid is not None and scenario.grid.map is not None:
-        from hybridnav.grid import build_grid
+        from hybridnav.world.grid import build_grid
 
         og = build_grid(scenario)
         ax.imshow(og.occ, origin="lower", extent=og.extent, cmap="Greys", vmin=0, vmax=1.6,

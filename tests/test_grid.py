@@ -12,7 +12,7 @@ from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
 from hybridnav.errors import HybridnavError
-from hybridnav.grid import (
+from hybridnav.world.grid import (
     OccupancyGrid,
     build_grid,
     load_movingai_map,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hybridnav.errors import HybridnavError
-from hybridnav.grid import OccupancyGrid, load_movingai_map, load_movingai_scen
+from hybridnav.world.grid import OccupancyGrid, load_movingai_map, load_movingai_scen
 from hybridnav.planners.gridsearch import (
     GridPath,
     astar,

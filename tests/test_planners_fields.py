@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, planners
-from hybridnav.grid import build_grid
+from hybridnav.world.grid import build_grid
 from hybridnav.planners.apf import apf_force
 from hybridnav.planners.hapf import harmonic_field
 from hybridnav.planners.lockstep import lockstep_field

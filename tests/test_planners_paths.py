@@ -11,7 +11,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from hybridnav import HybridnavError
-from hybridnav.grid import build_grid, load_movingai_scen
+from hybridnav.world.grid import build_grid, load_movingai_scen
 from hybridnav.planners.paths import (
     AStarPlanner,
     DijkstraPlanner,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hybridnav.errors import HybridnavError
-from hybridnav.grid import OccupancyGrid, load_movingai_map
+from hybridnav.world.grid import OccupancyGrid, load_movingai_map
 from hybridnav.planners import rfd_core
 from hybridnav.planners.gridsearch import astar, path_cost
 from hybridnav.planners.rfd_core import RFD_REASONS, RFDResult, rfd

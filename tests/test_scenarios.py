@@ -12,7 +12,7 @@ import pytest
 from scipy import ndimage
 
 from hybridnav.errors import HybridnavError
-from hybridnav.grid import build_grid, rasterize
+from hybridnav.world.grid import build_grid, rasterize
 from hybridnav.plotting import draw_scenario, save_scenario_png
 from hybridnav.world import (
     MODEL_NAMES,

@@ -81,12 +81,10 @@ class LbCS(Model):
         HybridnavError
             When the scenario has obstacles other than circles (the scheme is defined for circles).
         """
-        from hybridnav.world import Circle
-
         r = scenario.robots[0] if robot is None else scenario.robot(robot)
         circles = []
         for i, ob in enumerate(scenario.world.obstacles):
-            if not isinstance(ob, Circle):
+            if getattr(ob, "kind", None) != "circle":   # models do not import the world
                 raise HybridnavError(
                     f"{scenario.source or scenario.name}: obstacles[{i}]: the LbCS model takes "
                     f"circle obstacles only, got {type(ob).__name__}"

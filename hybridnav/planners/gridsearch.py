@@ -1,6 +1,6 @@
 """Optimal search on occupancy grids: A* and Dijkstra with octile moves.
 
-The graph is the free-cell graph of an :class:`~hybridnav.grid.OccupancyGrid` exactly as
+The graph is the free-cell graph of an :class:`~hybridnav.world.grid.OccupancyGrid` exactly as
 :meth:`OccupancyGrid.adjacency` and :meth:`OccupancyGrid.to_networkx` define it:
 
 * a cell ``(col, row)`` connects to its 4 orthogonal neighbours (cost ``resolution``) and, with
@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.grid import OccupancyGrid
+from hybridnav.world.grid import OccupancyGrid
 
 __all__ = ["HEURISTICS", "GridPath", "astar", "dijkstra", "path_cost", "search_world"]
 
@@ -361,7 +361,7 @@ def astar(
 
     Examples
     --------
-    >>> from hybridnav.grid import OccupancyGrid
+    >>> from hybridnav.world.grid import OccupancyGrid
     >>> import numpy as np
     >>> occ = np.zeros((3, 4), dtype=bool); occ[0:2, 1] = True
     >>> p = astar(OccupancyGrid(occ), (0, 0), (3, 0))

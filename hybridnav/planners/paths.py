@@ -14,7 +14,7 @@ blocked map cells (:func:`obstacle_world`). The tracking run is simulated agains
 so ``collided`` and ``min_clearance`` also count the map's cells.
 
 The *cell* is the scenario's grid resolution (``[grid] resolution``; without ``[grid]``, 1/100 of
-the shorter workspace side, as :func:`hybridnav.grid.build_grid` rasterizes): ``speed``,
+the shorter workspace side, as :func:`hybridnav.world.grid.build_grid` rasterizes): ``speed``,
 ``lookahead`` and ``margin`` are given in cells, so one set of defaults suits the 700 cm
 ``rfd-pso-700`` (10 cm cells) and the 49-cell ``arena``.
 
@@ -100,7 +100,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from hybridnav.grid import OccupancyGrid, build_grid
+from hybridnav.world.grid import OccupancyGrid, build_grid
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.gridsearch import HEURISTICS, astar, dijkstra
 from hybridnav.planners.rfd_core import rfd

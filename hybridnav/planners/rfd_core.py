@@ -102,7 +102,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.grid import OccupancyGrid
+from hybridnav.world.grid import OccupancyGrid
 from hybridnav.planners.gridsearch import (
     _MOVES,
     _as_cell,
@@ -452,7 +452,7 @@ def rfd(
     Examples
     --------
     >>> import numpy as np
-    >>> from hybridnav.grid import OccupancyGrid
+    >>> from hybridnav.world.grid import OccupancyGrid
     >>> r = rfd(OccupancyGrid(np.zeros((6, 6), dtype=bool)), (0, 0), (5, 5), seed=1)
     >>> r.found, round(r.length, 4), r.reason, float(r.altitude[5, 5])
     (True, 7.0711, 'converged', 0.0)

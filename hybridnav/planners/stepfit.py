@@ -224,7 +224,7 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
 class GoalDistance:
     """Distance to a goal along the shortest obstacle-free path (a grid's cost-to-go field).
 
-    The scenario's static obstacles are rasterized (:func:`hybridnav.grid.build_grid`, 1/100 of the
+    The scenario's static obstacles are rasterized (:func:`hybridnav.world.grid.build_grid`, 1/100 of the
     shorter workspace side unless the scenario's ``[grid]`` says otherwise) with cells closer than
     ``inflate`` (the robot's radius) to an obstacle blocked; one Dijkstra search from the goal's
     cell (:func:`scipy.sparse.csgraph.dijkstra` on :meth:`OccupancyGrid.adjacency`, 8-connected,
@@ -237,7 +237,7 @@ class GoalDistance:
     """
 
     def __init__(self, scenario, inflate: float) -> None:
-        from hybridnav.grid import build_grid
+        from hybridnav.world.grid import build_grid
 
         self.grid = build_grid(scenario, inflate=float(inflate))
         self._adj = self.grid.adjacency()

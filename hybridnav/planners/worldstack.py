@@ -19,7 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridnav.world import World, _cross, _nearest_on_circle, _project
+from hybridnav.world import World
+from hybridnav.world.geometry import _cross, _nearest_on_circle, _project
 
 __all__ = ["WorldStack"]
 
