@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from hybridnav import __version__, models
-from hybridnav.analysis.linearize import linearize, linearize_expression, summarize
+from hybridnav.analysis.linearization import linearize, linearize_expression, summarize
 from hybridnav.analysis.lyapunov import check_lyapunov, find_equilibria
 from hybridnav.analysis.plots import (
     plot_basin,
@@ -106,7 +106,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     if reports:
         plot(plot_eigenvalues(reports), "eigenvalues.png")
     if model_name in ("point_mass", "lbcs"):
-        from hybridnav.analysis.linearize import discrete_step, rk4_stability_limit
+        from hybridnav.analysis.linearization import discrete_step, rk4_stability_limit
 
         say("simulated step")
         ds = discrete_step(model, np.asarray(target, dtype=float), target)

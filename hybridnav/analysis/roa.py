@@ -288,7 +288,7 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float], Q=None,
     """
     import control
 
-    from hybridnav.analysis.linearize import linearize
+    from hybridnav.analysis.linearization import linearize
 
     if params:
         model = model.with_params(**params)
@@ -409,7 +409,7 @@ def _rk4_ends(model: Model, target, Z: np.ndarray, steps: int, box: Box, radius:
 def _discrete_check(model, vfun, v_num, box: Box, target, rng) -> dict[str, Any]:
     """The simulated step at the equilibrium (the minimizer of V); refuse when it is unstable:
     simulations that confirm a level would then only show the integrator diverging."""
-    from hybridnav.analysis.linearize import discrete_step
+    from hybridnav.analysis.linearization import discrete_step
     from hybridnav.analysis.lyapunov import _minimize_v
 
     pts = box.sample(4000, rng)
