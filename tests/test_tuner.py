@@ -551,3 +551,16 @@ def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
     assert main(["tune", str(job_file), "--out", str(tmp_path / "v")]) == 0
     report = (tmp_path / "v" / "report.md").read_text()
     assert "of k-fold stage" in report and "Cross-validation estimate" in report
+
+
+def test_backends_report_each_finished_task_and_keep_the_order():
+    """The one parallel mechanism (tune and compare): results in submission order, on_done once
+    per task, whatever the backend."""
+    from hybridnav.backends import make_backend
+
+    args = [(i,) for i in range(7)]
+    for workers in (1, 2):
+        seen: list[int] = []
+        with make_backend(workers=workers) as backend:
+            out = backend.map(abs, [(-a,) for (a,) in args], on_done=seen.append)
+        assert out == list(range(7)) and sorted(seen) == list(range(7))

@@ -15,7 +15,6 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from hybridnav.backends import make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 
@@ -258,7 +258,8 @@ def compare(
     workers : int
         Local worker processes (1: in this process).
     dask : str or distributed.Client, optional
-        A Dask scheduler address (or a client) to run the tasks on instead.
+        A Dask scheduler address (or a client, or ``"local"`` for a new local cluster) to run
+        the tasks on instead (:mod:`hybridnav.backends`, as ``tune`` does).
     progress : callable, optional
         ``progress(done, total)`` after each finished task.
 
@@ -307,35 +308,17 @@ def compare(
     tasks = [_Task(spec.label, spec.name, tuple(sorted(settings[spec.label].items())), s, r,
                    run_seed(seed, r))
              for spec in specs for s in scenarios for r in range(runs)]
-    rows: list[dict[str, Any]] = []
     done = 0
 
-    def finished(result_rows):
+    def finished(_i):
         nonlocal done
-        rows.extend(result_rows)
         done += 1
         if progress is not None:
             progress(done, len(tasks))
 
-    if dask is not None:
-        from distributed import Client, as_completed as dask_completed
-
-        client = dask if isinstance(dask, Client) else Client(dask)
-        try:
-            futures = client.map(_execute, tasks, pure=False)
-            for fut in dask_completed(futures):
-                finished(fut.result())
-        finally:
-            if client is not dask:
-                client.close()
-    elif workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(_execute, t) for t in tasks]
-            for fut in as_completed(futures):
-                finished(fut.result())
-    else:
-        for t in tasks:
-            finished(_execute(t))
+    with make_backend(workers, dask or "") as backend:
+        results = backend.map(_execute, [(t,) for t in tasks], on_done=finished)
+    rows = [row for result_rows in results for row in result_rows]
     table = pd.DataFrame(rows, columns=RUN_COLUMNS)
     order = {label: i for i, label in enumerate(labels)}
     table = table.sort_values(["planner", "scenario", "run", "robot"],
