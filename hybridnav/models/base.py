@@ -210,6 +210,9 @@ class Model(ABC):
     description: ClassVar[str] = ""
     plant_state_names: ClassVar[tuple[str, ...]] = ()
     controller_state_names: ClassVar[tuple[str, ...]] = ()
+    #: what the model offers other parts: ``"robot"`` — a scenario's robot may be this model
+    #: (``[[robots]] model = ...``); the world's schema takes its model names from here
+    capabilities: ClassVar[frozenset[str]] = frozenset({"robot"})
     #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()

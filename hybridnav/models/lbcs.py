@@ -44,6 +44,8 @@ class LbCS(Model):
     name = "lbcs"
     description = "point mass under the Lyapunov-based control scheme among circles"
     plant_state_names = ("x", "y")
+    #: a control scheme analysed on a scenario's circles, not a robot model scenarios name
+    capabilities = frozenset()
     input_names = ("vx", "vy")
     defaults = {"beta": 2.0, "delta1": 10.0, "delta2": 10.0, "rp": 0.5}
     param_docs = {

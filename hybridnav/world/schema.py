@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridnav import models
 from hybridnav.errors import HybridnavError, where
 from hybridnav.world.builtin import _builtin_dir
 from hybridnav.world.grid import build_grid
@@ -31,8 +32,9 @@ from hybridnav.world.world import World
 log = logging.getLogger(__name__)
 
 
-#: Robot model names a scenario may use; the model registry (``hybridnav.models``) must match.
-MODEL_NAMES: tuple[str, ...] = ("point_mass", "tractor_trailer", "unicycle")
+#: Robot model names a scenario may use: the registered models with the ``"robot"`` capability.
+MODEL_NAMES: tuple[str, ...] = tuple(sorted(n for n, cls in models.MODELS.items()
+                                            if "robot" in cls.capabilities))
 
 _TOP_KEYS = ("name", "description", "units", "dt", "max_time", "workspace", "obstacles", "robots", "grid")
 _TOP_REQUIRED = ("name", "dt", "max_time", "workspace", "robots")
@@ -234,8 +236,6 @@ def _check_model(chk: _Check, key: str, model: str, dt: float, radius: float, ha
     A tractor-trailer's footprint follows from its ``L`` and ``b`` parameters, so it takes no
     ``radius`` key.
     """
-    from hybridnav import models
-
     if model == "tractor_trailer" and has_radius:
         raise chk.fail(f"{key}.radius", "a tractor_trailer's footprint follows from its params L "
                                         "and b; remove radius (set robots.params.L / b instead)")
