@@ -301,7 +301,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("analyze", help="stability analysis of a model: Lyapunov, linearization, "
                                        "region of attraction, sweeps")
-    p.add_argument("model", choices=["point_mass", "unicycle", "tractor_trailer", "lbcs"])
+    from hybridnav import models
+    from hybridnav.fuzzy.export import FORMATS
+
+    p.add_argument("model", choices=sorted(n for n, cls in models.MODELS.items()
+                                           if cls.analysis_scenario))
     p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
                                       "one per model)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for analysis.json, "
@@ -366,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
                                       "IEC 61131-7 FCL or standalone C")
     p.add_argument("fis", metavar="FIS", help="built-in name or a .json/.fll/.fis file")
-    p.add_argument("--format", required=True, choices=["json", "fll", "fis", "fcl", "c"])
+    p.add_argument("--format", required=True, choices=list(FORMATS))
     p.add_argument("-o", "--out", metavar="PATH", help="output file; for c a prefix (PATH.h, "
                                                        "PATH.c); default <name>.<ext>")
     p.add_argument("--sampled", action="store_true", help="fll/fcl: terms as their sampled "

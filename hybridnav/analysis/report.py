@@ -39,9 +39,9 @@ __all__ = ["ANALYZABLE", "analyze"]
 #: initial trailer folds (theta1 - theta0, degrees) of the tractor-trailer sweep
 TRAILER_FOLDS_DEG = (0, 60, 90, 120, 150)
 
-#: Models ``analyze`` knows, and the scenario used when none is given.
-ANALYZABLE = {"point_mass": "fastep-s1", "unicycle": "effc-train-1",
-              "tractor_trailer": "tractor-trailer-1", "lbcs": "aco-local-minimum"}
+#: Models ``analyze`` knows, and the scenario used when none is given (each model declares it)
+ANALYZABLE = {name: cls.analysis_scenario for name, cls in models.MODELS.items()
+              if cls.analysis_scenario}
 
 
 def analyze(model_name: str, scenario: str | None = None, out: str | Path = "analysis",

@@ -213,6 +213,8 @@ class Model(ABC):
     #: what the model offers other parts: ``"robot"`` — a scenario's robot may be this model
     #: (``[[robots]] model = ...``); the world's schema takes its model names from here
     capabilities: ClassVar[frozenset[str]] = frozenset({"robot"})
+    #: the built-in scenario ``hybridnav analyze MODEL`` uses by default (None: not analysable)
+    analysis_scenario: ClassVar[str | None] = None
     #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()

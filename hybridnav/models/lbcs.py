@@ -43,6 +43,7 @@ class LbCS(Model):
 
     name = "lbcs"
     description = "point mass under the Lyapunov-based control scheme among circles"
+    analysis_scenario = "aco-local-minimum"
     plant_state_names = ("x", "y")
     #: a control scheme analysed on a scenario's circles, not a robot model scenarios name
     capabilities = frozenset()

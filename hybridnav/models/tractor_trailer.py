@@ -60,6 +60,7 @@ class TractorTrailer(Model):
 
     name = "tractor_trailer"
     description = "car-like tractor with an off-axle hitched passive trailer (states x, y, th0, th1, xi)"
+    analysis_scenario = "tractor-trailer-1"
     plant_state_names = ("x", "y", "theta0", "theta1")
     controller_state_names = ("xi",)
     input_names = ("v", "phi")

@@ -37,6 +37,7 @@ class Unicycle(Model):
 
     name = "unicycle"
     description = "differential drive (TurtleBot3-like), wheel speeds vl, vr"
+    analysis_scenario = "effc-train-1"
     plant_state_names = ("x", "y", "theta")
     angle_state_names = ("theta",)
     input_names = ("vl", "vr")
