@@ -5,7 +5,8 @@ kinematics, Lyapunov/linearization analysis of the same models, and a GA tuner f
 systems. See ``README.md`` and ``DESIGN.md``.
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 from hybridnav.errors import HybridnavError
 

@@ -274,8 +274,8 @@ def solvable(scenario, resolution: float | None = None) -> bool:
     blocked; the start and goal cells must be free and joined by an 8-connected A* path without
     corner cutting.
     """
-    from hybridnav.world.grid import rasterize
     from hybridnav.planners.gridsearch import search_world
+    from hybridnav.world.grid import rasterize
 
     xmin, xmax, ymin, ymax = scenario.world.workspace
     res = resolution or min(xmax - xmin, ymax - ymin) / 200.0

@@ -31,7 +31,12 @@ from hybridnav.analysis.lyapunov import (
     lyapunov_functions,
 )
 from hybridnav.analysis.region import Box, as_box
-from hybridnav.analysis.roa import RoaEstimate, basin, estimate_roa, lyapunov_equation_candidate
+from hybridnav.analysis.roa import (
+    RoaEstimate,
+    basin,
+    estimate_roa,
+    lyapunov_equation_candidate,
+)
 from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
 
 # ``hybridnav.analysis.linearize`` was the module until 0.2; it is the function now. The old

@@ -14,17 +14,29 @@ re-exported here: ``export``, ``export_to_file``, ``load_any``, ``read_fll``, ``
 This subpackage does not import the tuner, the planners or the CLI.
 """
 
-from hybridnav.fuzzy.mf import MF_PARAMS
-from hybridnav.fuzzy.spec import (
-    FORMAT, And, Not, Or, OutputVariable, Rule, Term, TermRef, Variable,
-)
-from hybridnav.fuzzy.system import FuzzySystem, builtin, builtin_names, load, loads
 # after the system module: the export subpackage builds on it. Binding ``export`` here makes
 # ``fuzzy.export`` the function; the subpackage stays importable as ``hybridnav.fuzzy.export``
 # (``from hybridnav.fuzzy.export import to_c``).
 from hybridnav.fuzzy.export import (  # noqa: E402
-    export, export_to_file, load_any, read_fis, read_fll,
+    export,
+    export_to_file,
+    load_any,
+    read_fis,
+    read_fll,
 )
+from hybridnav.fuzzy.mf import MF_PARAMS
+from hybridnav.fuzzy.spec import (
+    FORMAT,
+    And,
+    Not,
+    Or,
+    OutputVariable,
+    Rule,
+    Term,
+    TermRef,
+    Variable,
+)
+from hybridnav.fuzzy.system import FuzzySystem, builtin, builtin_names, load, loads
 
 __all__ = [
     "FORMAT", "MF_PARAMS", "FuzzySystem", "load", "loads", "builtin", "builtin_names",

@@ -50,7 +50,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.fuzzy.mf import sample
-from hybridnav.fuzzy.spec import And, Antecedent, Not, Or, OutputVariable, Rule, TermRef, Variable
+from hybridnav.fuzzy.spec import (
+    And,
+    Antecedent,
+    Not,
+    Or,
+    OutputVariable,
+    Rule,
+    TermRef,
+    Variable,
+)
 
 __all__ = ["CompiledSystem", "universe", "SUBSETS_MAX"]
 

@@ -19,8 +19,17 @@ from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.fuzzy.engine import CompiledSystem, universe
 from hybridnav.fuzzy.spec import (
-    FORMAT, And, Antecedent, Not, OutputVariable, Rule, TermRef, Variable,
-    antecedent_to_json, parse_system, variable_to_json,
+    FORMAT,
+    And,
+    Antecedent,
+    Not,
+    OutputVariable,
+    Rule,
+    TermRef,
+    Variable,
+    antecedent_to_json,
+    parse_system,
+    variable_to_json,
 )
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -210,9 +210,13 @@ class Model(ABC):
     description: ClassVar[str] = ""
     plant_state_names: ClassVar[tuple[str, ...]] = ()
     controller_state_names: ClassVar[tuple[str, ...]] = ()
-    #: what the model offers other parts: ``"robot"`` — a scenario's robot may be this model
-    #: (``[[robots]] model = ...``); the world's schema takes its model names from here
+    #: what the model offers other parts, which ask for capabilities rather than names:
+    #: ``"robot"`` (a scenario's robot may be this model; the world's schema takes its model names
+    #: from here), ``"disk"`` (a one-disk footprint), ``"holonomic"`` (velocity is the input),
+    #: ``"heading_control"`` (a constant-speed heading controller option), ``"trailer"``
     capabilities: ClassVar[frozenset[str]] = frozenset({"robot"})
+    #: the footprint follows from parameters (a scenario gives no ``radius`` for the robot)
+    footprint_from_params: ClassVar[bool] = False
     #: the built-in scenario ``hybridnav analyze MODEL`` uses by default (None: not analysable)
     analysis_scenario: ClassVar[str | None] = None
     #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces

@@ -61,6 +61,9 @@ class TractorTrailer(Model):
     name = "tractor_trailer"
     description = "car-like tractor with an off-axle hitched passive trailer (states x, y, th0, th1, xi)"
     analysis_scenario = "tractor-trailer-1"
+    #: "trailer": a body of several covering disks, not one disk
+    capabilities = frozenset({"robot", "trailer"})
+    footprint_from_params = True      # the covering disks follow from L and b
     plant_state_names = ("x", "y", "theta0", "theta1")
     controller_state_names = ("xi",)
     input_names = ("v", "phi")

@@ -38,6 +38,8 @@ class Unicycle(Model):
     name = "unicycle"
     description = "differential drive (TurtleBot3-like), wheel speeds vl, vr"
     analysis_scenario = "effc-train-1"
+    #: "heading_control": the "heading" controller option drives it at constant speed
+    capabilities = frozenset({"robot", "disk", "heading_control"})
     plant_state_names = ("x", "y", "theta")
     angle_state_names = ("theta",)
     input_names = ("vl", "vr")

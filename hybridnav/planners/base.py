@@ -101,17 +101,25 @@ class Planner(ABC):
     """A navigation method: ``Planner(**params).run(scenario, seed) -> Result``.
 
     Subclasses set :attr:`name`, :attr:`description`, :attr:`params` and implement :meth:`run`.
-    ``models`` lists the robot models it can drive; ``moving_obstacles`` and ``moving_targets``
-    say whether it handles ``moving_circle`` obstacles and ``goal_follow`` targets.
+    ``drives`` says which robot models it can drive, by capability (a model qualifies when it has
+    every capability of one of the sets; see :attr:`hybridnav.models.Model.capabilities`), and
+    ``models`` lists the registered models that qualify (derived, never written by hand);
+    ``moving_obstacles`` and ``moving_targets`` say whether it handles ``moving_circle``
+    obstacles and ``goal_follow`` targets.
     """
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     params: ClassVar[dict[str, Param]] = {}
-    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle", "tractor_trailer")
+    drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"robot"}),)
+    models: ClassVar[tuple[str, ...]] = ()
     moving_obstacles: ClassVar[bool] = True
     moving_targets: ClassVar[bool] = True
     stochastic: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.models = _driven(cls.drives)
 
     def __init__(self, **params: Any) -> None:
         values = {k: p.default for k, p in self.params.items()}
@@ -150,3 +158,14 @@ class Planner(ABC):
     def describe(self) -> Mapping[str, Any]:
         """The parameter values of this instance (written into ``result.json``)."""
         return dict(self.values)
+
+
+def _driven(drives) -> tuple[str, ...]:
+    """The registered robot models with every capability of one of the sets in ``drives``."""
+    from hybridnav.models import MODELS
+
+    return tuple(name for name, cls in MODELS.items()
+                 if "robot" in cls.capabilities and any(req <= cls.capabilities for req in drives))
+
+
+Planner.models = _driven(Planner.drives)

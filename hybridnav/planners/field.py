@@ -37,7 +37,6 @@ class FieldPlanner(Planner):
     """Base of the potential-field planners: ``velocity(...)`` each cycle, batched over robots."""
 
     params: ClassVar[dict[str, Param]] = dict(COMMON)
-    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle", "tractor_trailer")
 
     def prepare(self, scenario, rng: np.random.Generator) -> Any:
         """Work done once per run before the loop (a harmonic field, tuned gains, ...)."""
@@ -79,8 +78,11 @@ class FieldPlanner(Planner):
         return {"signals.png": fig}
 
     def model_overrides(self, robot) -> dict[str, Any]:
-        """Model options for a robot (unicycles: the heading controller at ``speed``)."""
-        if robot.model == "unicycle":
+        """Model options for a robot (models with a heading controller, the unicycle: that
+        controller at ``speed``)."""
+        from hybridnav.models import MODELS
+
+        if "heading_control" in MODELS[robot.model].capabilities:
             return {"controller": "heading", "speed": self.values["speed"],
                     "max_turn": self.values["max_turn"]}
         return {}

@@ -18,10 +18,10 @@ from scipy.interpolate import RegularGridInterpolator
 from scipy.sparse.linalg import spsolve
 
 from hybridnav.errors import HybridnavError
-from hybridnav.world.grid import OccupancyGrid, build_grid
 from hybridnav.planners.base import Param
 from hybridnav.planners.field import COMMON, FieldPlanner
 from hybridnav.planners.simulate import Simulation
+from hybridnav.world.grid import OccupancyGrid, build_grid
 
 __all__ = ["HAPF", "harmonic_field"]
 

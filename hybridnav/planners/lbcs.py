@@ -67,7 +67,8 @@ class LbCSPlanner(Planner):
 
     name = "lbcs"
     description = "Lyapunov-based control scheme: gradient flow of L = V (1 + sum beta / FO)"
-    models: ClassVar[tuple[str, ...]] = ("point_mass", "tractor_trailer")
+    #: point masses follow L's gradient flow themselves; a tractor-trailer tracks it
+    drives = (frozenset({"holonomic"}), frozenset({"trailer"}))
     moving_obstacles = False
     moving_targets = False
     params: ClassVar[dict[str, Param]] = {
@@ -108,8 +109,11 @@ class LbCSPlanner(Planner):
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
         v = self.values
-        models = [self.lbcs(scenario, r.name) if r.model == "point_mass" else scenario.model(r)
-                  for r in scenario.robots]
+        from hybridnav.models import MODELS
+
+        # a holonomic robot (the point mass) is the LbCS gradient flow; others track it
+        models = [self.lbcs(scenario, r.name) if "holonomic" in MODELS[r.model].capabilities
+                  else scenario.model(r) for r in scenario.robots]
         # one LbCS velocity field per group of equal vehicle models (equal radius, so equal rp)
         fields = [(model, members, _Velocity(self.lbcs(scenario, scenario.robots[members[0]].name,
                                                        rp=model.radius), len(members)))

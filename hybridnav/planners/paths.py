@@ -100,7 +100,6 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from hybridnav.world.grid import OccupancyGrid, build_grid
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.gridsearch import HEURISTICS, astar, dijkstra
 from hybridnav.planners.rfd_core import rfd
@@ -108,6 +107,7 @@ from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.planners.swarm import pso
 from hybridnav.results import Result, path_length
 from hybridnav.world import MovingCircle, Rectangle, World
+from hybridnav.world.grid import OccupancyGrid, build_grid
 
 __all__ = [
     "AStarPlanner",
@@ -363,7 +363,7 @@ class _Context:
 class PathPlanner(Planner):
     """Base of the plan-then-track planners: :meth:`plan` one path per robot, then follow it."""
 
-    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle")
+    drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"disk"}),)   # grid paths: one disk
     moving_obstacles: ClassVar[bool] = False
     moving_targets: ClassVar[bool] = False
     params: ClassVar[dict[str, Param]] = dict(TRACKING)

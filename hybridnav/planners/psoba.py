@@ -345,7 +345,7 @@ class PSOBAPlanner(Planner):
     name = "pso-ba"
     description = ("PSO-BA (Abed et al. 2022): PSO tunes the bat algorithm placing each path "
                    "point, local search repairs, 12 range sensors and wall following")
-    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle")
+    drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"disk"}),)   # 12 sensors on a disk
     moving_obstacles: ClassVar[bool] = True
     moving_targets: ClassVar[bool] = True
     stochastic: ClassVar[bool] = True

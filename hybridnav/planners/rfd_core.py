@@ -102,7 +102,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.world.grid import OccupancyGrid
 from hybridnav.planners.gridsearch import (
     _MOVES,
     _as_cell,
@@ -110,6 +109,7 @@ from hybridnav.planners.gridsearch import (
     _check_flags,
     _check_grid,
 )
+from hybridnav.world.grid import OccupancyGrid
 
 __all__ = ["RFD_REASONS", "RFDResult", "rfd"]
 

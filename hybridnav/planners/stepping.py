@@ -63,7 +63,12 @@ import numpy as np
 from hybridnav import models as model_registry
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.simulate import Simulation, simulate
-from hybridnav.planners.stepfit import GoalDistance, Surroundings, feasible_steps, step_fitness
+from hybridnav.planners.stepfit import (
+    GoalDistance,
+    Surroundings,
+    feasible_steps,
+    step_fitness,
+)
 from hybridnav.planners.swarm import OptResult
 from hybridnav.results import Result
 
@@ -101,7 +106,6 @@ COMMON: dict[str, Param] = {
 class StepPlanner(Planner):
     """Base of the step planners: a swarm places each step, the model's controller drives to it."""
 
-    models: ClassVar[tuple[str, ...]] = ("point_mass", "unicycle", "tractor_trailer")
     stochastic = True
     #: drive straight to the goal while that is safe, plan steps only to get round obstacles
     direct_first: ClassVar[bool] = False

@@ -43,9 +43,9 @@ import numpy as np
 from deap import base, tools
 
 from hybridnav import __version__
+from hybridnav.backends import Backend, SerialBackend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, dumps_json
-from hybridnav.backends import Backend, SerialBackend
 from hybridnav.tuner.evaluate import evaluate_chunk
 from hybridnav.tuner.genome import GenomeSpace
 from hybridnav.tuner.job import Job

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridnav import models
 from hybridnav.errors import HybridnavError
 from hybridnav.params import check_value
 
@@ -337,7 +338,8 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             raise HybridnavError(f"{where}scenarios.{which}{exc}") from None
         for i, s in enumerate(loaded):
             if which != "test" and (len(s.robots) != 1 or s.robots[0].goal is None
-                                    or s.robots[0].model != "unicycle"):
+                                    or "heading_control" not in
+                                    models.MODELS[s.robots[0].model].capabilities):
                 raise fail(f"scenarios.{which}[{i}]", f"{s.source or s.name}: expected a "
                            "scenario with exactly one unicycle robot and a fixed goal")
         if which != "test" and loaded:

@@ -24,10 +24,10 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.plotting import plot_result, save_figure
-from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.tuner.ga import TuneResult, _job_json, tune
 from hybridnav.tuner.heldout import compare_systems, summarize, verdict
 from hybridnav.tuner.job import Job

@@ -236,7 +236,7 @@ def _check_model(chk: _Check, key: str, model: str, dt: float, radius: float, ha
     A tractor-trailer's footprint follows from its ``L`` and ``b`` parameters, so it takes no
     ``radius`` key.
     """
-    if model == "tractor_trailer" and has_radius:
+    if models.MODELS[model].footprint_from_params and has_radius:
         raise chk.fail(f"{key}.radius", "a tractor_trailer's footprint follows from its params L "
                                         "and b; remove radius (set robots.params.L / b instead)")
     try:

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from hybridnav import models
 from hybridnav.fileio import atomic_write_text
 from hybridnav.world.obstacles import (
     _TYPE_OF,
@@ -66,7 +67,7 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         if r.goal_follow is not None:
             rd["goal_follow"] = r.goal_follow
         rd["goal_radius"] = r.goal_radius
-        if r.model != "tractor_trailer":     # its footprint follows from its params
+        if not models.MODELS[r.model].footprint_from_params:   # else it follows from params
             rd["radius"] = r.radius
         rd["initial"] = dict(r.initial)
         rd["params"] = dict(r.params)

@@ -14,9 +14,18 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fuzzy.spec import MAX_POINTS
 from hybridnav.fuzzy.mf import MF_PARAMS, check_params, sample
-from hybridnav.fuzzy.spec import And, Antecedent, Not, Or, Rule, Term, TermRef, Variable
+from hybridnav.fuzzy.spec import (
+    MAX_POINTS,
+    And,
+    Antecedent,
+    Not,
+    Or,
+    Rule,
+    Term,
+    TermRef,
+    Variable,
+)
 from hybridnav.fuzzy.system import FuzzySystem
 
 __all__ = [

@@ -34,7 +34,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hybridnav.fuzzy.export._common import check_names, fnum, normalize, sampled_polyline, version
+from hybridnav.fuzzy.export._common import (
+    check_names,
+    fnum,
+    normalize,
+    sampled_polyline,
+    version,
+)
 from hybridnav.fuzzy.export.fll import rule_text
 from hybridnav.fuzzy.spec import Term, Variable
 from hybridnav.fuzzy.system import FuzzySystem

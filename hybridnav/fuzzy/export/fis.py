@@ -44,9 +44,19 @@ from typing import Any
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fuzzy.export._common import (
+    DEFAULT_POINTS,
+    LineError,
+    build_system,
+    check_names,
+    check_points,
+    check_range,
+    check_term,
+    fnum,
+    metadata_json,
+    normalize,
+    parse_metadata,
     parse_number,
-    DEFAULT_POINTS, LineError, build_system, check_names, check_points, check_range, check_term,
-    fnum, metadata_json, normalize, parse_metadata, version,
+    version,
 )
 from hybridnav.fuzzy.spec import And, Antecedent, Not, Or, TermRef, antecedent_to_json
 from hybridnav.fuzzy.system import FuzzySystem

@@ -43,12 +43,31 @@ import re
 from typing import Any
 
 from hybridnav.fuzzy.export._common import (
+    DEFAULT_POINTS,
+    LineError,
+    build_system,
+    check_names,
+    check_points,
+    check_range,
+    check_term,
+    fnum,
+    metadata_json,
+    normalize,
+    one_line,
+    parse_metadata,
     parse_number,
-    DEFAULT_POINTS, LineError, build_system, check_names, check_points, check_range, check_term,
-    fnum, metadata_json, normalize, one_line, parse_metadata, sampled_polyline, version,
+    sampled_polyline,
+    version,
 )
 from hybridnav.fuzzy.spec import (
-    And, Antecedent, Not, Or, Term, TermRef, Variable, antecedent_to_json,
+    And,
+    Antecedent,
+    Not,
+    Or,
+    Term,
+    TermRef,
+    Variable,
+    antecedent_to_json,
 )
 from hybridnav.fuzzy.system import FuzzySystem
 
