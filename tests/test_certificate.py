@@ -29,6 +29,8 @@ EXPRESSIONS = [
     cs.exp(_x[0]) * cs.log(_x[1] ** 2 + 1), _x[0] ** 3 - _x[1] ** 4, wrap_angle(3 * _x[2]),
     cs.cos(wrap_angle(_x[0] - _x[1])), cs.if_else(_x[0] > 0, _x[1], -_x[1]), _x[0] / _x[1],
     cs.tanh(_x[0] * _x[2]), cs.atan(_x[0]) + cs.fmin(_x[1], 0.5), (_x[0] - 1) ** 2 * cs.sin(_x[1]),
+    cs.sqrt(_x[0]) + cs.log(_x[1]), cs.asin(_x[2] / 4), cs.fabs(_x[0]) ** 2.5 * 10.0 ** _x[1],
+    cs.tanh(cs.log(_x[0] - 2)),
 ]
 F_INTERVAL = IntervalFunction(_x, EXPRESSIONS)
 F_POINT = cs.Function("f", [_x], [cs.vertcat(*EXPRESSIONS)])
@@ -216,3 +218,64 @@ def test_basin_agrees_with_solve_ivp_in_the_trap():
         assert (np.hypot(*(sol.y[:, -1] - target)) <= r) == conv[iy, ix], z0
         checked += 1
     assert checked >= 25
+
+
+# ---- what a review found (each made the certificate over-claim or an enclosure wrong) ----------
+
+_y = cs.SX.sym("y", 1)
+_LINE = Box(("y",), np.array([-1.0]), np.array([1.0]))
+
+
+@pytest.mark.parametrize("f, V, box", [
+    (-_y * (1 + cs.sqrt(_y + 0.5)), _y**2, _LINE),              # f is NaN below y = -0.5
+    (-_y * (2 + cs.tanh(cs.log(_y - 2))), _y**2, _LINE),        # f is NaN everywhere
+    (_y, _y**2 * (2 + cs.tanh(cs.log(_y + 0.5))), Box(("y",), np.array([-1.0]),
+                                                     np.array([-0.6]))),   # V is NaN there
+])
+def test_nothing_is_proved_where_the_expressions_are_undefined(f, V, box):
+    assert certify(_y, f, V, box, center=np.zeros(1), max_boxes=5_000).status != "proved"
+
+
+def test_enclosures_of_powers_huge_sines_infinities_and_underflows():
+    from decimal import Decimal, getcontext
+
+    getcontext().prec = 50
+    x0 = 93.4050111604654
+    F = IntervalFunction(_y, [_y**1.5, cs.sin(_y), cs.cosh(1 / _y)])
+    lo, hi, _ = F(np.array([[x0]]), np.array([[x0]]))
+    exact = Decimal(x0) * Decimal(x0).sqrt()
+    assert Decimal(lo[0, 0]) <= exact <= Decimal(hi[0, 0])
+    a, b = 1288408130550494.75, 1288408130550496.5       # a peak of sin lies in between
+    lo, hi, _ = F(np.array([[a]]), np.array([[b]]))
+    assert hi[0, 1] >= 1.0
+    lo, hi, _ = F(np.array([[1e-170]]), np.array([[2e-170]]))
+    assert lo[0, 2] > 1 and hi[0, 2] == np.inf               # no NaN from inf - inf
+    q = cs.SX.sym("q", 2)
+    lo, hi, _ = IntervalFunction(q, [q[0] / q[1]])(np.array([[2e-120, 1e300]]),
+                                                   np.array([[2e-120, 1e300]]))
+    assert lo[0, 0] <= 0 < hi[0, 0]                          # 2e-420 underflows to 0
+
+
+def test_invariance_is_shown_or_nothing_is_claimed():
+    q = cs.SX.sym("q", 2)
+    square = Box(("a", "b"), np.full(2, -1.0), np.full(2, 1.0))
+    # the flow -x runs into the obstacle at (0.5, 0) from (1, 0): no invariance, so no proof
+    into = certify(q, -q, cs.sumsqr(q), square, constraints=(q[0] - 0.5) ** 2 + q[1] ** 2 - 0.01,
+                   center=np.zeros(2), max_boxes=20_000)
+    assert into.status != "proved" and into.details["counts"]["obstacle_boundary_split"] > 0
+    # LaSalle without invariance (x(t) = 1 - t leaves [0.5, 1.5]): not proved
+    leave = certify(_y, 0 * _y - 1, _y**2, Box(("y",), np.array([0.5]), np.array([1.5])),
+                    lasalle=True)
+    assert leave.status == "undecided" and leave.invariant is False
+    # a side of zero width is a face on both sides: ydot = -0.5 leaves the slice y = 0.5
+    flat = certify(q, -q, q[0] ** 2, Box(("a", "b"), np.array([-1.0, 0.5]), np.array([1.0, 0.5])),
+                   lasalle=True)
+    assert flat.invariant is False and flat.status != "proved"
+
+
+def test_a_rounding_radius_is_stated_in_the_claim():
+    """Vdot = -2 y (y - 1e-4) > 0 on (0, 1e-4): within r0 of x* = 0 nothing is claimed."""
+    cert = certify(_y, -(_y - 1e-4), _y**2, _LINE, center=np.zeros(1))
+    if cert.status == "proved":
+        r0 = cert.details["ball"]["r0"]
+        assert r0 >= 1e-4 and f"except within r0 = {r0:.3g} of x*" in cert.claim

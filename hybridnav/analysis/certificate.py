@@ -160,7 +160,8 @@ def certify(
     g = cs.SX(0, 1) if constraints is None else cs.vec(cs.SX(constraints))
     ng = int(g.numel())
     vdot = cs.jtimes(V, x, f)
-    outs = [V, vdot, g, f]
+    gdot = cs.jtimes(g, x, f) if ng else cs.SX(0, 1)
+    outs = [V, vdot, g, f, gdot]
     lie = []
     if lasalle:
         d = vdot
@@ -176,7 +177,8 @@ def certify(
     iv, idot = 0, 1
     ig = slice(2, 2 + ng)
     if_ = slice(2 + ng, 2 + ng + nx)
-    il = slice(2 + ng + nx, 2 + ng + nx + len(lie))
+    igd = slice(2 + ng + nx, 2 + 2 * ng + nx)
+    il = slice(2 + 2 * ng + nx, 2 + 2 * ng + nx + len(lie))
     clamp = {2 + j: (0.0, np.inf) for j in range(ng)}
     lower, upper = box.lower.astype(float), box.upper.astype(float)
     width = np.where(upper > lower, upper - lower, 1.0)
@@ -210,8 +212,8 @@ def certify(
     los, his, tags = [lower[None]], [upper[None]], [np.array([-1])]
     if faces:
         for i in range(nx):
-            if i in periodic or upper[i] == lower[i]:
-                continue
+            if i in periodic:
+                continue                  # a side of zero width gets both faces: f_i = 0 there
             for side, val in ((0, lower[i]), (1, upper[i])):
                 lo_f, hi_f = lower.copy(), upper.copy()
                 lo_f[i] = hi_f[i] = val
@@ -220,7 +222,8 @@ def certify(
                 tags.append(np.array([2 * i + side]))
     stack = [(np.vstack(los), np.vstack(his), np.concatenate(tags))]
     counts = {"outside_free_space": 0, "outside_level": 0, "local_ball": 0, "decreasing": 0,
-              "lasalle_lie": 0, "eps_set": 0, "face_above_level": 0, "face_inward": 0}
+              "lasalle_lie": 0, "eps_set": 0, "face_above_level": 0, "face_inward": 0,
+              "obstacle_boundary_split": 0}
     evaluated = 0
     leftovers: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     face_cex = None
@@ -229,7 +232,9 @@ def certify(
         lo, hi, tag = _take(stack, batch)
         evaluated += len(lo)
         ol, oh, sm = F(lo, hi, clamp)
-        v_smooth = sm[:, iv]                 # Vdot = grad V . f is V's derivative where V is
+        # Vdot = grad V . f is V's derivative where V is smooth; solutions exist and are unique
+        # where f is (a kink or a jump of f leaves the box undecided: conservative)
+        v_smooth = sm[:, iv] & np.all(sm[:, if_], axis=1)
         v_lo, v_hi = ol[:, iv], oh[:, iv]
         d_hi = oh[:, idot]
         done = np.zeros(len(lo), dtype=bool)
@@ -275,6 +280,18 @@ def certify(
             ok = interior & (v_lo > 0) & (d_hi < 0) & v_smooth
             counts["decreasing"] += int(ok.sum())
             done |= ok
+        if ng:
+            # a box decided by decrease that may hold an obstacle's boundary (g = 0) inside the
+            # level set is only done where the flow points out of the obstacle (gdot > 0), so
+            # that K is invariant there too; otherwise it is split further (and, if it cannot
+            # be, left undecided)
+            decided = done & ~is_face & ~np.any(oh[:, ig] <= 0, axis=1) & ~(v_lo > cap)
+            straddle = (ol[:, ig] == 0) & (oh[:, ig] > 0)
+            unsafe = decided & np.any(straddle & ~(ol[:, igd] > 0), axis=1)
+            if local is not None:
+                unsafe &= ~np.all((lo >= local["lo"]) & (hi <= local["hi"]), axis=1)
+            counts["obstacle_boundary_split"] += int(unsafe.sum())
+            done &= ~unsafe
         rest = np.flatnonzero(~done)
         if not len(rest):
             continue
@@ -317,28 +334,37 @@ def certify(
                            invariant=invariant, boxes=evaluated, undecided=undecided,
                            details=details)
     interior_left = undecided - faces_undecided
+    if lasalle and not interior_left and invariant is not True:
+        # LaSalle's conclusion needs K positively invariant: without it nothing follows
+        return Certificate("undecided", "", f"interval branch and bound: LaSalle's conditions "
+                           f"hold on every box ({evaluated}), but K was not shown positively "
+                           "invariant (faces or obstacle boundaries)", invariant=invariant,
+                           boxes=evaluated, undecided=undecided, details=details)
     if interior_left:
         why = "the budget ran out" if stack else f"boxes reached the minimum width {min_width:g}"
         return Certificate("undecided", "", f"interval branch and bound: {interior_left} of "
                            f"{evaluated} boxes undecided ({why})", invariant=invariant,
                            boxes=evaluated, undecided=undecided, details=details)
-    ball_text = ""
+    ball_text, except_text = "", "except at x*"
     if local is not None:
         r0 = local["details"]["r0"]
+        if r0 > 0:
+            except_text = f"except within r0 = {r0:.3g} of x*"
         ball_text = (f"; within the box |x - x*| <= {np.array2string(local['half'], precision=3)}"
                      f" around x* = {np.array2string(local['center'], precision=6)} by the "
                      f"interval Hessians (Taylor), outside the radius r0 = {r0:.3g} of x*")
     inv_text = {True: "; K is positively invariant (faces: V > level or the flow points "
-                      "inward)",
+                      "inward; obstacle boundaries: V > level or the flow points away)",
                 False: "; positive invariance of K was not shown on the faces",
                 None: ""}[invariant]
     if lasalle:
-        claim = (f"Vdot <= 0 on K = {where}, and outside {{V < {eps:.3g}}} no trajectory stays "
-                 f"in {{Vdot = 0}} (Vdot < 0 or a Lie derivative L_f^k Vdot, k <= {len(lie)}, is "
-                 f"nonzero): by LaSalle's invariance principle every trajectory starting in K "
-                 f"ends in {{V < {eps:.3g}}}{inv_text}")
+        claim = (f"Vdot <= 0 on K = {where} outside {{V < {eps:.3g}}}, where no trajectory "
+                 f"stays in {{Vdot = 0}} (Vdot < 0 or a Lie derivative L_f^k Vdot, k <= "
+                 f"{len(lie)}, is nonzero){inv_text}: by LaSalle's invariance principle every "
+                 f"trajectory starting in K enters {{V < {eps:.3g}}} and then stays in "
+                 f"{{V <= {eps:.3g}}}")
     else:
-        claim = (f"V > 0 and Vdot < 0 on K = {where}, except at x*{ball_text}{inv_text}")
+        claim = f"V > 0 and Vdot < 0 on K = {where}, {except_text}{ball_text}{inv_text}"
     method = (f"interval branch and bound over {evaluated} boxes "
               f"({', '.join(f'{k} {v}' for k, v in counts.items() if v)})")
     return Certificate("proved", claim, method, invariant=invariant, boxes=evaluated,
@@ -408,7 +434,7 @@ def _local_ball(x, V, vdot, center, half, lower, upper) -> dict[str, Any]:
         lo = np.maximum(center - h, lower)[None]
         hi = np.minimum(center + h, upper)[None]
         ol, oh, smooth = F(lo, hi)
-        if not smooth[0].all():
+        if not smooth[0].all():          # (undefined outputs are not smooth either)
             info.update(ok=False, reason="V or Vdot is not smooth on the ball")
             continue
         m_v = _min_eig(ol[0, 1 + nx:1 + nx + nx * nx], oh[0, 1 + nx:1 + nx + nx * nx], nx)

@@ -392,7 +392,8 @@ def _certificate_route(report, model, v_num, both, box, level, xmin, target, max
     if cert.status == "proved":
         report.status, report.route = "proved", "certificate"
         report.claim = cert.claim
-        report.vdot_nonpositive_proved = True
+        # (within a rounding radius r0 > 0 of x* nothing was shown)
+        report.vdot_nonpositive_proved = cert.details.get("ball", {}).get("r0", 0.0) == 0.0
         report.method = f"certificate: {cert.method}; {cert.claim}"
     elif cert.status == "counterexample":
         _counterexample(report, both, cert.counterexample, cert.method)
@@ -415,8 +416,7 @@ def _lasalle_route(report, model, v_num, box, level, max_boxes) -> None:
     if cert.status == "proved":
         report.details["vdot_zero_state"] = report.counterexample.tolist()
         report.status, report.route = "proved", "lasalle"
-        report.claim = cert.claim
-        report.vdot_nonpositive_proved = True
+        report.claim = cert.claim           # Vdot <= 0 outside the small set {V < eps}
         report.method = (f"LaSalle: V is not strictly decreasing ({report.method}); "
                          f"{cert.method}; {cert.claim}")
         report.counterexample = None
