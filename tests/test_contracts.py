@@ -1,0 +1,74 @@
+"""Contracts every registered planner and model keeps (parametrized over the registries, so a new
+one is checked without writing a test for it)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hybridnav import HybridnavError, models, planners
+from hybridnav.results import OUTCOMES, read_result
+from hybridnav.world import MODEL_NAMES, scenario_from_dict
+
+SMALL = {
+    "name": "contract", "dt": 0.1, "max_time": 80.0,
+    "workspace": {"xmin": 0.0, "xmax": 10.0, "ymin": 0.0, "ymax": 10.0},
+    "obstacles": [{"type": "circle", "center": [5.0, 7.5], "radius": 1.0}],
+    "robots": [{"name": "R", "model": "point_mass", "start": [1.0, 1.0], "goal": [9.0, 9.0],
+                "goal_radius": 0.3, "radius": 0.2}],
+}
+
+
+@pytest.fixture(scope="module")
+def small():
+    return scenario_from_dict(SMALL)
+
+
+@pytest.mark.parametrize("name", sorted(planners.PLANNERS))
+def test_planner_refuses_an_unknown_parameter(name):
+    cls = planners.PLANNERS[name]
+    expected = ", ".join(sorted(cls.params)) or "(none)"
+    with pytest.raises(HybridnavError) as err:
+        planners.get(name, no_such_parameter=1)
+    assert str(err.value) == (f"planner {name}: unknown parameter 'no_such_parameter'; "
+                              f"expected one of: {expected}")
+
+
+@pytest.mark.parametrize("name", sorted(planners.PLANNERS))
+def test_planner_declares_the_robots_it_drives_by_capability(name):
+    cls = planners.PLANNERS[name]
+    assert cls.models and set(cls.models) <= set(MODEL_NAMES)
+    for model in cls.models:
+        caps = models.MODELS[model].capabilities
+        assert any(req <= caps for req in cls.drives)
+
+
+@pytest.mark.parametrize("name", sorted(planners.PLANNERS))
+def test_planner_outcome_seed_and_result_round_trip(name, small, tmp_path):
+    first = planners.get(name).run(small, seed=3)
+    again = planners.get(name).run(small, seed=3)
+    assert [r.name for r in first.robots] == ["R"]
+    for a, b in zip(first.robots, again.robots):
+        assert a.outcome in OUTCOMES
+        assert a.outcome == b.outcome                      # the same seed, the same run
+        np.testing.assert_array_equal(a.states, b.states)
+        assert a.t[0] == 0.0 and np.all(np.diff(a.t) > 0)
+        assert a.state_names[:2] == ("x", "y")               # the trajectory CSV contract
+    back = read_result(first.write(tmp_path / name).parent)
+    assert back.planner == first.planner and back.seed == 3
+    for a, b in zip(first.robots, back.robots):
+        assert b.outcome == a.outcome
+        np.testing.assert_allclose(b.states, a.states, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(models.MODELS))
+def test_model_refuses_unknown_parameters_and_declares_what_others_ask(name):
+    cls = models.MODELS[name]
+    with pytest.raises(HybridnavError, match="no_such_parameter"):
+        models.get(name, no_such_parameter=1.0)
+    assert isinstance(cls.capabilities, frozenset)
+    assert set(cls.angle_state_names) <= set(cls.plant_state_names + cls.controller_state_names)
+    if cls.analysis_scenario is not None:
+        from hybridnav.world import load_scenario
+
+        load_scenario(cls.analysis_scenario)             # the scenario analyze uses exists
