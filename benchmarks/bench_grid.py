@@ -1,7 +1,7 @@
 """Grid planners on the MovingAI arena benchmark (Sturtevant 2012): speed and path length.
 
 Part 1 -- optimal search. All 130 queries of ``arena.map.scen``, one after the other, with
-``hybridnav.planners.gridsearch.astar`` and with ``networkx.astar_path`` on ``grid.to_networkx()``
+``hybridnav.planners.path.gridsearch.astar`` and with ``networkx.astar_path`` on ``grid.to_networkx()``
 (the same graph: octile moves, no corner cutting; the same octile heuristic). Each total is the best
 of ``--repeat`` passes; building the networkx graph (once, shared by all queries) is reported
 separately and not included in networkx's total. Also ``dijkstra``. Every length is checked
@@ -35,17 +35,17 @@ from itertools import pairwise
 
 import numpy as np
 
+from hybridnav.planners.path.gridsearch import astar, dijkstra
+from hybridnav.planners.path.planners import RFDPSOPlanner
+from hybridnav.planners.path.rfd_core import rfd
+from hybridnav.planners.psoba.planner import PSOBAPlanner
+from hybridnav.world import builtin_data_path, load_scenario
 from hybridnav.world.grid import (
     MovingAIQuery,
     OccupancyGrid,
     load_movingai_map,
     load_movingai_scen,
 )
-from hybridnav.planners.gridsearch import astar, dijkstra
-from hybridnav.planners.paths import RFDPSOPlanner
-from hybridnav.planners.psoba import PSOBAPlanner
-from hybridnav.planners.rfd_core import rfd
-from hybridnav.world import builtin_data_path, load_scenario
 
 _S = math.sqrt(2.0) - 1.0
 

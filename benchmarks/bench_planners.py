@@ -42,7 +42,7 @@ class Timers:
 
     def __init__(self) -> None:
         from hybridnav.models import base
-        from hybridnav.planners import stepping
+        from hybridnav.planners.step import base as stepping
 
         self.t: dict[str, float] = defaultdict(float)
         self.rows: dict[str, int] = defaultdict(int)

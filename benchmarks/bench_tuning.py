@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from hybridnav.planners.effc import effc_force, effc_inputs
 from hybridnav.backends import make_backend
+from hybridnav.planners.field.effc import effc_force, effc_inputs
 from hybridnav.tuner.evaluate import evaluate_chunk
 from hybridnav.tuner.ga import tune
 from hybridnav.tuner.genome import GenomeSpace

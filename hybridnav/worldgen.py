@@ -274,7 +274,7 @@ def solvable(scenario, resolution: float | None = None) -> bool:
     blocked; the start and goal cells must be free and joined by an 8-connected A* path without
     corner cutting.
     """
-    from hybridnav.planners.gridsearch import search_world
+    from hybridnav.planners.path.gridsearch import search_world
     from hybridnav.world.grid import rasterize
 
     xmin, xmax, ymin, ymax = scenario.world.workspace

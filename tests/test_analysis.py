@@ -9,9 +9,6 @@ import casadi as cs
 import control
 import numpy as np
 import pytest
-
-from hybridnav import HybridnavError, models
-from hybridnav.analysis import check_lyapunov, find_equilibria
 from hybridnav.analysis.linearize import (
     controllability_rank,
     is_stable,
@@ -19,6 +16,9 @@ from hybridnav.analysis.linearize import (
     linearize_expression,
     summarize,
 )
+
+from hybridnav import HybridnavError, models
+from hybridnav.analysis import check_lyapunov, find_equilibria
 from hybridnav.analysis.roa import estimate_roa
 from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
 from hybridnav.world import load_scenario

@@ -31,7 +31,15 @@ from hypothesis import strategies as st
 from hybridnav import HybridnavError, fuzzy
 from hybridnav.fuzzy import FuzzySystem
 from hybridnav.fuzzy.export import (
-    FORMATS, export, export_to_file, normalize, read_fis, read_fll, read_json, to_fcl, to_fis,
+    FORMATS,
+    export,
+    export_to_file,
+    normalize,
+    read_fis,
+    read_fll,
+    read_json,
+    to_fcl,
+    to_fis,
     to_fll,
 )
 from hybridnav.fuzzy.export.fcl import FCL_TOLERANCE, ZS_SEGMENTS, point_list

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_fuzzy_export import ZOO, evaluate, max_strength, random_inputs, systems
 
 from hybridnav import HybridnavError, fuzzy
 from hybridnav.fuzzy import FuzzySystem
 from hybridnav.fuzzy.export import c_identifier, export, to_c
-from test_fuzzy_export import ZOO, evaluate, max_strength, random_inputs, systems
 
 CC = shutil.which("gcc") or shutil.which("cc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH")

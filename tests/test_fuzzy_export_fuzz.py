@@ -11,11 +11,18 @@ import re
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_fuzzy_export import ZOO, ZOO_FLAT
 
 from hybridnav import HybridnavError, fuzzy
 from hybridnav.fuzzy import FuzzySystem
-from hybridnav.fuzzy.export import export, load_any, read_fis, read_fll, read_json, read_text
-from test_fuzzy_export import ZOO, ZOO_FLAT
+from hybridnav.fuzzy.export import (
+    export,
+    load_any,
+    read_fis,
+    read_fll,
+    read_json,
+    read_text,
+)
 
 SOURCES = {
     "json": [export(fuzzy.builtin("effc-5rule"), "json"),

@@ -12,6 +12,14 @@ from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
 from hybridnav.errors import HybridnavError
+from hybridnav.world import (
+    Circle,
+    Rectangle,
+    Segment,
+    World,
+    builtin_data_path,
+    load_scenario,
+)
 from hybridnav.world.grid import (
     OccupancyGrid,
     build_grid,
@@ -21,7 +29,6 @@ from hybridnav.world.grid import (
     rasterize,
     resolve_map,
 )
-from hybridnav.world import Circle, Rectangle, Segment, World, builtin_data_path, load_scenario
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "movingai"
 PKG_MAP = builtin_data_path("arena.map")

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from hybridnav.errors import HybridnavError
-from hybridnav.world.grid import OccupancyGrid, load_movingai_map, load_movingai_scen
-from hybridnav.planners.gridsearch import (
+from hybridnav.planners.path.gridsearch import (
     GridPath,
     astar,
     dijkstra,
@@ -20,6 +19,7 @@ from hybridnav.planners.gridsearch import (
     search_world,
 )
 from hybridnav.world import builtin_data_path
+from hybridnav.world.grid import OccupancyGrid, load_movingai_map, load_movingai_scen
 
 SEARCHES = {"astar": astar, "dijkstra": dijkstra}
 

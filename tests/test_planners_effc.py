@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, fuzzy, planners
-from hybridnav.planners.effc import effc_force, effc_inputs
+from hybridnav.planners.field.effc import effc_force, effc_inputs
 from hybridnav.world import Circle, World, load_scenario
 
 

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, planners
-from hybridnav.world.grid import build_grid
-from hybridnav.planners.apf import apf_force
-from hybridnav.planners.hapf import harmonic_field
-from hybridnav.planners.lockstep import lockstep_field
+from hybridnav.planners.field.apf import apf_force
+from hybridnav.planners.field.hapf import harmonic_field
+from hybridnav.planners.field.lockstep import lockstep_field
 from hybridnav.planners.simulate import simulate
 from hybridnav.world import Circle, World, load_scenario, scenario_from_dict
+from hybridnav.world.grid import build_grid
 
 
 def small_scenario(obstacles=(), start=(0.0, 0.0), goal=(3.0, 0.0), model="point_mass",

@@ -1,4 +1,4 @@
-"""Plan-then-track planners: astar, dijkstra, rfd, pso, rfd-pso (hybridnav.planners.paths)."""
+"""Plan-then-track planners: astar, dijkstra, rfd, pso, rfd-pso (hybridnav.planners.path.planners)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from hybridnav import HybridnavError
-from hybridnav.world.grid import build_grid, load_movingai_scen
-from hybridnav.planners.paths import (
+from hybridnav.planners.path.planners import (
     AStarPlanner,
     DijkstraPlanner,
     PSOPathPlanner,
@@ -31,6 +30,7 @@ from hybridnav.world import (
     load_scenario,
     scenario_from_dict,
 )
+from hybridnav.world.grid import build_grid, load_movingai_scen
 
 ALL = (AStarPlanner, DijkstraPlanner, RFDPlanner, PSOPathPlanner, RFDPSOPlanner)
 

@@ -1,4 +1,4 @@
-"""PSO-BA (hybridnav.planners.psoba, hybridnav.planners.psoba_sensors)."""
+"""PSO-BA (hybridnav.planners.psoba.planner, hybridnav.planners.psoba.sensors)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,13 @@ import pytest
 from matplotlib.figure import Figure
 
 from hybridnav import HybridnavError
-from hybridnav.planners.psoba import PSOBAPlanner, disk_candidates, pso_ba, psoba_fitness
-from hybridnav.planners.psoba_sensors import (
+from hybridnav.planners.psoba.planner import (
+    PSOBAPlanner,
+    disk_candidates,
+    pso_ba,
+    psoba_fitness,
+)
+from hybridnav.planners.psoba.sensors import (
     Scene,
     feasible,
     gap_index,

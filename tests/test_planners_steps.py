@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, models, planners
-from hybridnav.planners.stepfit import GoalDistance, Surroundings, feasible_steps, step_fitness
+from hybridnav.planners.step.stepfit import (
+    GoalDistance,
+    Surroundings,
+    feasible_steps,
+    step_fitness,
+)
 from hybridnav.world import Circle, Segment, World, load_scenario, scenario_from_dict
 
 NO_ROBOTS = (np.zeros((0, 2)), np.zeros(0))

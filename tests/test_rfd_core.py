@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from hybridnav.errors import HybridnavError
-from hybridnav.world.grid import OccupancyGrid, load_movingai_map
-from hybridnav.planners import rfd_core
-from hybridnav.planners.gridsearch import astar, path_cost
-from hybridnav.planners.rfd_core import RFD_REASONS, RFDResult, rfd
+from hybridnav.planners.path import rfd_core
+from hybridnav.planners.path.gridsearch import astar, path_cost
+from hybridnav.planners.path.rfd_core import RFD_REASONS, RFDResult, rfd
 from hybridnav.world import builtin_data_path
+from hybridnav.world.grid import OccupancyGrid, load_movingai_map
 
 
 def open_grid(h=8, w=8):

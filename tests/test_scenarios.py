@@ -12,7 +12,6 @@ import pytest
 from scipy import ndimage
 
 from hybridnav.errors import HybridnavError
-from hybridnav.world.grid import build_grid, rasterize
 from hybridnav.plotting import draw_scenario, save_scenario_png
 from hybridnav.world import (
     MODEL_NAMES,
@@ -29,6 +28,7 @@ from hybridnav.world import (
     scenario_to_toml,
     toml_dumps,
 )
+from hybridnav.world.grid import build_grid, rasterize
 
 BUILTIN = [name for name, _ in list_scenarios()]
 

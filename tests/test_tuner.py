@@ -214,7 +214,7 @@ def test_coverage_matches_scikit_fuzzy_on_random_genomes(tmp_path):
 
 
 def test_deploy_cost_orders_outcomes(tmp_path):
-    from hybridnav.planners.lockstep import LockstepResult
+    from hybridnav.planners.field.lockstep import LockstepResult
     from hybridnav.tuner.evaluate import run_costs
 
     job = small_job(tmp_path)

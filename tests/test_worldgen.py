@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError
+from hybridnav.world import (
+    Circle,
+    Rectangle,
+    Segment,
+    World,
+    load_scenario,
+    save_scenario,
+)
 from hybridnav.world.grid import rasterize
-from hybridnav.world import Circle, Rectangle, Segment, World, load_scenario, save_scenario
 from hybridnav.worldgen import WorldGenerator, generator_from_table, solvable
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hybridnav.planners.worldstack import WorldStack
+from hybridnav.planners.field.worldstack import WorldStack
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Segment, World
 
 
@@ -50,8 +50,8 @@ def test_stack_equals_each_world(t):
 def test_lockstep_with_a_stack_equals_the_planner_runs():
     from hybridnav import fuzzy, planners
     from hybridnav.fuzzy.family import SystemFamily
-    from hybridnav.planners.effc import effc_force, effc_inputs_from
-    from hybridnav.planners.lockstep import lockstep_field
+    from hybridnav.planners.field.effc import effc_force, effc_inputs_from
+    from hybridnav.planners.field.lockstep import lockstep_field
     from hybridnav.world import load_scenario
     from hybridnav.worldgen import WorldGenerator
 

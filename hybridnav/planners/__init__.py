@@ -1,29 +1,36 @@
-"""Navigation methods: one module per planner; ``planners/swarm`` holds the pure optimizers.
+"""Navigation methods, grouped by family: ``field/`` (potential fields), ``step/`` (swarm-searched
+steps), ``path/`` (plan then track), ``psoba/``, and ``lbcs``; ``swarm/`` holds the pure
+optimizers, which know nothing about robots; :mod:`.simulate` is the loop every family shares.
 
 ``get(name, **params)`` returns a planner; :data:`PLANNERS` maps names to classes.
+
+The modules' paths before 0.3 (``hybridnav.planners.apf``, ``.paths``, ``.stepping``, ...) are
+aliases of their new places for one version (listed in the README).
 """
 
 from __future__ import annotations
 
+import importlib
+import sys
 from typing import Any
 
 from hybridnav.errors import HybridnavError
-from hybridnav.planners.acok import ACOKinematic
-from hybridnav.planners.apf import APF
 from hybridnav.planners.base import Param, Planner, parse_assignments
-from hybridnav.planners.effc import EFFC
-from hybridnav.planners.fastepk import FAStepKinematic
-from hybridnav.planners.hapf import HAPF
+from hybridnav.planners.field.apf import APF
+from hybridnav.planners.field.effc import EFFC
+from hybridnav.planners.field.hapf import HAPF
+from hybridnav.planners.field.pbpf import PBPF
 from hybridnav.planners.lbcs import LbCSPlanner
-from hybridnav.planners.paths import (
+from hybridnav.planners.path.planners import (
     AStarPlanner,
     DijkstraPlanner,
     PSOPathPlanner,
     RFDPlanner,
     RFDPSOPlanner,
 )
-from hybridnav.planners.pbpf import PBPF
-from hybridnav.planners.psoba import PSOBAPlanner
+from hybridnav.planners.psoba.planner import PSOBAPlanner
+from hybridnav.planners.step.acok import ACOKinematic
+from hybridnav.planners.step.fastepk import FAStepKinematic
 
 PLANNERS: dict[str, type[Planner]] = {
     cls.name: cls for cls in (ACOKinematic, APF, AStarPlanner, DijkstraPlanner, EFFC,
@@ -32,6 +39,16 @@ PLANNERS: dict[str, type[Planner]] = {
 }
 
 __all__ = ["PLANNERS", "Param", "Planner", "get", "parse_assignments"]
+
+#: where the flat modules of 0.2 went (``field`` and ``psoba`` are packages now that export their
+#: old public names)
+MOVED = {"apf": "field.apf", "effc": "field.effc", "hapf": "field.hapf", "pbpf": "field.pbpf",
+         "lockstep": "field.lockstep", "worldstack": "field.worldstack",
+         "fastepk": "step.fastepk", "acok": "step.acok", "stepping": "step.base",
+         "stepfit": "step.stepfit", "paths": "path.planners", "gridsearch": "path.gridsearch",
+         "rfd_core": "path.rfd_core", "psoba_sensors": "psoba.sensors"}
+for _old, _new in MOVED.items():
+    sys.modules[f"{__name__}.{_old}"] = importlib.import_module(f"{__name__}.{_new}")
 
 
 def get(name: str, **params: Any) -> Planner:

@@ -13,7 +13,7 @@ Tractor-trailers (``rp`` = the model's ``radius``, ``sqrt(L^2 + b^2) / 2``)
     Our reconstruction, not Sharma et al. (2008)'s acceleration-controlled scheme, whose equations
     the ACO-Kinematic paper does not print: each control cycle the LbCS velocity at the tractor's
     reference point ``(x, y)`` is turned into a target point with the tractor-trailer model's
-    :meth:`~hybridnav.models.TractorTrailer.carrot` (as :mod:`hybridnav.planners.field` drives
+    :meth:`~hybridnav.models.TractorTrailer.carrot` (as :mod:`hybridnav.planners.field.base` drives
     models from a velocity field), and the model's own steering law follows it. With the defaults
     (``alpha = 0.1``, ``delta = 10``, so ``1 / (alpha delta) = 1``) the carrot away from obstacles
     is (nearly) the goal itself. The tractor is nonholonomic, so it follows the field only

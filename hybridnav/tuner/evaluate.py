@@ -2,8 +2,8 @@
 
 Each control cycle is one batched fuzzy evaluation for all robots of the chunk
 (:class:`hybridnav.fuzzy.family.SystemFamily`), one batched nearest-obstacle query over all
-environments (:class:`hybridnav.planners.worldstack.WorldStack`) and one batched model step
-(:func:`hybridnav.planners.lockstep.lockstep_field`) — no Python loop per individual, per
+environments (:class:`hybridnav.planners.field.worldstack.WorldStack`) and one batched model step
+(:func:`hybridnav.planners.field.lockstep.lockstep_field`) — no Python loop per individual, per
 environment or per step.
 
 Cost of one run (``reward.kind``):
@@ -53,9 +53,9 @@ from typing import Any
 import numpy as np
 
 from hybridnav.fuzzy.family import SystemFamily
-from hybridnav.planners.effc import effc_force, effc_inputs_from
-from hybridnav.planners.lockstep import LockstepResult, lockstep_field
-from hybridnav.planners.worldstack import WorldStack
+from hybridnav.planners.field.effc import effc_force, effc_inputs_from
+from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field
+from hybridnav.planners.field.worldstack import WorldStack
 
 __all__ = ["VALIDATION_KEY", "evaluate_chunk", "lockstep_effc", "run_costs", "scenario_set",
            "simulate_genomes", "simulate_on"]

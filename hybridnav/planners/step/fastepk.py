@@ -15,7 +15,7 @@ damped by 0.8, ``a = b = 0.18``, ``c = 0.01``; ``alpha1 = alpha2 = 0.1`` are the
 model defaults). The table leaves the absorption coefficient and the number of generations
 blank: ``gamma = 100`` relative to the search box diagonal (see :func:`~hybridnav.planners.swarm.
 fastep`) and 30 generations (3050 candidates per step) are our choices. See
-:mod:`hybridnav.planners.stepping` for the shared loop and feasibility check.
+:mod:`hybridnav.planners.step.base` for the shared loop and feasibility check.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from hybridnav.planners.base import Param
-from hybridnav.planners.stepping import COMMON, StepPlanner
+from hybridnav.planners.step.base import COMMON, StepPlanner
 from hybridnav.planners.swarm import PRESETS, fastep
 
 __all__ = ["FAStepKinematic"]

@@ -102,7 +102,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.planners.gridsearch import (
+from hybridnav.planners.path.gridsearch import (
     _MOVES,
     _as_cell,
     _check_endpoint,
@@ -409,7 +409,7 @@ def rfd(
     seed : int, numpy.random.Generator or None
         Seed of the generator that drives all random choices; equal seeds give equal results.
     diagonal, corner_cutting : bool
-        Graph connectivity, as in :func:`hybridnav.planners.gridsearch.astar`.
+        Graph connectivity, as in :func:`hybridnav.planners.path.gridsearch.astar`.
     altitude0 : float
         Initial altitude of every node except the goal (altitude 0).
     slope : float

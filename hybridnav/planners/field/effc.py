@@ -25,7 +25,7 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param
-from hybridnav.planners.field import COMMON, FieldPlanner
+from hybridnav.planners.field.base import COMMON, FieldPlanner
 from hybridnav.planners.simulate import Simulation
 
 __all__ = ["EFFC", "effc_inputs", "effc_inputs_from", "effc_force"]

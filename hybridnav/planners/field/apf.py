@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybridnav.planners.base import Param
-from hybridnav.planners.field import COMMON, FieldPlanner
+from hybridnav.planners.field.base import COMMON, FieldPlanner
 from hybridnav.planners.simulate import Simulation
 
 __all__ = ["APF", "apf_force"]

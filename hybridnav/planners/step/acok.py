@@ -8,7 +8,7 @@ intensification factor ``q = 0.5``, ``a = b = c = 0.18``, ``d = 0.01`` (its Tabl
 ``a = 0.02`` and ``c = 0.05`` / 0.18 for the comparison with LbCS). One ACOR generation per step,
 as in the paper's Algorithm 1; the archive starts afresh at every step (with the goal in it),
 because the robot has moved and every stored fitness, which includes the feasibility of driving
-there from the robot's state, would be stale. See :mod:`hybridnav.planners.stepping` for the
+there from the robot's state, would be stale. See :mod:`hybridnav.planners.step.base` for the
 shared loop and feasibility check.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from hybridnav.planners.base import Param
-from hybridnav.planners.stepping import COMMON, StepPlanner
+from hybridnav.planners.step.base import COMMON, StepPlanner
 from hybridnav.planners.swarm import ACO_KINEMATIC, acor
 
 __all__ = ["ACOKinematic"]

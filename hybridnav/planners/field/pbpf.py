@@ -11,7 +11,7 @@ gain vector (searched in log space within ``gain_range`` of the APF defaults). E
   better half copies a random gene into a random bacterium of the worse half.
 
 The fitness of gains is the length of the APF path they produce (simulated in lockstep for the
-whole batch, :func:`hybridnav.planners.lockstep.lockstep_field`), or ``penalty`` times the
+whole batch, :func:`hybridnav.planners.field.lockstep.lockstep_field`), or ``penalty`` times the
 straight-line distance plus the distance left when the robot does not reach the goal. Static
 goals only (the search needs a fixed target).
 """
@@ -24,9 +24,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from hybridnav.planners.apf import APF, apf_force
 from hybridnav.planners.base import Param
-from hybridnav.planners.lockstep import lockstep_field
+from hybridnav.planners.field.apf import APF, apf_force
+from hybridnav.planners.field.lockstep import lockstep_field
 
 __all__ = ["PBPF"]
 

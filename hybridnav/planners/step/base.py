@@ -1,7 +1,7 @@
 """The shared loop of the step planners: plan a step with a swarm, drive there with the kinematics.
 
 FAStep-Kinematic and ACO-Kinematic both alternate two things for every robot: a swarm optimizer
-places the robot's next step (a waypoint) by minimizing :func:`~hybridnav.planners.stepfit.
+places the robot's next step (a waypoint) by minimizing :func:`~hybridnav.planners.step.stepfit.
 step_fitness` over candidate points, and the robot's own go-to-point controller (its kinematic
 equations, e.g. ``xdot = alpha1 (x1 - x)``) drives it there. :class:`StepPlanner` is that loop on top
 of :func:`~hybridnav.planners.simulate.simulate`; a subclass says which optimizer places a step
@@ -22,7 +22,7 @@ Planning a step: candidates lie in the workspace (shrunk by the robot's radius; 
 the whole-body disk (radius ``model.radius``, for the tractor-trailer ``sqrt(L^2 + b^2) / 2``) at
 least ``margin`` from obstacles and robots; the robot's compiled model is rolled out from its state
 towards every candidate in one batched call and the candidates whose swept footprint comes closer
-than ``margin`` are infeasible (:func:`~hybridnav.planners.stepfit.feasible_steps`). The goal is
+than ``margin`` are infeasible (:func:`~hybridnav.planners.step.stepfit.feasible_steps`). The goal is
 always one of the candidates, so a robot that can drive straight to its goal does. A robot that
 finds no feasible step holds its position and tries again every second; after ``patience`` seconds
 without one it is ``stuck``, and so is a robot with a fixed goal that plans ``stall_steps`` steps in
@@ -63,7 +63,7 @@ import numpy as np
 from hybridnav import models as model_registry
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.simulate import Simulation, simulate
-from hybridnav.planners.stepfit import (
+from hybridnav.planners.step.stepfit import (
     GoalDistance,
     Surroundings,
     feasible_steps,

@@ -61,7 +61,7 @@ def lockstep_field(
         (indices into the population) and positions ``P`` (m, 2) — one call per control cycle
         for the whole batch.
         A NaN row means "local minimum": the robot is ``stuck``; a zero row (balanced forces)
-        keeps the robot's previous command, as :class:`hybridnav.planners.field.FieldPlanner`
+        keeps the robot's previous command, as :class:`hybridnav.planners.field.base.FieldPlanner`
         does.
     model_overrides : dict, optional
         Options for the robot model (e.g. the unicycle heading controller).
@@ -70,7 +70,7 @@ def lockstep_field(
     stuck_window, stuck_radius :
         No-progress test: seconds, and a radius in goal radii.
     stack : WorldStack, optional
-        The scenarios' worlds packed (:class:`hybridnav.planners.worldstack.WorldStack`); built
+        The scenarios' worlds packed (:class:`hybridnav.planners.field.worldstack.WorldStack`); built
         here when not given. Collision and bounds tests ask it for all robots at once.
     """
     if not scenarios:
@@ -88,7 +88,7 @@ def lockstep_field(
             "scenarios: the training scenarios' robots must share one model, its parameters and "
             "dt (one batched step serves them all)")
     if stack is None:
-        from hybridnav.planners.worldstack import WorldStack
+        from hybridnav.planners.field.worldstack import WorldStack
 
         stack = WorldStack([s.world for s in scenarios])
     E, M = len(scenarios), int(n_members)

@@ -19,7 +19,7 @@ from scipy.sparse.linalg import spsolve
 
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param
-from hybridnav.planners.field import COMMON, FieldPlanner
+from hybridnav.planners.field.base import COMMON, FieldPlanner
 from hybridnav.planners.simulate import Simulation
 from hybridnav.world.grid import OccupancyGrid, build_grid
 

@@ -21,11 +21,11 @@ the shorter workspace side, as :func:`hybridnav.world.grid.build_grid` rasterize
 Planners
 --------
 ``astar``, ``dijkstra``
-    Optimal 8-connected octile search (:mod:`hybridnav.planners.gridsearch`) on
+    Optimal 8-connected octile search (:mod:`hybridnav.planners.path.gridsearch`) on
     ``build_grid(scenario, inflate=radius + margin)``: cells whose centre is closer than the robot
     radius plus ``margin`` to an obstacle are blocked.
 ``rfd``
-    River formation dynamics (:func:`hybridnav.planners.rfd_core.rfd`) on the same grid.
+    River formation dynamics (:func:`hybridnav.planners.path.rfd_core.rfd`) on the same grid.
 ``pso``
     Particle swarm optimization (:func:`hybridnav.planners.swarm.pso`) over ``waypoints`` (K)
     intermediate points in the continuous workspace; a particle is the ``2K`` vector
@@ -101,8 +101,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.planners.base import Param, Planner
-from hybridnav.planners.gridsearch import HEURISTICS, astar, dijkstra
-from hybridnav.planners.rfd_core import rfd
+from hybridnav.planners.path.gridsearch import HEURISTICS, astar, dijkstra
+from hybridnav.planners.path.rfd_core import rfd
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.planners.swarm import pso
 from hybridnav.results import Result, path_length

@@ -42,16 +42,16 @@ per particle.
 Local search (section 4.2)
 --------------------------
 A point is infeasible when a disk of the safety radius ``R (1 + margin)`` swept from the robot to it
-meets an obstacle (or the workspace border). :func:`~hybridnav.planners.psoba_sensors.local_search`
+meets an obstacle (or the workspace border). :func:`~hybridnav.planners.psoba.sensors.local_search`
 moves it back along the same ray to the first point whose clearance is ``ds`` (eq. 22; see
-:mod:`hybridnav.planners.psoba_sensors` for the exact continuous version we use). When that leaves
+:mod:`hybridnav.planners.psoba.sensors` for the exact continuous version we use). When that leaves
 less than ``step / 2`` of progress, the way is blocked and the robot starts wall following.
 
 Obstacle detection and avoidance (section 5)
 --------------------------------------------
 ``sensors`` (12) range sensors of radius ``sr`` around the robot, in the world frame, give the
 sensing vector ``Vs`` and the gap vector ``Vg(j) = NOT(Vs(j) OR Vs(j + 1))``
-(:mod:`~hybridnav.planners.psoba_sensors`). A wall-following episode (``wall`` mode):
+(:mod:`~hybridnav.planners.psoba.sensors`). A wall-following episode (``wall`` mode):
 
 * **side**: at the first contact, left when the nearest free gap counter-clockwise from the
   goal direction is no farther than the nearest one clockwise, otherwise right (the paper leaves
@@ -91,7 +91,7 @@ follows and the robots following it: meeting them is the goal. The sensors see m
 and robots where they are now. Every control cycle the move to the current path point is
 re-checked against the moving things, and re-planned when it is no longer feasible. For a scenario
 with a ``[grid] map`` the map's blocked cells are obstacles too
-(:func:`hybridnav.planners.paths.obstacle_world`), in planning and in the simulation.
+(:func:`hybridnav.planners.path.planners.obstacle_world`), in planning and in the simulation.
 
 Driving
 -------
@@ -130,8 +130,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param, Planner
-from hybridnav.planners.paths import obstacle_world
-from hybridnav.planners.psoba_sensors import (
+from hybridnav.planners.path.planners import obstacle_world
+from hybridnav.planners.psoba.sensors import (
     WALL_NORMALS,
     Scene,
     feasible,
