@@ -90,3 +90,19 @@ def test_old_import_paths_still_work():
     s = load_scenario("aco-local-minimum")
     assert isinstance(s.world, World) and isinstance(s.world.obstacles[0], Circle)
     assert scenario_to_dict(s)["name"] == "aco-local-minimum"
+
+
+def test_old_planner_module_paths_are_aliases_of_the_new_ones():
+    import importlib
+
+    from hybridnav import planners
+
+    for old, new in planners.MOVED.items():
+        assert importlib.import_module(f"hybridnav.planners.{old}") is importlib.import_module(
+            f"hybridnav.planners.{new}")
+    from hybridnav.planners.field import FieldPlanner          # 0.2: the module field.py
+    from hybridnav.planners.paths import AStarPlanner
+    from hybridnav.planners.psoba import PSOBAPlanner          # 0.2: the module psoba.py
+
+    assert planners.PLANNERS["astar"] is AStarPlanner and planners.PLANNERS["pso-ba"] is PSOBAPlanner
+    assert issubclass(planners.PLANNERS["apf"], FieldPlanner)
