@@ -91,7 +91,7 @@ follows and the robots following it: meeting them is the goal. The sensors see m
 and robots where they are now. Every control cycle the move to the current path point is
 re-checked against the moving things, and re-planned when it is no longer feasible. For a scenario
 with a ``[grid] map`` the map's blocked cells are obstacles too
-(:func:`hybridnav.planners.path.planners.obstacle_world`), in planning and in the simulation.
+(:func:`hybridnav.planners.path.geometry.obstacle_world`), in planning and in the simulation.
 
 Driving
 -------
@@ -126,11 +126,12 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param, Planner
-from hybridnav.planners.path.planners import obstacle_world
+from hybridnav.planners.path.geometry import obstacle_world
+from hybridnav.planners.psoba.fitness import disk_candidates, psoba_fitness
 from hybridnav.planners.psoba.sensors import (
     WALL_NORMALS,
     Scene,
@@ -144,170 +145,14 @@ from hybridnav.planners.psoba.sensors import (
     sensing_vector,
 )
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
-from hybridnav.planners.swarm import OptResult, bat, pso
+from hybridnav.planners.swarm.pso_ba import PSOBAResult, pso_ba
 from hybridnav.results import Result
 from hybridnav.world import MovingCircle, World
 
 __all__ = ["PSOBAPlanner", "PSOBAResult", "disk_candidates", "pso_ba", "psoba_fitness"]
 
-#: the paper's epsilon in eq. 6
-EPS = 0.001
-
 #: path point modes in the trace
 GOAL, REPAIRED, WALL, TRACK = "goal", "repaired", "wall", "track"
-
-
-# --------------------------------------------------------------------------------------------
-# Fitness and the PSO-BA search
-# --------------------------------------------------------------------------------------------
-
-
-def psoba_fitness(X: ArrayLike, position: ArrayLike, goal: ArrayLike, st: float,
-                  w1: float = 0.5, floor: float = 0.3) -> NDArray[np.float64]:
-    """Eq. 6 fitness of candidate path points (higher is better).
-
-    ``1 / (w1 * dn + (1 - w1) * angle / 90 + 0.001)`` with
-    ``dn = floor + (1 - floor) * min(|X - goal| / st, 1)`` and ``angle`` the angle in degrees, in
-    ``[0, 180]``, between the directions from ``position`` to ``X`` and to ``goal`` (0 for a
-    candidate at ``position`` itself or a goal at ``position``).
-
-    Parameters
-    ----------
-    X : array_like, shape (N, 2)
-        Candidates.
-    position, goal : array_like, shape (2,)
-    st : float
-        Distance normalisation (the start-to-goal distance), positive.
-    w1 : float
-        Weight of the distance, in [0, 1]; the angle's is ``1 - w1``.
-    floor : float
-        Lower end of the normalised distance, in [0, 1).
-
-    Returns
-    -------
-    ndarray, shape (N,)
-    """
-    X = np.asarray(X, dtype=float).reshape(-1, 2)
-    p = np.asarray(position, dtype=float).reshape(2)
-    g = np.asarray(goal, dtype=float).reshape(2)
-    if not st > 0:
-        raise HybridnavError(f"st: expected a positive distance, got {st!r}")
-    if not 0.0 <= w1 <= 1.0:
-        raise HybridnavError(f"w1: expected a weight in [0, 1], got {w1!r}")
-    if not 0.0 <= floor < 1.0:
-        raise HybridnavError(f"floor: expected a value in [0, 1), got {floor!r}")
-    d = np.hypot(X[:, 0] - g[0], X[:, 1] - g[1])
-    dn = floor + (1.0 - floor) * np.minimum(d / st, 1.0)
-    D = X - p
-    gd = g - p
-    cross = gd[0] * D[:, 1] - gd[1] * D[:, 0]
-    dot = gd[0] * D[:, 0] + gd[1] * D[:, 1]
-    angle = np.degrees(np.abs(np.arctan2(cross, dot)))      # 0 when either vector is zero
-    return 1.0 / (w1 * dn + (1.0 - w1) * angle / 90.0 + EPS)
-
-
-def disk_candidates(X: ArrayLike, position: ArrayLike, radius: float) -> NDArray[np.float64]:
-    """Map points radially onto the disk of ``radius`` around ``position`` (inside ones stay)."""
-    X = np.asarray(X, dtype=float).reshape(-1, 2)
-    p = np.asarray(position, dtype=float).reshape(2)
-    D = X - p
-    n = np.hypot(D[:, 0], D[:, 1])
-    scale = np.where(n > radius, radius / np.where(n > 0, n, 1.0), 1.0)
-    return p + D * scale[:, None]
-
-
-@dataclass
-class PSOBAResult:
-    """Outcome of one PSO-BA search.
-
-    Attributes
-    ----------
-    x : ndarray, shape (d,)
-        The best bat position found over all bat runs.
-    fitness : float
-        Its fitness.
-    alpha, gamma : float
-        The bat parameters of the run that found it.
-    bat_runs : int
-        Bat searches run (one per PSO particle evaluation).
-    pso : OptResult
-        The PSO over ``(alpha, gamma)`` (its values are minus the best fitness of each run).
-    """
-
-    x: NDArray[np.float64]
-    fitness: float
-    alpha: float
-    gamma: float
-    bat_runs: int
-    pso: OptResult = field(repr=False)
-
-
-def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles: int = 5,
-           pso_iterations: int = 5, bats: int = 12, bat_iterations: int = 12,
-           alpha_bounds: tuple[float, float] = (0.1, 1.0),
-           gamma_bounds: tuple[float, float] = (0.0, 1.0),
-           init: ArrayLike | None = None) -> PSOBAResult:
-    """Maximize ``fitness`` with bats whose ``(alpha, gamma)`` a PSO tunes (Algorithm 1).
-
-    Each PSO particle ``s = (alpha, gamma)`` is evaluated by one run of
-    :func:`~hybridnav.planners.swarm.bat` (``bats`` bats, ``bat_iterations`` iterations, minimizing
-    ``-fitness``) with those parameters; its PSO value is minus the best fitness that run found.
-    :func:`~hybridnav.planners.swarm.pso` (``particles`` particles, ``pso_iterations``
-    iterations) minimizes that value over the box ``alpha_bounds x gamma_bounds``. The result is the
-    best bat of all runs.
-
-    Parameters
-    ----------
-    fitness : callable
-        Vectorized: ``fitness(X)``, ``X`` of shape ``(N, d)``, returns ``N`` values (higher is
-        better).
-    lower, upper : array_like, shape (d,)
-        The bats' box.
-    seed : int, SeedSequence, Generator or None
-        Seed of the one generator the PSO and every bat run draw from.
-    particles, pso_iterations, bats, bat_iterations : int
-    alpha_bounds : (float, float)
-        Range of the loudness decay, ``0 < lo < hi <= 1``.
-    gamma_bounds : (float, float)
-        Range of the pulse-rate constant, ``0 <= lo < hi``.
-    init : array_like, shape (m, d), optional
-        Starting bats of every run (``m <= bats``).
-
-    Returns
-    -------
-    PSOBAResult
-    """
-    a_lo, a_hi = map(float, alpha_bounds)
-    g_lo, g_hi = map(float, gamma_bounds)
-    if not 0.0 < a_lo < a_hi <= 1.0:
-        raise HybridnavError(f"alpha_bounds: expected 0 < lo < hi <= 1, got {alpha_bounds!r}")
-    if not 0.0 <= g_lo < g_hi:
-        raise HybridnavError(f"gamma_bounds: expected 0 <= lo < hi, got {gamma_bounds!r}")
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    lo = np.asarray(lower, dtype=float)
-    hi = np.asarray(upper, dtype=float)
-    best: dict[str, Any] = {"f": -np.inf, "x": None, "alpha": math.nan, "gamma": math.nan,
-                            "runs": 0}
-
-    def neg_fitness(X: NDArray[np.float64]) -> NDArray[np.float64]:
-        return -np.asarray(fitness(X), dtype=float)
-
-    def run_bats(S: NDArray[np.float64]) -> NDArray[np.float64]:
-        out = np.empty(len(S))
-        for k, (a, g) in enumerate(S):
-            a = min(max(float(a), a_lo), a_hi)
-            res = bat(neg_fitness, (lo, hi), n=bats, iterations=bat_iterations, seed=rng,
-                      init=init, alpha=a, gamma=float(g))
-            best["runs"] += 1
-            out[k] = res.fun
-            if -res.fun > best["f"]:
-                best.update(f=-res.fun, x=res.x.copy(), alpha=a, gamma=float(g))
-        return out
-
-    opt = pso(run_bats, ([a_lo, g_lo], [a_hi, g_hi]), n=particles, iterations=pso_iterations,
-              seed=rng)
-    return PSOBAResult(x=best["x"], fitness=float(best["f"]), alpha=best["alpha"],
-                       gamma=best["gamma"], bat_runs=best["runs"], pso=opt)
 
 
 # --------------------------------------------------------------------------------------------

@@ -35,9 +35,10 @@ from hybridnav.planners.swarm.acor import ACO_KINEMATIC, acor, acor_weights
 from hybridnav.planners.swarm.bat import bat
 from hybridnav.planners.swarm.firefly import fastep, firefly
 from hybridnav.planners.swarm.pso import pso
+from hybridnav.planners.swarm.pso_ba import PSOBAResult, pso_ba
 
-__all__ = ["ACO_KINEMATIC", "OPTIMIZERS", "PRESETS", "History", "OptResult", "acor",
-           "acor_weights", "bat", "fastep", "firefly", "minimize", "pso"]
+__all__ = ["ACO_KINEMATIC", "OPTIMIZERS", "PRESETS", "History", "OptResult", "PSOBAResult",
+           "acor", "acor_weights", "bat", "fastep", "firefly", "minimize", "pso", "pso_ba"]
 
 #: name -> optimizer function.
 OPTIMIZERS: dict[str, Callable[..., OptResult]] = {
