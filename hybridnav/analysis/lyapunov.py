@@ -46,108 +46,26 @@ at the stationary points, which :func:`find_equilibria` locates.
 
 from __future__ import annotations
 
-import copy
 import inspect
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
 
 import casadi as cs
 import numpy as np
-from scipy.optimize import root
 
+from hybridnav.analysis.equilibria import Equilibrium, _target, find_equilibria
+from hybridnav.analysis.quadratic import _quadratic_argument
 from hybridnav.analysis.region import Box, as_box
+from hybridnav.analysis.verdict import LyapunovReport, _counterexample
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import json_ready
 from hybridnav.models.base import Model
 
 log = logging.getLogger(__name__)
 
 __all__ = ["Equilibrium", "LyapunovReport", "check_lyapunov", "find_equilibria", "lyapunov_functions"]
 
-STATUSES = ("proved", "no_counterexample", "counterexample", "undecided")
 _IPOPT = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": 300,
           "ipopt.tol": 1e-10}
-
-
-@dataclass
-class LyapunovReport:
-    """What :func:`check_lyapunov` decided and how.
-
-    Attributes
-    ----------
-    status : str
-        ``"proved"``, ``"no_counterexample"``, ``"counterexample"`` or ``"undecided"``.
-    V, vdot : str
-        The candidate and its derivative along the closed loop, as readable expressions (with the
-        model's parameter and target symbols ``x1, y1``).
-    counterexample : ndarray or None
-        A state with ``Vdot >= 0`` or with ``V < 0`` (only when ``status == "counterexample"``;
-        ``details["counterexample_V"]`` and ``details["counterexample_vdot"]`` hold its values).
-    worst_vdot : float
-        The largest ``Vdot`` seen in the region away from the equilibrium.
-    worst_state : ndarray or None
-        Where it was seen.
-    method : str
-        How the status was decided.
-    vdot_nonpositive_proved : bool
-        ``Vdot <= 0`` everywhere was established exactly (quadratic forms, a gradient flow or a
-        certificate).
-    claim : str
-        When ``status == "proved"``: what was proved and on which set.
-    route : str
-        Which argument decided: ``"quadratic"``, ``"certificate"`` (interval branch and bound),
-        ``"lasalle"`` (branch and bound on LaSalle's conditions), ``"sampling"``, ``"ipopt"``,
-        ``"gradient_flow"`` or ``"local"``.
-    details : dict
-        Numbers behind the decision (eigenvalues, sample counts, optimizer runs, ...).
-    """
-
-    status: str
-    V: str
-    vdot: str
-    counterexample: np.ndarray | None
-    worst_vdot: float
-    worst_state: np.ndarray | None
-    method: str
-    vdot_nonpositive_proved: bool = False
-    claim: str = ""
-    route: str = ""
-    details: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary."""
-        return {
-            "status": self.status,
-            "claim": self.claim,
-            "route": self.route,
-            "V": self.V,
-            "vdot": self.vdot,
-            "counterexample": None if self.counterexample is None else self.counterexample.tolist(),
-            "worst_vdot": _num(self.worst_vdot),
-            "worst_state": None if self.worst_state is None else self.worst_state.tolist(),
-            "method": self.method,
-            "vdot_nonpositive_proved": self.vdot_nonpositive_proved,
-            "details": json_ready(self.details),
-        }
-
-
-@dataclass
-class Equilibrium:
-    """An equilibrium of a closed loop: state, Jacobian eigenvalues and their classification."""
-
-    state: np.ndarray
-    eigenvalues: np.ndarray
-    kind: str        # "stable", "saddle", "unstable" or "degenerate"
-    V: float
-    is_target: bool
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary."""
-        return {"state": self.state.tolist(),
-                "eigenvalues": [[float(e.real), float(e.imag)] for e in self.eigenvalues],
-                "kind": self.kind, "V": _num(self.V), "is_target": self.is_target}
 
 
 def lyapunov_functions(model: Model, V=None, *, target, params: Mapping[str, float] | None = None):
@@ -438,197 +356,7 @@ def _equilibrium_guess(model, both, xmin, target, box) -> np.ndarray:
     return best
 
 
-def find_equilibria(
-    model: Model,
-    *,
-    target: Sequence[float],
-    region: Mapping[str, Sequence[float]] | Box,
-    seed: int = 0,
-    starts: int = 400,
-) -> list[Equilibrium]:
-    """Equilibria of the closed loop in a region, by multistart Newton (scipy ``root``).
-
-    Newton starts from ``starts`` uniform samples, from the points of a dense sample where the
-    vector field is smallest, and from the end points of 200-second closed-loop runs (which
-    settle in stable equilibria, however small their basin).
-
-    Each is classified by the eigenvalues of the exact Jacobian: ``"stable"`` (all real parts
-    negative: a local minimum of ``V`` for a gradient flow), ``"unstable"``, ``"saddle"`` or
-    ``"degenerate"`` (a zero real part). Only admissible states count (see
-    :meth:`hybridnav.models.Model.state_constraints`).
-    """
-    box = as_box(model, region)
-    tgt = _target(target)
-    key = (model._key(), tuple(tgt), tuple(box.lower), tuple(box.upper), int(seed), int(starts))
-    if key not in _EQUILIBRIA:
-        if len(_EQUILIBRIA) >= 32:
-            _EQUILIBRIA.pop(next(iter(_EQUILIBRIA)))
-        _EQUILIBRIA[key] = _find_equilibria(model, tgt, box, seed, starts)
-    return copy.deepcopy(_EQUILIBRIA[key])
-
-
-#: find_equilibria's results, by model, target, region, seed and starts (deterministic, and the
-#: analysis asks the same question several times: the check, the ROA, its candidates)
-_EQUILIBRIA: dict[tuple, list[Equilibrium]] = {}
-
-
-def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts: int
-                     ) -> list[Equilibrium]:
-    s = model.sym
-    values = cs.DM(np.concatenate([tgt, model.p_value()]))
-    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
-    v = cs.substitute(model.lyapunov_candidate(), cs.vertcat(s.target, s.p), values)
-    F = cs.Function("F", [s.x], [f, cs.jacobian(f, s.x), v])
-    rng = np.random.default_rng(seed)
-    X0 = box.sample(starts, rng)
-    X0 = X0[model.admissible(X0)]
-    # small basins are easy to miss with uniform starts: also start from the points of a dense
-    # sample where |F| is smallest, and from where short closed-loop runs end up
-    dense = box.sample(50 * starts, rng)
-    dense = dense[model.admissible(dense)]
-    if len(dense):
-        fd = np.asarray(cs.Function("f", [s.x], [f]).map(len(dense))(dense.T))
-        norm = np.linalg.norm(np.where(np.isfinite(fd), fd, np.inf), axis=0)
-        runs = model.rollout(dense[:starts], np.tile(tgt, (min(starts, len(dense)), 1)),
-                             int(round(200.0 / model.dt)))[:, -1]
-        runs = runs[np.all(np.isfinite(runs), axis=1) & box.contains(runs)]
-        X0 = np.vstack([X0, dense[np.argsort(norm)[:starts // 2]], runs])
-    span = float(np.max(box.upper - box.lower)) or 1.0
-    found: list[Equilibrium] = []
-    for x0 in X0:
-        with np.errstate(all="ignore"):
-            sol = root(lambda z: np.asarray(F(z)[0]).ravel(), x0,
-                       jac=lambda z: np.asarray(F(z)[1]), method="hybr", tol=1e-14)
-        z = sol.x
-        fz, jz, vz = (np.asarray(a) for a in F(z))
-        if not (np.all(np.isfinite(fz)) and np.linalg.norm(fz) < 1e-9 * max(1.0, span)):
-            continue
-        if not box.contains(z) or not model.admissible(z[None])[0]:
-            continue
-        if any(np.linalg.norm(z - e.state) < 1e-6 * span for e in found):
-            continue
-        eig = np.linalg.eigvals(jz)
-        re = eig.real
-        if np.all(re < 0):
-            kind = "stable"
-        elif np.all(re > 0):
-            kind = "unstable"
-        elif np.any(np.abs(re) < 1e-12 * max(1.0, np.max(np.abs(re)))):
-            kind = "degenerate"
-        else:
-            kind = "saddle"
-        is_target = bool(np.linalg.norm(z[:2] - tgt) < 1e-6 * span)
-        found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
-    found.sort(key=lambda e: (not e.is_target, e.V))
-    return found
-
-
 # ---------------------------------------------------------------------------------------------
-
-
-def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: LyapunovReport,
-                        tol: float = 1e-9) -> bool:
-    """The exact route: V, Vdot quadratic forms with definite constant Hessians.
-
-    Definiteness needs every eigenvalue beyond ``tol`` times the largest Hessian entry; an
-    eigenvalue within that band of zero makes the status ``undecided`` (rounding would decide).
-    """
-    x = model.sym.x
-    if not (cs.is_quadratic(v_num, x) and cs.is_quadratic(vdot_num, x)):
-        return False
-    z = np.zeros(model.nx)
-    fn = cs.Function("quad", [x], [v_num, cs.gradient(v_num, x), cs.hessian(v_num, x)[0],
-                                  vdot_num, cs.gradient(vdot_num, x), cs.hessian(vdot_num, x)[0]])
-    _, gv0, hv, _, _, hd = (np.asarray(a, dtype=float) for a in fn(z))
-    hv, hd = (hv + hv.T) / 2, (hd + hd.T) / 2
-    ev_v, vec_v = np.linalg.eigh(hv)
-    ev_d = np.linalg.eigvalsh(hd)
-    scale = max(1.0, float(np.max(np.abs(hv))), float(np.max(np.abs(hd))))
-    band = tol * scale
-    report.details.update(hessian_V=hv.tolist(), hessian_vdot=hd.tolist(),
-                          eig_hessian_V=ev_v.tolist(), eig_hessian_vdot=ev_d.tolist(),
-                          eigenvalue_tolerance=band)
-    if np.any(ev_v < -band):
-        # V is an indefinite quadratic: V < 0 along that eigenvector, away from its centre
-        try:
-            xs = np.linalg.lstsq(hv, -gv0.ravel(), rcond=None)[0]
-        except np.linalg.LinAlgError:
-            return False
-        state = _inside(xs, vec_v[:, int(np.argmin(ev_v))], box, level, fn)
-        if state is None or float(np.asarray(fn(state)[0]).item()) >= 0:
-            return False
-        report.route = "quadratic"
-        _counterexample(report, _both(fn), state,
-                        f"exact: V is a quadratic form whose Hessian has the eigenvalue "
-                        f"{ev_v.min():.6g} < 0; along its eigenvector V < 0")
-        return True
-    if not np.all(ev_v > band):
-        return False                      # V only semidefinite: sample instead
-    xs = np.linalg.solve(hv, -gv0.ravel())
-    v0, _, _, d0, gd0, _ = (np.asarray(a, dtype=float) for a in fn(xs))
-    if max(abs(v0.item()), abs(d0.item()), float(np.max(np.abs(gd0)))) > 1e-9 * scale:
-        return False                      # not both centred on the same point
-    report.details["equilibrium"] = xs.tolist()
-    if np.all(ev_d < -band):
-        report.status, report.route = "proved", "quadratic"
-        report.claim = ("V > 0 and Vdot < 0 for every state other than x* (quadratic forms: the "
-                        "argument is global)")
-        report.vdot_nonpositive_proved = True
-        report.worst_vdot, report.worst_state = 0.0, xs
-        report.method = (
-            "exact: V and Vdot are quadratic forms about x* = "
-            f"{np.array2string(xs, precision=6)} with constant Hessians; eig(H_V) = "
-            f"{np.array2string(ev_v, precision=6)} > 0 and eig(H_Vdot) = "
-            f"{np.array2string(ev_d, precision=6)} < 0 (beyond the tolerance {band:.3g}), so "
-            "V > 0 and Vdot < 0 for every x != x*"
-        )
-        return True
-    if np.all(ev_d <= band):
-        # the largest eigenvalue of H_Vdot is zero to rounding: neither claim can be made
-        report.status, report.route = "undecided", "quadratic"
-        report.worst_vdot, report.worst_state = 0.0, xs
-        report.method = (
-            f"exact route undecided: V and Vdot are quadratic forms about x*, V is positive "
-            f"definite, but the largest eigenvalue of H_Vdot is {ev_d.max():.3g}, within the "
-            f"tolerance {band:.3g} of zero: whether Vdot < 0 everywhere is decided by rounding "
-            "(check the system with exact arithmetic)"
-        )
-        return True
-    # an eigenvector with a positive eigenvalue is an exact counterexample direction
-    w, vecs = np.linalg.eigh(hd)
-    direction = vecs[:, int(np.argmax(w))]
-    state = _inside(xs, direction, box, level, fn)
-    if state is None:
-        return False
-    d = float(np.asarray(fn(state)[3]).item())
-    if not d > 0:
-        return False
-    report.route = "quadratic"
-    _counterexample(report, _both(fn), state,
-                    "exact: Vdot is a quadratic form about x* whose Hessian has the eigenvalue "
-                    f"{w.max():.6g} > 0; along its eigenvector Vdot = {d:.6g} > 0")
-    return True
-
-
-def _both(fn: cs.Function):
-    """``x -> (V, Vdot)`` from the quadratic route's function."""
-    def both(x):
-        out = fn(x)
-        return out[0], out[3]
-    return both
-
-
-def _counterexample(report: LyapunovReport, both, state, method: str) -> LyapunovReport:
-    """Record a counterexample after re-evaluating V and Vdot there."""
-    state = np.asarray(state, dtype=float).ravel()
-    v, d = (float(np.asarray(a).item()) for a in both(state))
-    report.status = "counterexample"
-    report.counterexample = state
-    report.worst_state = state
-    report.worst_vdot = d
-    report.details.update(counterexample_V=v, counterexample_vdot=d)
-    report.method = f"{method} (re-evaluated there: V = {v:.6g}, Vdot = {d:.6g})"
-    return report
 
 
 def _minimize_v(model, v_of, v_num, box: Box, level, pts, v_s, ok, starts) -> np.ndarray:
@@ -712,28 +440,6 @@ def _local_check(model, v_num, vdot_num, both, xmin, box: Box, level, report,
     return None
 
 
-def _inside(xs, direction, box: Box, level, fn) -> np.ndarray | None:
-    """A point x* + t v inside the box (and level set), as far out as allowed, t != 0."""
-    for sign in (1.0, -1.0):
-        t = _max_step(xs, sign * direction, box)
-        for _ in range(60):
-            if t <= 0:
-                break
-            z = xs + sign * t * direction
-            if level is None or float(np.asarray(fn(z)[0]).item()) <= level:
-                return z
-            t /= 2
-    return None
-
-
-def _max_step(x, d, box: Box) -> float:
-    if not box.contains(x):
-        return 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hi = np.where(d > 0, (box.upper - x) / d, np.where(d < 0, (box.lower - x) / d, np.inf))
-    return float(np.min(hi))
-
-
 def is_gradient_flow(model: Model, v_sym) -> bool:
     """Whether the closed loop is ``xdot_i = -c_i dV/dx_i`` symbolically, with ``c_i > 0``."""
     gains = getattr(model, "gradient_flow_gains", None)
@@ -788,17 +494,7 @@ def _candidate(model: Model, V, orig: Model | None = None) -> cs.SX:
     return expr
 
 
-def _target(target) -> np.ndarray:
-    t = np.asarray(target, dtype=float).ravel()
-    if t.shape != (2,) or not np.all(np.isfinite(t)):
-        raise HybridnavError(f"target: expected two finite numbers (x1, y1), got {target!r}")
-    return t
-
-
 def _pretty(expr) -> str:
     return str(expr)
 
 
-def _num(v: float) -> float | None:
-    v = float(v)
-    return v if np.isfinite(v) else None

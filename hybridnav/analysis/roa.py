@@ -229,7 +229,8 @@ def estimate_roa(
 
 def _quadratic_proof(model, v_num, vdot_num, box: Box):
     """The quadratic route's report when it proves V globally, else None."""
-    from hybridnav.analysis.lyapunov import LyapunovReport, _quadratic_argument
+    from hybridnav.analysis.quadratic import _quadratic_argument
+    from hybridnav.analysis.verdict import LyapunovReport
 
     rep = LyapunovReport("no_counterexample", "", "", None, -np.inf, None, "")
     if _quadratic_argument(model, v_num, vdot_num, box, None, rep) and rep.status == "proved":

@@ -1,0 +1,129 @@
+"""Equilibria of closed loops (multistart Newton), classified by their Jacobian's eigenvalues."""
+
+from __future__ import annotations
+
+import copy
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as cs
+import numpy as np
+from scipy.optimize import root
+
+from hybridnav.analysis.region import Box, as_box
+from hybridnav.analysis.verdict import _num
+from hybridnav.errors import HybridnavError
+from hybridnav.models.base import Model
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Equilibrium:
+    """An equilibrium of a closed loop: state, Jacobian eigenvalues and their classification."""
+
+    state: np.ndarray
+    eigenvalues: np.ndarray
+    kind: str        # "stable", "saddle", "unstable" or "degenerate"
+    V: float
+    is_target: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return {"state": self.state.tolist(),
+                "eigenvalues": [[float(e.real), float(e.imag)] for e in self.eigenvalues],
+                "kind": self.kind, "V": _num(self.V), "is_target": self.is_target}
+
+
+def find_equilibria(
+    model: Model,
+    *,
+    target: Sequence[float],
+    region: Mapping[str, Sequence[float]] | Box,
+    seed: int = 0,
+    starts: int = 400,
+) -> list[Equilibrium]:
+    """Equilibria of the closed loop in a region, by multistart Newton (scipy ``root``).
+
+    Newton starts from ``starts`` uniform samples, from the points of a dense sample where the
+    vector field is smallest, and from the end points of 200-second closed-loop runs (which
+    settle in stable equilibria, however small their basin).
+
+    Each is classified by the eigenvalues of the exact Jacobian: ``"stable"`` (all real parts
+    negative: a local minimum of ``V`` for a gradient flow), ``"unstable"``, ``"saddle"`` or
+    ``"degenerate"`` (a zero real part). Only admissible states count (see
+    :meth:`hybridnav.models.Model.state_constraints`).
+    """
+    box = as_box(model, region)
+    tgt = _target(target)
+    key = (model._key(), tuple(tgt), tuple(box.lower), tuple(box.upper), int(seed), int(starts))
+    if key not in _EQUILIBRIA:
+        if len(_EQUILIBRIA) >= 32:
+            _EQUILIBRIA.pop(next(iter(_EQUILIBRIA)))
+        _EQUILIBRIA[key] = _find_equilibria(model, tgt, box, seed, starts)
+    return copy.deepcopy(_EQUILIBRIA[key])
+
+
+#: find_equilibria's results, by model, target, region, seed and starts (deterministic, and the
+#: analysis asks the same question several times: the check, the ROA, its candidates)
+_EQUILIBRIA: dict[tuple, list[Equilibrium]] = {}
+
+
+def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts: int
+                     ) -> list[Equilibrium]:
+    s = model.sym
+    values = cs.DM(np.concatenate([tgt, model.p_value()]))
+    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
+    v = cs.substitute(model.lyapunov_candidate(), cs.vertcat(s.target, s.p), values)
+    F = cs.Function("F", [s.x], [f, cs.jacobian(f, s.x), v])
+    rng = np.random.default_rng(seed)
+    X0 = box.sample(starts, rng)
+    X0 = X0[model.admissible(X0)]
+    # small basins are easy to miss with uniform starts: also start from the points of a dense
+    # sample where |F| is smallest, and from where short closed-loop runs end up
+    dense = box.sample(50 * starts, rng)
+    dense = dense[model.admissible(dense)]
+    if len(dense):
+        fd = np.asarray(cs.Function("f", [s.x], [f]).map(len(dense))(dense.T))
+        norm = np.linalg.norm(np.where(np.isfinite(fd), fd, np.inf), axis=0)
+        runs = model.rollout(dense[:starts], np.tile(tgt, (min(starts, len(dense)), 1)),
+                             int(round(200.0 / model.dt)))[:, -1]
+        runs = runs[np.all(np.isfinite(runs), axis=1) & box.contains(runs)]
+        X0 = np.vstack([X0, dense[np.argsort(norm)[:starts // 2]], runs])
+    span = float(np.max(box.upper - box.lower)) or 1.0
+    found: list[Equilibrium] = []
+    for x0 in X0:
+        with np.errstate(all="ignore"):
+            sol = root(lambda z: np.asarray(F(z)[0]).ravel(), x0,
+                       jac=lambda z: np.asarray(F(z)[1]), method="hybr", tol=1e-14)
+        z = sol.x
+        fz, jz, vz = (np.asarray(a) for a in F(z))
+        if not (np.all(np.isfinite(fz)) and np.linalg.norm(fz) < 1e-9 * max(1.0, span)):
+            continue
+        if not box.contains(z) or not model.admissible(z[None])[0]:
+            continue
+        if any(np.linalg.norm(z - e.state) < 1e-6 * span for e in found):
+            continue
+        eig = np.linalg.eigvals(jz)
+        re = eig.real
+        if np.all(re < 0):
+            kind = "stable"
+        elif np.all(re > 0):
+            kind = "unstable"
+        elif np.any(np.abs(re) < 1e-12 * max(1.0, np.max(np.abs(re)))):
+            kind = "degenerate"
+        else:
+            kind = "saddle"
+        is_target = bool(np.linalg.norm(z[:2] - tgt) < 1e-6 * span)
+        found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
+    found.sort(key=lambda e: (not e.is_target, e.V))
+    return found
+
+
+def _target(target) -> np.ndarray:
+    t = np.asarray(target, dtype=float).ravel()
+    if t.shape != (2,) or not np.all(np.isfinite(t)):
+        raise HybridnavError(f"target: expected two finite numbers (x1, y1), got {target!r}")
+    return t
