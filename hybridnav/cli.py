@@ -13,6 +13,8 @@ from collections.abc import Sequence
 
 from hybridnav import HybridnavError, __version__
 
+__all__ = ["main"]
+
 log = logging.getLogger("hybridnav")
 
 

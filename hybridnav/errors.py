@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+__all__ = ["HybridnavError", "where"]
+
 
 class HybridnavError(ValueError):
     """Bad input: a file, key or value that is not what hybridnav expects.

@@ -106,3 +106,27 @@ def test_old_planner_module_paths_are_aliases_of_the_new_ones():
 
     assert planners.PLANNERS["astar"] is AStarPlanner and planners.PLANNERS["pso-ba"] is PSOBAPlanner
     assert issubclass(planners.PLANNERS["apf"], FieldPlanner)
+
+
+def test_every_module_declares_its_public_names_and_documents_them():
+    """``__all__`` everywhere: each name it lists exists, and functions and classes have
+    docstrings (the python-control convention the design follows)."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    problems = []
+    for info in pkgutil.walk_packages(hybridnav.__path__, "hybridnav."):
+        mod = importlib.import_module(info.name)
+        names = getattr(mod, "__all__", None)
+        if names is None:
+            problems.append(f"{info.name}: no __all__")
+            continue
+        for name in names:
+            if not hasattr(mod, name):
+                problems.append(f"{info.name}.{name}: listed in __all__, not defined")
+                continue
+            obj = getattr(mod, name)
+            if (inspect.isfunction(obj) or inspect.isclass(obj)) and not (obj.__doc__ or "").strip():
+                problems.append(f"{info.name}.{name}: no docstring")
+    assert not problems, problems

@@ -17,6 +17,8 @@ from hybridnav.analysis.verdict import _num
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
 
+__all__ = ["Equilibrium", "find_equilibria"]
+
 log = logging.getLogger(__name__)
 
 

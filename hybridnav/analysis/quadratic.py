@@ -11,6 +11,8 @@ import numpy as np
 from hybridnav.analysis.region import Box
 from hybridnav.analysis.verdict import LyapunovReport, _counterexample
 
+__all__: list[str] = []
+
 log = logging.getLogger(__name__)
 
 

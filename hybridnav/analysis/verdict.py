@@ -10,6 +10,8 @@ import numpy as np
 
 from hybridnav.fileio import json_ready
 
+__all__ = ["STATUSES", "LyapunovReport"]
+
 log = logging.getLogger(__name__)
 
 

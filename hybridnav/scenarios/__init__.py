@@ -5,3 +5,5 @@
 The layouts reconstruct the papers' figures: the papers give starts and goals, but obstacle
 coordinates only in figures, so obstacle positions are approximations.
 """
+
+__all__: list[str] = []   # data files only

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from importlib import resources
 
+__all__ = ["builtin_data_path"]
+
 _SCENARIO_PACKAGE = "hybridnav.scenarios"
 
 

@@ -10,6 +10,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
 
+__all__ = ["point_segment_distance", "points_in_convex_polygon", "segment_segment_distance"]
+
 FloatArray = NDArray[np.float64]
 
 

@@ -19,6 +19,8 @@ from hybridnav.world.geometry import (
     _project,
 )
 
+__all__ = ["OBSTACLE_TYPES", "Circle", "MovingCircle", "Obstacle", "Polygon", "Rectangle", "Segment"]
+
 #: Obstacle ``type`` values of the TOML schema.
 OBSTACLE_TYPES: tuple[str, ...] = ("circle", "segment", "rectangle", "polygon", "moving_circle")
 

@@ -9,6 +9,8 @@ from typing import Any
 from hybridnav.errors import HybridnavError, where
 from hybridnav.world.world import World
 
+__all__ = ["GridSpec", "Robot", "Scenario"]
+
 
 @dataclass(frozen=True)
 class Robot:

@@ -29,6 +29,8 @@ from hybridnav.world.obstacles import (
 from hybridnav.world.scenario import GridSpec, Robot, Scenario
 from hybridnav.world.world import World
 
+__all__ = ["MODEL_NAMES", "list_scenarios", "load_scenario", "scenario_from_dict"]
+
 log = logging.getLogger(__name__)
 
 

@@ -20,6 +20,8 @@ from hybridnav.world.geometry import (
 )
 from hybridnav.world.obstacles import _TYPE_OF, Circle, MovingCircle, Obstacle, _finite
 
+__all__ = ["World"]
+
 
 @dataclass(frozen=True)
 class World:

@@ -22,6 +22,8 @@ from hybridnav.world.obstacles import (
 )
 from hybridnav.world.scenario import Scenario
 
+__all__ = ["save_scenario", "scenario_to_dict", "scenario_to_toml", "toml_dumps"]
+
 
 def _obstacle_to_dict(o: Obstacle) -> dict[str, Any]:
     kind = _TYPE_OF[type(o)]
