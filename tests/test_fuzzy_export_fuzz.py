@@ -142,7 +142,8 @@ def test_hostile_inputs_are_user_errors(tmp_path):
         read_json(json.dumps(d), "x.json")
     d = fuzzy.builtin("effc-2rule").to_dict()
     d["inputs"][0]["terms"][0] = {"name": "low", "mf": "gaussmf", "params": [0.0, 1e-170]}
-    with pytest.raises(HybridnavError, match=r"^x\.json: a membership function has no finite"):
+    with pytest.raises(HybridnavError, match=r"^x\.json: inputs\[0\]\.terms\[0\]\.params: "
+                       r"expected parameters whose membership values are finite"):
         read_json(json.dumps(d), "x.json")
     fis = SOURCES["fis"][0].replace("MF1='low':'zmf',[0.2 1.2]", "MF1='low':'gaussmf',[1e-170 0]")
     with pytest.raises(HybridnavError, match=r"^x\.fis: line \d+: term 'low': gaussmf"):

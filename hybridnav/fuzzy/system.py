@@ -112,12 +112,14 @@ class FuzzySystem:
         prefix = f"{source}: " if source else ""
         self = cls.__new__(cls)
         try:
-            self._init(parse_system(d, source), source)
+            parts = parse_system(d, source)
+            self._init(parts, source)
         except RecursionError:
             raise HybridnavError(f"{prefix}rules: antecedents nested too deeply") from None
         except FloatingPointError as exc:
-            raise HybridnavError(f"{prefix}a membership function has no finite values "
-                                 f"({exc})") from None
+            key = _overflowing_term(parts)
+            raise HybridnavError(f"{prefix}{key}: expected parameters whose membership values are "
+                                 f"finite on the universe ({exc})") from None
         return self
 
     def to_dict(self) -> dict[str, Any]:
@@ -405,3 +407,19 @@ def builtin(name: str) -> FuzzySystem:
         raise HybridnavError(f"fuzzy system {name!r}: expected a built-in name "
                              f"({', '.join(builtin_names())}) or a path to a .json file")
     return loads(entry.read_text(encoding="utf-8"), f"{name}.json")
+
+
+def _overflowing_term(parts: dict[str, Any]) -> str:
+    """The key path of the first term whose sampled membership function is not finite."""
+    from hybridnav.fuzzy.mf import sample
+
+    variables = [(f"inputs[{i}]", v) for i, v in enumerate(parts["inputs"])]
+    variables.append(("output", parts["output"]))
+    for where, var in variables:
+        x = np.linspace(var.range[0], var.range[1], var.points)
+        for j, term in enumerate(var.terms):
+            try:
+                sample(term.mf, term.params, x)
+            except FloatingPointError:
+                return f"{where}.terms[{j}].params"
+    return "terms"
