@@ -66,8 +66,9 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     robot = next((r for r in scen.robots if r.model == model_name), scen.robots[0])
     goal = robot.goal if robot.goal is not None else scen.robot(robot.goal_follow).start
     target = np.asarray(goal, dtype=float)
-    if model_name == "lbcs":
-        model = models.LbCS.from_scenario(scen, robot.name)
+    cls = models.MODELS[model_name]
+    if hasattr(cls, "from_scenario"):        # a scheme built on the scenario's obstacles (LbCS)
+        model = cls.from_scenario(scen, robot.name)
     else:
         params = robot.params if robot.model == model_name else {}
         model = models.get(model_name, dt=scen.dt, **params)
@@ -88,15 +89,14 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     say("Lyapunov check")
     rep = check_lyapunov(model, target=target, region=region, seed=seed)
     checks.append({**rep.to_dict(), "name": "lyapunov", "status": rep.status})
-    fixed = {"theta": 0.0} if model_name == "unicycle" else None
-    if model_name == "tractor_trailer":
-        fixed = {"theta0": 0.0, "theta1": 0.0, "xi": 0.0}
+    fixed = dict(model.analysis_slice) or None
+    gradient_flow = hasattr(model, "gradient_flow_gains")
     plot(plot_vdot_map(model, target=target, region=region, report=rep, fixed=fixed),
          "vdot_map.png")
 
-    if model_name == "unicycle":
+    if hasattr(model, "polar_error_dynamics"):
         say("LaSalle, polar error coordinates")
-        checks.append(_unicycle_lasalle(model, target, region))
+        checks.append(_polar_lasalle(model, target, region))
 
     say("linearization")
     lin = _linearizations(model, target)
@@ -105,7 +105,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
         checks.append({**item, "name": f"linearization: {name}"})
     if reports:
         plot(plot_eigenvalues(reports), "eigenvalues.png")
-    if model_name in ("point_mass", "lbcs"):
+    if model.smooth_at_target:
         from hybridnav.analysis.linearization import discrete_step, rk4_stability_limit
 
         say("simulated step")
@@ -117,7 +117,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
                                  f"{ds.spectral_radius:.6g} ({'<' if ds.stable else '>='} 1); "
                                  f"RK4 is stable on xdot = -a x for a dt < {limit:.5f}"})
 
-    if model_name in ("point_mass", "lbcs"):
+    if model.smooth_at_target:
         say("region of attraction")
         roa = estimate_roa(model, target=target, region=region, seed=seed)
         checks.append({**roa.to_dict(), "name": "region of attraction", "status": roa.status})
@@ -150,7 +150,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
                                  f"step at dt = {model.dt:g}"})
         plot(plot_basin(model, target=target, region=region, levels=levels, basin_grid=grid),
              "basin.png")
-    if model_name == "lbcs":
+    if gradient_flow:
         say("stationary points")
         eqs = find_equilibria(model, target=target, region=region, seed=seed)
         others = [e for e in eqs if not e.is_target]
@@ -181,8 +181,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
         summary["by_fold"] = {str(int(f)): {"runs": int(len(g)), "reached": int(g["reached"].sum()),
                                             "jackknife": int(g["jackknife"].sum())}
                               for f, g in table.groupby("fold_deg")}
-    checks.append({"name": "closed-loop sweep (V = 1/2 distance^2)" if model_name != "lbcs"
-                   else "closed-loop sweep (V = L)",
+    checks.append({"name": f"closed-loop sweep (V = {model.candidate_name})",
                    "status": "all_monotone" if summary["V_monotone"] == summary["runs"]
                    else "not_all_monotone", **summary})
     plot(plot_sweep(table, traj, target=target, title=f"{model_name}: closed-loop sweep"),
@@ -200,7 +199,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     return result
 
 
-def _unicycle_lasalle(model, target, region) -> dict[str, Any]:
+def _polar_lasalle(model, target, region) -> dict[str, Any]:
     """LaSalle's argument for V = 1/2 rho^2 on the polar error dynamics (smooth in rho, e)."""
     import casadi as cs
 
@@ -229,25 +228,24 @@ def _linearizations(model, target) -> dict[str, dict[str, Any]]:
         out[name] = {"status": "stable" if rep.stable else "not_asymptotically_stable",
                      **rep.to_dict(), "_report": rep}
 
-    if model.name in ("point_mass", "lbcs"):
-        x0 = np.asarray(target, dtype=float)
-        add("closed loop at the target", lambda: linearize(model, x0, target=target),
-            dict(zip(model.state_names, x0)))
-    if model.name == "unicycle":
-        x0 = np.array([target[0], target[1], 0.0])
-        add("closed loop at the target (Cartesian)", lambda: linearize(model, x0, target=target),
-            dict(zip(model.state_names, x0)))
+    x0 = np.zeros(model.nx)
+    x0[:2] = target
+    polar = hasattr(model, "polar_error_dynamics")
+    if model.smooth_at_target or polar:
+        add("closed loop at the target" + (" (Cartesian)" if polar else ""),
+            lambda: linearize(model, x0, target=target), dict(zip(model.state_names, x0)))
+    if polar:
         z, zdot, names = model.polar_error_dynamics()
         add("closed loop at the target (polar error coordinates rho, e)",
             lambda: linearize_expression(z, zdot, [0.0, 0.0], names, symbols=model.sym.p,
-                                         values=model.p_value(), name="unicycle_polar"),
+                                         values=model.p_value(), name=f"{model.name}_polar"),
             {"rho": 0.0, "e": 0.0})
-        add("open loop, straight driving (vl = vr = 0.1)",
-            lambda: linearize(model, [0.0, 0.0, 0.0], [0.1, 0.1]), {"x": 0, "y": 0, "theta": 0})
-    if model.name == "tractor_trailer":
-        add("open loop, straight driving (v = 1, phi = 0)",
-            lambda: linearize(model, [0.0, 0.0, 0.0, 0.0], [1.0, 0.0]),
-            {"x": 0, "y": 0, "theta0": 0, "theta1": 0})
+    if model.straight_driving is not None:
+        u0 = list(model.straight_driving)
+        zero = [0.0] * model.n_plant
+        label = ", ".join(f"{n} = {v:g}" for n, v in zip(model.input_names, u0))
+        add(f"open loop, straight driving ({label})", lambda: linearize(model, zero, u0),
+            dict(zip(model.plant_state_names, zero)))
     return out
 
 

@@ -219,6 +219,15 @@ class Model(ABC):
     footprint_from_params: ClassVar[bool] = False
     #: the built-in scenario ``hybridnav analyze MODEL`` uses by default (None: not analysable)
     analysis_scenario: ClassVar[str | None] = None
+    #: what ``analyze`` checks, as the model declares it: the other states' values in the (x, y)
+    #: slices of its plots; whether the closed loop is smooth at the target (then its
+    #: linearization there, the simulated step, regions of attraction and the basin are checked);
+    #: the inputs of straight driving for an open-loop linearization (None: none); the name of
+    #: its Lyapunov candidate in reports
+    analysis_slice: ClassVar[dict[str, float]] = {}
+    smooth_at_target: ClassVar[bool] = False
+    straight_driving: ClassVar[tuple[float, ...] | None] = None
+    candidate_name: ClassVar[str] = "1/2 distance^2"
     #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()

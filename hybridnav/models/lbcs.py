@@ -47,6 +47,8 @@ class LbCS(Model):
     plant_state_names = ("x", "y")
     #: a control scheme analysed on a scenario's circles, not a robot model scenarios name
     capabilities = frozenset()
+    smooth_at_target = True
+    candidate_name = "L"
     input_names = ("vx", "vy")
     defaults = {"beta": 2.0, "delta1": 10.0, "delta2": 10.0, "rp": 0.5}
     param_docs = {

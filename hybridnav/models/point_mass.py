@@ -23,6 +23,7 @@ class PointMass(Model):
     description = "holonomic point mass, xdot = alpha1 (x1 - x), ydot = alpha2 (y1 - y)"
     analysis_scenario = "fastep-s1"
     capabilities = frozenset({"robot", "disk", "holonomic"})
+    smooth_at_target = True
     plant_state_names = ("x", "y")
     input_names = ("vx", "vy")
     defaults = {"alpha1": 0.1, "alpha2": 0.1}

@@ -64,6 +64,8 @@ class TractorTrailer(Model):
     #: "trailer": a body of several covering disks, not one disk
     capabilities = frozenset({"robot", "trailer"})
     footprint_from_params = True      # the covering disks follow from L and b
+    analysis_slice = {"theta0": 0.0, "theta1": 0.0, "xi": 0.0}
+    straight_driving = (1.0, 0.0)      # v = 1, phi = 0
     plant_state_names = ("x", "y", "theta0", "theta1")
     controller_state_names = ("xi",)
     input_names = ("v", "phi")

@@ -40,6 +40,8 @@ class Unicycle(Model):
     analysis_scenario = "effc-train-1"
     #: "heading_control": the "heading" controller option drives it at constant speed
     capabilities = frozenset({"robot", "disk", "heading_control"})
+    analysis_slice = {"theta": 0.0}
+    straight_driving = (0.1, 0.1)      # vl = vr
     plant_state_names = ("x", "y", "theta")
     angle_state_names = ("theta",)
     input_names = ("vl", "vr")
