@@ -38,9 +38,7 @@ def best(fn, repeat=3):
 
 
 def closed(model, target):
-    s = model.sym
-    return cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p),
-                         cs.DM(np.r_[target, model.p_value()]))
+    return model.closed_loop_at(target)
 
 
 def main() -> None:

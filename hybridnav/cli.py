@@ -306,8 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
     from hybridnav import models
     from hybridnav.fuzzy.export import FORMATS
 
-    p.add_argument("model", choices=sorted(n for n, cls in models.MODELS.items()
-                                           if cls.analysis_scenario))
+    p.add_argument("model", choices=sorted(models.analyzable()))
     p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
                                       "one per model)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for analysis.json, "

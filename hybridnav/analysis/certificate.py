@@ -318,8 +318,7 @@ def certify(
     details.update(counts=counts, boxes=evaluated, budget=max_boxes, min_width=min_width,
                    undecided_faces=faces_undecided)
     if leftovers or stack:
-        sample = np.vstack([s[0] for s in (leftovers + stack)][:1] or [np.empty((0, nx))])[:5]
-        details["undecided_examples_lo"] = sample.tolist()
+        details["undecided_examples_lo"] = (leftovers + stack)[0][0][:5].tolist()
     invariant = None
     if faces:
         invariant = face_cex is None and faces_undecided == 0

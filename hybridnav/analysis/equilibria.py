@@ -77,7 +77,7 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
                      ) -> list[Equilibrium]:
     s = model.sym
     values = cs.DM(np.concatenate([tgt, model.p_value()]))
-    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
+    f = model.closed_loop_at(tgt)
     v = cs.substitute(model.lyapunov_candidate(), cs.vertcat(s.target, s.p), values)
     F = cs.Function("F", [s.x], [f, cs.jacobian(f, s.x), v])
     rng = np.random.default_rng(seed)

@@ -284,10 +284,8 @@ def check_lyapunov(
 
 def _certificate_inputs(model: Model, target):
     """The closed loop and the admissibility constraints in the state only; periodic states."""
-    s = model.sym
-    values = cs.DM(np.concatenate([_target(target), model.p_value()]))
-    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p), values)
-    g = cs.substitute(model.state_constraints(), s.p, cs.DM(model.p_value()))
+    f = model.closed_loop_at(_target(target))
+    g = cs.substitute(model.state_constraints(), model.sym.p, cs.DM(model.p_value()))
     return f, g
 
 

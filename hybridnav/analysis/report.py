@@ -40,8 +40,7 @@ __all__ = ["ANALYZABLE", "analyze"]
 TRAILER_FOLDS_DEG = (0, 60, 90, 120, 150)
 
 #: Models ``analyze`` knows, and the scenario used when none is given (each model declares it)
-ANALYZABLE = {name: cls.analysis_scenario for name, cls in models.MODELS.items()
-              if cls.analysis_scenario}
+ANALYZABLE = models.analyzable()
 
 
 def analyze(model_name: str, scenario: str | None = None, out: str | Path = "analysis",

@@ -363,8 +363,7 @@ def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, 
 def _integrate(model: Model, target, Z: np.ndarray, T: float) -> np.ndarray:
     """End states of the closed-loop ODE from each row of ``Z`` after ``T`` seconds (CVODES)."""
     s = model.sym
-    f = cs.substitute(model.closed_loop(), cs.vertcat(s.target, s.p),
-                      cs.DM(np.concatenate([target, model.p_value()])))
+    f = model.closed_loop_at(target)
     opts = {"abstol": 1e-9, "reltol": 1e-7, "max_num_steps": 200_000}
     integ = cs.integrator("basin", "cvodes", {"x": s.x, "ode": f}, 0.0, T, opts)
     if not len(Z):

@@ -22,8 +22,13 @@ MODELS: dict[str, type[Model]] = {
     cls.name: cls for cls in (PointMass, TractorTrailer, Unicycle, LbCS)
 }
 
-__all__ = ["MODELS", "LbCS", "Model", "PointMass", "TractorTrailer", "Unicycle", "get", "jit_available",
+__all__ = ["MODELS", "LbCS", "analyzable", "Model", "PointMass", "TractorTrailer", "Unicycle", "get", "jit_available",
            "wrap_angle"]
+
+
+def analyzable() -> dict[str, str]:
+    """The models ``hybridnav analyze`` knows, with the scenario each declares for it."""
+    return {name: cls.analysis_scenario for name, cls in MODELS.items() if cls.analysis_scenario}
 
 
 def get(name: str, dt: float = 0.1, **params: Any) -> Model:

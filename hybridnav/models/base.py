@@ -595,6 +595,13 @@ class Model(ABC):
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         return X[:, None, :2].copy(), np.array([self.radius])
 
+    def closed_loop_at(self, target) -> cs.SX:
+        """The closed loop driving to ``target``, in the state symbols only (the target and the
+        parameter values substituted): what the analysis integrates, certifies and solves."""
+        s = self.sym
+        values = cs.DM(np.concatenate([np.asarray(target, dtype=float).ravel(), self.p_value()]))
+        return cs.substitute(self.closed_loop(), cs.vertcat(s.target, s.p), values)
+
     def numeric_closed_loop(self):
         """A NumPy-callable ``F(x, target) -> xdot`` for one robot (for scipy integrators)."""
         f = self.function("closed_loop")
