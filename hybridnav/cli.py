@@ -12,6 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from hybridnav import HybridnavError, __version__
+from hybridnav.params import describe_params
 
 __all__ = ["main"]
 
@@ -46,11 +47,8 @@ def _cmd_models(args: argparse.Namespace) -> int:
         states = ", ".join(cls.plant_state_names + cls.controller_state_names)
         print(f"{name}: {cls.description}")
         print(f"  states: {states}; inputs: {', '.join(cls.input_names)}")
-        for key, value in cls.defaults.items():
-            print(f"  {key} = {value:g}    {cls.param_docs.get(key, '')}")
-        for key, value in cls.option_defaults.items():
-            choices = " | ".join(cls.option_choices.get(key, ()))
-            print(f"  {key} = {value!r}    one of: {choices}")
+        for line in describe_params(cls.parameters):
+            print(line)
     return 0
 
 
@@ -79,8 +77,8 @@ def _cmd_planners(args: argparse.Namespace) -> int:
         note = f" ({'; '.join(extra)})" if extra else ""
         print(f"{name}: {cls.description}{note}")
         print(f"  robots: {', '.join(cls.models)}")
-        for key, p in cls.params.items():
-            print(f"  {key} = {p.default!r}    {p.doc}")
+        for line in describe_params(cls.parameters):
+            print(line)
     return 0
 
 

@@ -1,63 +1,205 @@
-"""Checking user-given settings: one checker for numbers, flags, choices and ranges.
+"""Declaring and checking settings: one :class:`Param` type and one message style for all.
 
-Every message has the form ``"<where><key>: expected ..., got ..."`` so that it names the file
-(``where`` is e.g. ``"job.toml: "``) and the dotted key.
+Models, planners, optimizers, job files and generated-world tables declare their settings with
+:class:`Param` (default, doc, type, bounds that may be open or closed, choices) or check a value
+against the same kind of constraint with :func:`check_value`, :func:`check_int` or
+:func:`check_real`. Every message has the form::
+
+    <where><key>: expected <what>, got <value>
+
+where ``where`` names the file or the owner (``"job.toml: "``, ``"planner apf: "``,
+``"model unicycle: "``, empty for a Python keyword argument) and ``key`` the dotted key
+(``"ga.population"``, ``"robots[0].params.L"``), and ``what`` is said the same way everywhere:
+``a positive number``, ``a non-negative number``, ``a number in (0, 1]``, ``an integer >= 1``,
+``an integer in [2, 1000]``, ``one of sbx, blend``, ``true or false``; a value of the wrong
+type gets the bare type (``a number``, ``an integer``, ``a string``), ``nan`` and ``inf`` where
+they are not allowed ``a finite number``.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["check_value", "check_range"]
+__all__ = ["Param", "check_int", "check_range", "check_real", "check_value", "describe_params"]
+
+_KIND_WORDS = {str: "a string", list: "a list", dict: "a table", tuple: "a sequence"}
 
 
-def check_value(where: str, key: str, value: Any, kind: type, lo: float | None = None,
-                hi: float | None = None, choices: tuple | None = None) -> Any:
-    """Validate one setting and return it converted (an int where a float is expected).
+@dataclass(frozen=True)
+class Param:
+    """A declared setting: default, one-line doc, type, bounds or choices.
 
     Parameters
     ----------
-    where : str
-        Message prefix naming the file, e.g. ``"job.toml: "`` (may be empty).
-    key : str
-        Dotted key, e.g. ``"ga.population"``.
-    value : any
-    kind : type
-        ``bool``, ``int``, ``float``, ``str``, ``list`` or ``dict``.
+    default : any
+        The value used when none is given; its type is the setting's type unless ``kind`` says
+        otherwise (an ``int`` default makes an integer setting, a ``float`` one a real).
+    doc : str
+        What the setting does, one line (listed by ``hybridnav planners`` and ``models``).
     lo, hi : float, optional
-        Inclusive bounds for numbers.
+        Bounds of a number; closed unless ``lo_open`` / ``hi_open``.
+    lo_open, hi_open : bool
+        Make the corresponding bound strict (``lo=0, lo_open=True``: a positive number).
     choices : tuple, optional
         The allowed values.
-
-    Raises
-    ------
-    HybridnavError
-        Naming ``where``, ``key`` and what was expected.
+    kind : type, optional
+        The setting's type (default: the type of ``default``, ``float`` for any real and ``int``
+        for any integer); give it when that is not it (e.g. ``float`` with ``default=None``).
+    allow_inf : bool
+        A real setting that may be ``inf`` (e.g. "no limit").
     """
-    def fail(msg: str) -> HybridnavError:
-        return HybridnavError(f"{where}{key}: {msg}")
 
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if kind is bool:
-        ok = isinstance(value, bool)
-    elif kind in (int, float):
-        ok = isinstance(value, kind) and not isinstance(value, bool)
-    else:
-        ok = isinstance(value, kind)
-    if not ok:
-        raise fail(f"expected {kind.__name__}, got {value!r}")
-    if kind is float and not math.isfinite(value):
-        raise fail(f"expected a finite number, got {value!r}")
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise fail(f"expected a value in [{lo}, {hi if hi is not None else 'inf'}], got "
-                   f"{value!r}")
-    if choices is not None and value not in choices:
-        raise fail(f"expected one of {', '.join(map(str, choices))}, got {value!r}")
-    return value
+    default: Any
+    doc: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple | None = None
+    kind: type | None = None
+    allow_inf: bool = False
+
+    def __post_init__(self) -> None:
+        if self.kind is None:                 # the type of the default
+            d = self.default
+            kind = (bool if isinstance(d, bool) else int if isinstance(d, numbers.Integral)
+                    else float if isinstance(d, numbers.Real) else type(d))
+            object.__setattr__(self, "kind", kind)
+
+    @property
+    def numeric(self) -> bool:
+        """Whether the setting is an integer or real number."""
+        return self.kind in (int, float)
+
+    def describe(self) -> str:
+        """What a valid value is, in the words every message uses."""
+        kind = self.kind
+        if self.choices is not None:
+            return "one of " + ", ".join(map(str, self.choices))
+        if kind is bool:
+            return "true or false"
+        if kind is int:
+            lo = None if self.lo is None else math.floor(self.lo) + 1 if self.lo_open \
+                else math.ceil(self.lo)
+            hi = None if self.hi is None else math.ceil(self.hi) - 1 if self.hi_open \
+                else math.floor(self.hi)
+            if lo is not None and hi is not None:
+                return f"an integer in [{lo}, {hi}]"
+            if lo is not None:
+                return f"an integer >= {lo}"
+            if hi is not None:
+                return f"an integer <= {hi}"
+            return "an integer"
+        if kind is float:
+            if self.hi is None and self.lo == 0:
+                return "a positive number" if self.lo_open else "a non-negative number"
+            if self.lo is None and self.hi is None:
+                return "a number" if self.allow_inf else "a finite number"
+            inf_close = "]" if self.allow_inf else ")"
+            left = "(" if self.lo_open or self.lo is None else "["
+            right = (")" if self.hi_open else "]") if self.hi is not None else inf_close
+            lo = "-inf" if self.lo is None else f"{self.lo:g}"
+            hi = "inf" if self.hi is None else f"{self.hi:g}"
+            return f"a number in {left}{lo}, {hi}{right}"
+        return _KIND_WORDS.get(kind, kind.__name__)
+
+    def check(self, key: str, value: Any, where: str = "", *, parse: bool = False) -> Any:
+        """Validate ``value`` and return it converted (``int`` to ``float`` for a real setting,
+        an integral ``float`` to ``int`` for an integer one).
+
+        Parameters
+        ----------
+        key : str
+            The key the message names.
+        value : any
+        where : str
+            Message prefix naming the file or owner, e.g. ``"job.toml: "``.
+        parse : bool
+            Accept strings for numbers and flags and parse them (values from ``--set``).
+
+        Raises
+        ------
+        HybridnavError
+            ``"<where><key>: expected <what>, got <value>"``.
+        """
+        kind = self.kind
+        given = value
+
+        def fail(what: str | None = None) -> HybridnavError:
+            return HybridnavError(f"{where}{key}: expected {what or self.describe()}, "
+                                  f"got {given!r}")
+
+        if parse and isinstance(value, str) and kind is not str:
+            value = given = self._parse(value, fail)
+        if kind is bool:
+            if not isinstance(value, bool):
+                raise fail("true or false")
+        elif kind is int:
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or (
+                    not isinstance(value, numbers.Integral)
+                    and not (math.isfinite(value) and float(value) == int(value))):
+                raise fail("an integer")
+            value = int(value)
+        elif kind is float:
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise fail("a number")
+            value = float(value)
+            if math.isnan(value) or (math.isinf(value) and not self.allow_inf):
+                raise fail("a number" if self.allow_inf else "a finite number")
+        elif kind is not object and not isinstance(value, kind):
+            raise fail()
+        if (kind in (int, float) and not self._in_bounds(value)) or (
+                self.choices is not None and value not in self.choices):
+            raise fail()
+        return value
+
+    def _in_bounds(self, v: float) -> bool:
+        if self.lo is not None and (v < self.lo or (self.lo_open and v == self.lo)):
+            return False
+        return not (self.hi is not None and (v > self.hi or (self.hi_open and v == self.hi)))
+
+    def _parse(self, text: str, fail) -> Any:
+        s = text.strip()
+        kind = self.kind
+        if kind is bool:
+            low = s.lower()
+            if low in ("true", "yes", "1", "on"):
+                return True
+            if low in ("false", "no", "0", "off"):
+                return False
+            raise fail("true or false")
+        if kind in (int, float):
+            try:
+                return int(s) if kind is int else float(s)
+            except ValueError:
+                raise fail("an integer" if kind is int else "a number") from None
+        return text
+
+
+def check_value(where: str, key: str, value: Any, kind: type, lo: float | None = None,
+                hi: float | None = None, choices: tuple | None = None, *,
+                lo_open: bool = False, hi_open: bool = False) -> Any:
+    """Validate one setting against an undeclared constraint (see :meth:`Param.check`)."""
+    return Param(None, kind=kind, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open,
+                 choices=choices).check(key, value, where)
+
+
+def check_int(name: str, value: Any, minimum: int = 1) -> int:
+    """``value`` as an ``int`` >= ``minimum``, or a :class:`HybridnavError` naming ``name``."""
+    return Param(0, lo=minimum).check(name, value)
+
+
+def check_real(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,
+               lo_open: bool = False, hi_open: bool = False, allow_inf: bool = False) -> float:
+    """``value`` as a finite ``float`` in the given interval, or a :class:`HybridnavError`."""
+    return Param(0.0, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open,
+                 allow_inf=allow_inf).check(name, value)
 
 
 def check_range(where: str, key: str, value: Any, kind: type = float, lo: float | None = None,
@@ -74,3 +216,12 @@ def check_range(where: str, key: str, value: Any, kind: type = float, lo: float 
         raise HybridnavError(f"{where}{key}: expected [low, high] with low <= high, got "
                              f"{list(value)!r}")
     return a, b
+
+
+def describe_params(params: Mapping[str, Param], indent: str = "  ") -> list[str]:
+    """One line per setting: ``key = default    doc (what a valid value is)``, for listings."""
+    lines = []
+    for key, p in params.items():
+        default = f"{p.default:g}" if isinstance(p.default, float) else repr(p.default)
+        lines.append(f"{indent}{key} = {default}    {p.doc} ({p.describe()})".rstrip())
+    return lines

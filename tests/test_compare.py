@@ -149,7 +149,7 @@ def test_relative_fis_paths_survive_a_worker_in_another_directory(tmp_path, monk
     (["effc@a:nope=1"], r"--planners effc@a:nope=1: planner effc: unknown parameter 'nope'"),
     (["effc@a:speed=fast"], r"--planners effc@a:speed=fast: .*speed: expected a number"),
     (["effc@a:fis=missing.json"], r"--planners effc@a:fis=missing.json: missing.json: cannot read"),
-    ([("a", "effc", {"speed": -1.0})], r"--planners effc@a:speed=-1.0: .*expected a value in"),
+    ([("a", "effc", {"speed": -1.0})], r"--planners effc@a:speed=-1.0: .*expected a positive number"),
     ([], r"--planners: expected at least one planner"),
     ([3], r"planners\[0\]: expected NAME"),
 ])

@@ -257,16 +257,16 @@ def test_a_goal_inside_the_inflation_ends_stuck():
      ("planner astar: heuristic: expected one of octile, euclidean, manhattan, zero, got "
       "'chebyshev'")),
     (PSOPathPlanner, {"waypoints": 0},
-     "planner pso: waypoints: expected a value in [1, None], got 0"),
+     "planner pso: waypoints: expected an integer >= 1, got 0"),
     (PSOPathPlanner, {"waypoints": 2.5}, "planner pso: waypoints: expected an integer, got 2.5"),
     (RFDPSOPlanner, {"vmax": 1.5},
-     "planner rfd-pso: vmax: expected a value in [1e-09, 1.0], got 1.5"),
+     "planner rfd-pso: vmax: expected a number in (0, 1], got 1.5"),
     (RFDPlanner, {"drops": "many"}, "planner rfd: drops: expected an integer, got 'many'"),
     (DijkstraPlanner, {"heuristic": "octile"},
      ("planner dijkstra: unknown parameter 'heuristic'; expected one of: corner_cutting, "
       "diagonal, lookahead, margin, speed, stuck_radius, stuck_window")),
     (RFDPSOPlanner, {"speed": 0.0},
-     "planner rfd-pso: speed: expected a value in [1e-09, None], got 0.0"),
+     "planner rfd-pso: speed: expected a positive number, got 0.0"),
 ])
 def test_bad_parameters_give_the_exact_error(cls, kwargs, message):
     with pytest.raises(HybridnavError) as info:

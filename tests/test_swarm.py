@@ -571,7 +571,7 @@ def test_bad_budgets_and_objectives(name):
 
 @pytest.mark.parametrize("fn,kwargs,pattern", [
     (firefly, dict(n=0), r"^n: expected an integer >= 1, got 0"),
-    (firefly, dict(alpha=-0.1), r"^alpha: expected a number in \[0, inf\]"),
+    (firefly, dict(alpha=-0.1), r"^alpha: expected a non-negative number"),
     (firefly, dict(gamma=float("inf")), r"^gamma: expected a finite number"),
     (firefly, dict(beta_min=2.0), r"^beta_min: expected a number in \[0, 1\]"),
     (firefly, dict(damping=0.0), r"^damping: expected a number in \(0, 1\]"),
@@ -580,13 +580,13 @@ def test_bad_budgets_and_objectives(name):
     (fastep, dict(n=True), r"^n: expected an integer"),
     (acor, dict(k=1), r"^k: expected an integer >= 2, got 1"),
     (acor, dict(m=0), r"^m: expected an integer >= 1"),
-    (acor, dict(q=0.0), r"^q: expected a number in \(0, inf\]"),
+    (acor, dict(q=0.0), r"^q: expected a positive number"),
     (acor, dict(xi=-1.0), r"^xi: "),
     (pso, dict(vmax=0.0), r"^vmax: expected a number in \(0, 1\]"),
     (pso, dict(vmax=1.5), r"^vmax: "),
     (pso, dict(c1=-1.0), r"^c1: "),
-    (pso, dict(w="0.7"), r"^w: expected a finite number"),
-    (bat, dict(fmin=1.0, fmax=0.5), r"^fmax: expected a number in \[1, inf\]"),
+    (pso, dict(w="0.7"), r"^w: expected a number, got '0.7'"),
+    (bat, dict(fmin=1.0, fmax=0.5), r"^fmax: expected a number in \[1, inf\)"),
     (bat, dict(loudness=0.0), r"^loudness: "),
     (bat, dict(pulse_rate=1.2), r"^pulse_rate: expected a number in \[0, 1\]"),
     (bat, dict(alpha=0.0), r"^alpha: "),
@@ -643,7 +643,7 @@ def test_docstrings_document_every_parameter(fn):
 
 def test_swarm_package_knows_nothing_about_robots():
     pkg = pathlib.Path(swarm.__file__).parent
-    allowed = ("numpy", "scipy", "hybridnav.errors", "hybridnav.planners.swarm", "__future__",
+    allowed = ("numpy", "scipy", "hybridnav.errors", "hybridnav.params", "hybridnav.planners.swarm", "__future__",
                "collections", "dataclasses", "inspect", "logging", "math", "numbers", "typing")
     for path in pkg.glob("*.py"):
         tree = ast.parse(path.read_text())

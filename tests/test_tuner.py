@@ -278,7 +278,7 @@ def test_noise_does_not_depend_on_the_chunking(tmp_path):
     ("[reward]\nkind = \"deploy\"\nsense = \"maximize\"\n", "reward.sense",
      "expected minimize"),
     ("[scenarios]\ntrain = [{generate = 0}]\n", "scenarios.train[0].generate",
-     "expected a value in [1, 10000]"),
+     "expected an integer in [1, 10000]"),
     ("[scenarios]\ntrain = [{seed = 1}]\n", "scenarios.train[0].generate", "missing"),
     ("[scenarios]\ntrain = [{generate = 2, circle = [1, 2]}]\n",
      "scenarios.train[0].circle", "unknown key"),
@@ -294,10 +294,10 @@ def test_noise_does_not_depend_on_the_chunking(tmp_path):
      "scenarios.train", "expected one robot model for the whole set"),
     ("[scenarios]\ntrain = [\"effc-train-1\", \"effc-train-1\"]\n", "scenarios.train",
      "expected distinct scenario names"),
-    ("[coverage]\nmax_uncovered = 1.5\n", "coverage.max_uncovered", "expected a value in"),
-    ("[validation]\ntop = 0\n", "validation.top", "expected a value in"),
-    ("[free]\nmargin = -0.1\n", "free.margin", "expected a value in"),
-    ("[reward]\npenalty = \"big\"\n", "reward.penalty", "expected float"),
+    ("[coverage]\nmax_uncovered = 1.5\n", "coverage.max_uncovered", "expected a number in [0, 1], got 1.5"),
+    ("[validation]\ntop = 0\n", "validation.top", "expected an integer in [1, 1000], got 0"),
+    ("[free]\nmargin = -0.1\n", "free.margin", "expected a number in [0, 1], got -0.1"),
+    ("[reward]\npenalty = \"big\"\n", "reward.penalty", "expected a number, got 'big'"),
 ])
 def test_bad_jobs_fail_before_any_work(tmp_path, extra, key, text):
     p = tmp_path / "bad.toml"

@@ -122,17 +122,17 @@ def test_generate_command_writes_toml_files(tmp_path):
 
 @pytest.mark.parametrize("table, key, text", [
     ({"generate": 3, "radius": [0.5, 0.1]}, "w.radius", "low <= high"),
-    ({"generate": 3, "radius": [0.0, 0.1]}, "w.radius[0]", "expected a value in"),
+    ({"generate": 3, "radius": [0.0, 0.1]}, "w.radius[0]", "expected a number in [1e-06, inf), got 0.0"),
     ({"generate": 3, "circles": [1, 2, 3]}, "w.circles", "expected [low, high]"),
-    ({"generate": 3, "circles": [1.5, 2]}, "w.circles[0]", "expected int"),
-    ({"generate": 3, "clutter": 2.0}, "w.clutter", "expected a value in [0.0, 1.0]"),
+    ({"generate": 3, "circles": [1.5, 2]}, "w.circles[0]", "expected an integer, got 1.5"),
+    ({"generate": 3, "clutter": 2.0}, "w.clutter", "expected a number in [0, 1], got 2.0"),
     ({"generate": 3, "heading": "north"}, "w.heading", "expected one of goal, random"),
     ({"generate": 3, "resolution": 1e-5}, "w.resolution", "at most 2000 cells"),
     ({"generate": 3, "dt": 1e-6, "max_time": 100.0}, "w.max_time", "at most 1e6 steps"),
     ({"generate": 3, "name": "a/b"}, "w.name", "without slashes"),
     ({"generate": 3, "size": 1.0, "robot_radius": 0.3}, "w.robot_radius", "quarter"),
     ({"generate": 3, "colour": 1}, "w.colour", "unknown key"),
-    ({"generate": -1}, "w.generate", "expected a value in [1, 10000]"),
+    ({"generate": -1}, "w.generate", "expected an integer in [1, 10000], got -1"),
     ({"seed": 1}, "w.generate", "missing"),
     ([1, 2], "w", "expected a table"),
 ])

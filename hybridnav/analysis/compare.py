@@ -187,7 +187,7 @@ def _absolute_paths(name: str, params: dict[str, Any]) -> dict[str, Any]:
     """
     from hybridnav.planners import PLANNERS
 
-    declared = PLANNERS[name].params
+    declared = PLANNERS[name].parameters
     out = dict(params)
     for key, value in params.items():
         p = declared.get(key)

@@ -40,6 +40,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import Param, check_real
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +49,9 @@ __all__ = ["Model", "wrap_angle", "jit_available"]
 
 #: Largest batch one compiled rollout function takes (larger batches run in chunks).
 _ROLLOUT_CHUNK = 4096
+
+_DT = Param(0.1, "control and integration step (s)", lo=0.0, lo_open=True)
+_RADIUS = Param(0.5, "footprint radius of a disk-shaped robot", lo=0.0)
 
 def wrap_angle(a):
     """Wrap an angle (CasADi expression) to ``(-pi, pi]`` via ``atan2(sin a, cos a)``."""
@@ -232,9 +236,14 @@ class Model(ABC):
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()
     input_names: ClassVar[tuple[str, ...]] = ()
+    #: the model's settings, declared once: real-valued :class:`~hybridnav.params.Param` entries
+    #: are its numeric parameters (the vector ``p`` in declaration order), the others (strings
+    #: with choices, tuples) its options
+    parameters: ClassVar[dict[str, Param]] = {}
+    #: derived from :attr:`parameters` (never written by hand; old models that set them instead
+    #: of ``parameters`` still work for one version)
     defaults: ClassVar[dict[str, float]] = {}
     param_docs: ClassVar[dict[str, str]] = {}
-    #: parameters that may be ``inf`` (e.g. "no limit")
     infinite_ok: ClassVar[frozenset[str]] = frozenset()
     option_defaults: ClassVar[dict[str, Any]] = {}
     option_choices: ClassVar[dict[str, tuple]] = {}
@@ -242,38 +251,42 @@ class Model(ABC):
     #: ODE); ``"zoh"``: the input is computed at the start of each control cycle and held.
     hold: str = "continuous"
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "parameters" not in cls.__dict__ and any(
+                k in cls.__dict__ for k in ("defaults", "option_defaults")):
+            # a model written against the five parallel dicts: one declaration from them
+            cls.parameters = {
+                **{k: Param(float(v), cls.param_docs.get(k, ""), allow_inf=k in cls.infinite_ok)
+                   for k, v in cls.defaults.items()},
+                **{k: Param(v, "", choices=cls.option_choices.get(k),
+                            kind=None if isinstance(v, str) else object)
+                   for k, v in cls.option_defaults.items()}}
+        decl = cls.parameters
+        cls.defaults = {k: p.default for k, p in decl.items() if p.kind is float}
+        cls.param_docs = {k: p.doc for k, p in decl.items()}
+        cls.infinite_ok = frozenset(k for k, p in decl.items() if p.allow_inf)
+        cls.option_defaults = {k: p.default for k, p in decl.items() if p.kind is not float}
+        cls.option_choices = {k: p.choices for k, p in decl.items()
+                              if p.kind is not float and p.choices is not None}
+
     def __init__(self, dt: float = 0.1, jit: bool | None = None, radius: float = 0.5,
                  **params: Any) -> None:
-        dt = _check_number("dt", dt)
-        if not dt > 0:
-            raise HybridnavError(f"model {self.name}: dt: expected a positive number, got {dt!r}")
-        self.dt = float(dt)
+        where = f"model {self.name}: "
+        self.dt = _DT.check("dt", dt, where)
         self.jit = jit
-        self._radius = _check_number(f"model {self.name}: radius", radius)
-        if self._radius < 0:
-            raise HybridnavError(f"model {self.name}: radius: expected >= 0, got {radius!r}")
+        self._radius = _RADIUS.check("radius", radius, where)
         options = dict(self.option_defaults)
         values = dict(self.defaults)
         for key, value in params.items():
-            if key in options:
-                choices = self.option_choices.get(key)
-                if choices is not None and value not in choices:
-                    raise HybridnavError(
-                        f"model {self.name}: {key}: expected one of {', '.join(map(repr, choices))},"
-                        f" got {value!r}"
-                    )
-                options[key] = value
-            elif key in values:
-                values[key] = _check_number(f"model {self.name}: {key}", value,
-                                            allow_inf=key in self.infinite_ok)
-            else:
-                known = sorted(list(self.defaults) + list(self.option_defaults))
+            if key not in self.parameters:
                 raise HybridnavError(
                     f"model {self.name}: unknown parameter {key!r}; expected one of: "
-                    + ", ".join(known)
-                )
+                    + ", ".join(sorted(self.parameters)))
+            checked = self.parameters[key].check(key, value, where)
+            (values if key in values else options)[key] = checked
         self.options = options
-        self.params = values
+        self.values = values
         self._validate_params()
         self.state_names = tuple(self.plant_state_names) + tuple(self.controller_state_names)
         self.nx = len(self.state_names)
@@ -304,7 +317,13 @@ class Model(ABC):
         return cs.SX(0, 1)
 
     def _validate_params(self) -> None:
-        """Check parameter values (subclasses raise :class:`HybridnavError`)."""
+        """Check what one declaration cannot say, e.g. relations between values (subclasses
+        raise :class:`HybridnavError`)."""
+
+    @property
+    def params(self) -> dict[str, float]:
+        """Old name of :attr:`values` (the numeric parameter values), kept for one version."""
+        return self.values
 
     # ---- symbolic views ------------------------------------------------------------------------
 
@@ -329,7 +348,7 @@ class Model(ABC):
     def with_params(self, **overrides: Any) -> Model:
         """A copy of this model with some parameters or options changed."""
         return type(self)(dt=self.dt, jit=self.jit, radius=self._radius,
-                          **{**self.params, **self.options, **overrides})
+                          **{**self.values, **self.options, **overrides})
 
     def lyapunov_candidate(self, x=None, target=None) -> cs.SX:
         """The default Lyapunov candidate ``V = 1/2 ((x1 - x)^2 + (y1 - y)^2)``."""
@@ -360,7 +379,7 @@ class Model(ABC):
 
     def p_value(self) -> np.ndarray:
         """The numeric parameter vector in :attr:`param_names` order."""
-        return np.array([self.params[n] for n in self.param_names], dtype=float)
+        return np.array([self.values[n] for n in self.param_names], dtype=float)
 
     def function(self, kind: str = "closed_loop") -> cs.Function:
         """A CasADi function of the model's symbols.
@@ -412,7 +431,7 @@ class Model(ABC):
     # ---- compiled batched evaluation ------------------------------------------------------------
 
     def _key(self) -> tuple:
-        return (type(self).__qualname__, self.dt, tuple(sorted(self.params.items())),
+        return (type(self).__qualname__, self.dt, tuple(sorted(self.values.items())),
                 tuple(sorted((k, repr(v)) for k, v in self.options.items())))
 
     def _use_jit(self) -> bool:
@@ -561,7 +580,7 @@ class Model(ABC):
                     f"model {self.name}: initial.{key}: unknown state; expected one of: "
                     + ", ".join(self.state_names[2:])
                 )
-            x[self.state_names.index(key)] = _check_number(f"initial.{key}", value)
+            x[self.state_names.index(key)] = check_real(f"initial.{key}", value)
         return self.retarget(x[None, :], np.asarray(target, dtype=float)[None, :])[0]
 
     def carrot(self, X, velocity) -> np.ndarray:
@@ -613,7 +632,7 @@ class Model(ABC):
         return rhs
 
     def __repr__(self) -> str:
-        params = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
+        params = ", ".join(f"{k}={v:g}" for k, v in self.values.items())
         opts = "".join(f", {k}={v!r}" for k, v in self.options.items())
         return f"{type(self).__name__}(dt={self.dt:g}, {params}{opts})"
 
@@ -621,12 +640,3 @@ class Model(ABC):
 def _named(names: Sequence[str]) -> cs.SX:
     """A column of scalar SX symbols with the given names (valid as a Function input)."""
     return cs.vertcat(*[cs.SX.sym(n) for n in names]) if names else cs.SX(0, 1)
-
-
-def _check_number(key: str, value: Any, allow_inf: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise HybridnavError(f"{key}: expected a number, got {value!r}")
-    v = float(value)
-    if math.isnan(v) or (math.isinf(v) and not allow_inf):
-        raise HybridnavError(f"{key}: expected a finite number, got {value!r}")
-    return v

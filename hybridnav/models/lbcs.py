@@ -26,6 +26,7 @@ import casadi as cs
 
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
+from hybridnav.params import Param
 
 __all__ = ["LbCS"]
 
@@ -50,14 +51,13 @@ class LbCS(Model):
     smooth_at_target = True
     candidate_name = "L"
     input_names = ("vx", "vy")
-    defaults = {"beta": 2.0, "delta1": 10.0, "delta2": 10.0, "rp": 0.5}
-    param_docs = {
-        "beta": "obstacle avoidance gain beta_l (the same for every obstacle)",
-        "delta1": "control gain along x: xdot = -(1/delta1) dL/dx",
-        "delta2": "control gain along y: ydot = -(1/delta2) dL/dy",
-        "rp": "robot radius added to each obstacle radius in FO_l",
+    parameters = {
+        "beta": Param(2.0, "obstacle avoidance gain beta_l (the same for every obstacle)", lo=0.0, lo_open=True),
+        "delta1": Param(10.0, "control gain along x: xdot = -(1/delta1) dL/dx", lo=0.0, lo_open=True),
+        "delta2": Param(10.0, "control gain along y: ydot = -(1/delta2) dL/dy", lo=0.0, lo_open=True),
+        "rp": Param(0.5, "robot radius added to each obstacle radius in FO_l", lo=0.0),
+        "obstacles": Param((), "circles (x, y, r) the scheme avoids", kind=tuple),
     }
-    option_defaults = {"obstacles": ()}
 
     def __init__(self, dt: float = 0.1, jit: bool | None = None, radius: float | None = None,
                  **params: Any) -> None:
@@ -66,16 +66,7 @@ class LbCS(Model):
             params["rp"] = radius
         super().__init__(dt, jit, self.defaults["rp"] if radius is None else radius,
                          obstacles=obstacles, **params)
-        self._radius = self.params["rp"]
-
-    def _validate_params(self) -> None:
-        for key in ("beta", "delta1", "delta2"):
-            if not self.params[key] > 0:
-                raise HybridnavError(
-                    f"model lbcs: {key}: expected a positive number, got {self.params[key]!r}"
-                )
-        if self.params["rp"] < 0:
-            raise HybridnavError(f"model lbcs: rp: expected >= 0, got {self.params['rp']!r}")
+        self._radius = self.values["rp"]
 
     @classmethod
     def from_scenario(cls, scenario, robot: str | None = None, **params: Any) -> LbCS:

@@ -12,6 +12,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav.models.base import Model
+from hybridnav.params import Param
 
 __all__ = ["PointMass"]
 
@@ -26,16 +27,16 @@ class PointMass(Model):
     smooth_at_target = True
     plant_state_names = ("x", "y")
     input_names = ("vx", "vy")
-    defaults = {"alpha1": 0.1, "alpha2": 0.1}
-    param_docs = {
-        "alpha1": "convergence gain along x (1/s); > 0 for stability (FAStep-Kinematic Theorem 1)",
-        "alpha2": "convergence gain along y (1/s)",
+    parameters = {
+        "alpha1": Param(0.1, "convergence gain along x (1/s); > 0 for stability "
+                        "(FAStep-Kinematic Theorem 1)"),
+        "alpha2": Param(0.1, "convergence gain along y (1/s)"),
     }
 
     def carrot(self, X, velocity):
         """``x + (vx / alpha1, vy / alpha2)``: the controller then commands exactly ``velocity``."""
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        gains = np.array([self.params["alpha1"], self.params["alpha2"]])
+        gains = np.array([self.values["alpha1"], self.values["alpha2"]])
         return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / gains
 
     def open_loop(self, x, u, p):

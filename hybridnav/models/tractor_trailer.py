@@ -49,8 +49,8 @@ import math
 import casadi as cs
 import numpy as np
 
-from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model, wrap_angle
+from hybridnav.params import Param
 
 __all__ = ["TractorTrailer"]
 
@@ -69,29 +69,17 @@ class TractorTrailer(Model):
     plant_state_names = ("x", "y", "theta0", "theta1")
     controller_state_names = ("xi",)
     input_names = ("v", "phi")
-    defaults = {"L": 1.6, "Lt": 1.2, "c": 0.5, "b": 1.0, "alpha": 0.1, "k_xi": 2.0}
-    param_docs = {
-        "L": "tractor length between axles (the tractor body is L long)",
-        "Lt": "trailer length, hitch to trailer axle",
-        "c": "hitch offset behind the tractor's rear axle",
-        "b": "body width of tractor and trailer",
-        "alpha": "speed gain, v = alpha * distance to the target (1/s)",
-        "k_xi": "xi_law='filter': rate at which xi follows the heading error (1/s)",
+    parameters = {
+        "L": Param(1.6, "tractor length between axles (the tractor body is L long)", lo=0.0, lo_open=True),
+        "Lt": Param(1.2, "trailer length, hitch to trailer axle", lo=0.0, lo_open=True),
+        "c": Param(0.5, "hitch offset behind the tractor's rear axle", lo=0.0),
+        "b": Param(1.0, "body width of tractor and trailer", lo=0.0, lo_open=True),
+        "alpha": Param(0.1, "speed gain, v = alpha * distance to the target (1/s)", lo=0.0, lo_open=True),
+        "k_xi": Param(2.0, "xi_law='filter': rate at which xi follows the heading error (1/s)",
+                      lo=0.0, lo_open=True),
+        "xi_law": Param("filter", "filter (smooth xi) or paper (the papers' law)",
+                        choices=("filter", "paper")),
     }
-    option_defaults = {"xi_law": "filter"}
-    option_choices = {"xi_law": ("filter", "paper")}
-
-    def _validate_params(self) -> None:
-        for key in ("L", "Lt", "b", "alpha", "k_xi"):
-            if not self.params[key] > 0:
-                raise HybridnavError(
-                    f"model tractor_trailer: {key}: expected a positive number, got "
-                    f"{self.params[key]!r}"
-                )
-        if self.params["c"] < 0:
-            raise HybridnavError(
-                f"model tractor_trailer: c: expected a number >= 0, got {self.params['c']!r}"
-            )
 
     def open_loop(self, x, u, p):
         q = self.p_dict(p)
@@ -127,7 +115,7 @@ class TractorTrailer(Model):
     def carrot(self, X, velocity):
         """``x + velocity / alpha``: the speed ``alpha * distance`` is then ``|velocity|``."""
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / self.params["alpha"]
+        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / self.values["alpha"]
 
     def retarget(self, X, targets) -> np.ndarray:
         """Set ``xi = wrap(atan2(y1 - y, x1 - x) - theta0)`` for each robot's new target."""
@@ -140,11 +128,11 @@ class TractorTrailer(Model):
     @property
     def radius(self) -> float:
         """Half-diagonal of the tractor body, ``sqrt(L^2 + b^2) / 2`` (the papers' clearance)."""
-        return math.hypot(self.params["L"], self.params["b"]) / 2
+        return math.hypot(self.values["L"], self.values["b"]) / 2
 
     def _bodies(self):
         """(offset of the body centre along its axis from its anchor, length, disks) per body."""
-        q = self.params
+        q = self.values
         out = []
         for length in (q["L"], q["Lt"]):
             n = max(1, math.ceil(length / q["b"]))
@@ -160,7 +148,7 @@ class TractorTrailer(Model):
         radii : ndarray, shape (m,)
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        q = self.params
+        q = self.values
         (lt, nt, rt), (lr, nr, rr) = self._bodies()
         u0 = np.stack([np.cos(X[:, 2]), np.sin(X[:, 2])], axis=1)
         u1 = np.stack([np.cos(X[:, 3]), np.sin(X[:, 3])], axis=1)

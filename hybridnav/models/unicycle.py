@@ -26,8 +26,8 @@ import math
 import casadi as cs
 import numpy as np
 
-from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model, wrap_angle
+from hybridnav.params import Param
 
 __all__ = ["Unicycle"]
 
@@ -45,36 +45,25 @@ class Unicycle(Model):
     plant_state_names = ("x", "y", "theta")
     angle_state_names = ("theta",)
     input_names = ("vl", "vr")
-    defaults = {
-        "L": 0.16,
-        "k_rho": 0.5,
-        "k_alpha": 2.0,
-        "wheel_max": math.inf,
-        "speed": 0.1,
-        "max_turn": math.pi / 4,
+    parameters = {
+        "L": Param(0.16, "distance between the driving wheels (TurtleBot3 Burger: 0.16 m)",
+                   lo=0.0, lo_open=True),
+        "k_rho": Param(0.5, "go_to_point: speed gain, v = k_rho * distance * cos(heading error)",
+                       lo=0.0, lo_open=True),
+        "k_alpha": Param(2.0, "go_to_point: turn gain, omega = k_alpha * heading error",
+                         lo=0.0, lo_open=True),
+        "wheel_max": Param(math.inf, "go_to_point: wheel speed limit (inf: none)",
+                           lo=0.0, lo_open=True, allow_inf=True),
+        "speed": Param(0.1, "heading: constant forward speed", lo=0.0, lo_open=True),
+        "max_turn": Param(math.pi / 4, "heading: largest heading change per control cycle (rad)",
+                          lo=0.0, lo_open=True),
+        "controller": Param("go_to_point", "go_to_point (continuous) or heading (constant speed, "
+                            "held each cycle)", choices=("go_to_point", "heading")),
     }
-    param_docs = {
-        "L": "distance between the driving wheels (TurtleBot3 Burger: 0.16 m)",
-        "k_rho": "go_to_point: speed gain, v = k_rho * distance * cos(heading error)",
-        "k_alpha": "go_to_point: turn gain, omega = k_alpha * heading error",
-        "wheel_max": "go_to_point: wheel speed limit (inf: none)",
-        "speed": "heading: constant forward speed",
-        "max_turn": "heading: largest heading change per control cycle (rad)",
-    }
-    infinite_ok = frozenset({"wheel_max"})
-    option_defaults = {"controller": "go_to_point"}
-    option_choices = {"controller": ("go_to_point", "heading")}
 
     @property
     def hold(self) -> str:  # type: ignore[override]
         return "zoh" if self.options["controller"] == "heading" else "continuous"
-
-    def _validate_params(self) -> None:
-        for key in ("L", "k_rho", "k_alpha", "speed", "max_turn", "wheel_max"):
-            if not self.params[key] > 0:
-                raise HybridnavError(
-                    f"model unicycle: {key}: expected a positive number, got {self.params[key]!r}"
-                )
 
     def carrot(self, X, velocity):
         """Heading controller: the direction of ``velocity`` (its speed is the ``speed`` param).
@@ -85,7 +74,7 @@ class Unicycle(Model):
         V = np.asarray(velocity, dtype=float).reshape(-1, 2)
         if self.options["controller"] == "heading":
             return X[:, :2] + V
-        return X[:, :2] + V / self.params["k_rho"]
+        return X[:, :2] + V / self.values["k_rho"]
 
     def polar_error_dynamics(self) -> tuple[cs.SX, cs.SX, tuple[str, str]]:
         """The go-to-point closed loop in polar error coordinates ``(rho, e)``.

@@ -71,10 +71,10 @@ class LbCSPlanner(Planner):
     drives = (frozenset({"holonomic"}), frozenset({"trailer"}))
     moving_obstacles = False
     moving_targets = False
-    params: ClassVar[dict[str, Param]] = {
-        "beta": Param(LbCS.defaults["beta"], "obstacle avoidance gain", lo=1e-12),
-        "delta1": Param(LbCS.defaults["delta1"], "gain: xdot = -(1/delta1) dL/dx", lo=1e-12),
-        "delta2": Param(LbCS.defaults["delta2"], "gain: ydot = -(1/delta2) dL/dy", lo=1e-12),
+    parameters: ClassVar[dict[str, Param]] = {
+        "beta": LbCS.parameters["beta"],
+        "delta1": LbCS.parameters["delta1"],
+        "delta2": LbCS.parameters["delta2"],
         "stuck_window": Param(20.0, "seconds without leaving a small disk that count as stuck "
                                     "(0: off)", lo=0.0),
         "stuck_radius": Param(0.5, "that disk's radius, in goal radii", lo=0.0),
@@ -153,7 +153,7 @@ def _capped_carrot(model, X: np.ndarray, V: np.ndarray, goals: np.ndarray) -> np
     -------
     ndarray, shape (N, 2)
     """
-    cap = model.params["alpha"] * np.hypot(*(goals - X[:, :2]).T)
+    cap = model.values["alpha"] * np.hypot(*(goals - X[:, :2]).T)
     speed = np.hypot(V[:, 0], V[:, 1])
     scale = np.minimum(1.0, cap / np.where(speed > 0, speed, 1.0))
     return model.carrot(X, V * scale[:, None])

@@ -245,9 +245,7 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                 raise fail(key, f"expected a non-empty string, got {raw[key]!r}")
             data[key] = raw[key]
     if "seed" in raw:
-        if isinstance(raw["seed"], bool) or not isinstance(raw["seed"], int) or raw["seed"] < 0:
-            raise fail("seed", f"expected a non-negative integer, got {raw['seed']!r}")
-        data["seed"] = raw["seed"]
+        data["seed"] = check_value(where, "seed", raw["seed"], int, 0)
     for section, schema in _SCHEMA.items():
         if section not in raw:
             continue

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import check_real
 from hybridnav.world.geometry import (
     FloatArray,
     _ccw_convex,
@@ -33,10 +34,7 @@ def _pt(value: Any, what: str) -> tuple[float, float]:
 
 
 def _finite(value: Any, what: str) -> float:
-    v = float(value)
-    if not math.isfinite(v):
-        raise HybridnavError(f"{what}: expected a finite number, got {value!r}")
-    return v
+    return check_real(what, value)
 
 
 class _EdgeShape:

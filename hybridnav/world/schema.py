@@ -14,6 +14,7 @@ import numpy as np
 
 from hybridnav import models
 from hybridnav.errors import HybridnavError, where
+from hybridnav.params import Param
 from hybridnav.world.builtin import _builtin_dir
 from hybridnav.world.grid import build_grid
 from hybridnav.world.obstacles import (
@@ -86,17 +87,7 @@ class _Check:
                 raise self.fail(_join(key, k), "missing required key")
 
     def number(self, v: Any, key: str, *, lo: float | None = None, lo_open: bool = False) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.fail(key, f"expected a number, got {_tname(v)}")
-        x = float(v)
-        if not math.isfinite(x):
-            raise self.fail(key, f"expected a finite number, got {v!r}")
-        if lo is not None:
-            if lo_open and not x > lo:
-                raise self.fail(key, f"expected a number > {lo:g}, got {v!r}")
-            if not lo_open and not x >= lo:
-                raise self.fail(key, f"expected a number >= {lo:g}, got {v!r}")
-        return x
+        return Param(0.0, lo=lo, lo_open=lo_open).check(key, v, _prefix(self.source))
 
     def string(self, v: Any, key: str, *, nonempty: bool = False) -> str:
         if not isinstance(v, str):
@@ -113,6 +104,11 @@ class _Check:
     def numbers_table(self, v: Any, key: str) -> dict[str, float]:
         d = self.table(v, key)
         return {str(k): self.number(x, _join(key, k)) for k, x in d.items()}
+
+
+def _prefix(source: str | None) -> str:
+    """The message prefix naming the file (``where(source, key)`` is ``prefix + key``)."""
+    return f"{source}: " if source else ""
 
 
 def _join(key: str, sub: str) -> str:

@@ -57,12 +57,12 @@ class APF(FieldPlanner):
 
     name = "apf"
     description = "artificial potential field: quadratic/conic attraction, repulsion within rho0"
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         "xi": Param(1.0, "attractive gain", lo=0.0),
         "sigma0": Param(1.0, "distance at which the attraction turns from quadratic to conic",
-                        lo=1e-9),
+                        lo=0.0, lo_open=True),
         "eta": Param(0.05, "repulsive gain", lo=0.0),
-        "rho0": Param(0.5, "obstacle influence distance", lo=1e-9),
+        "rho0": Param(0.5, "obstacle influence distance", lo=0.0, lo_open=True),
         "force_tol": Param(1e-6, "a resultant force below this (relative to xi * sigma0) is a "
                                  "local minimum", lo=0.0),
         **COMMON,

@@ -24,9 +24,9 @@ __all__ = ["FieldPlanner"]
 
 COMMON = {
     "speed": Param(0.1, "robot speed along the field (units/s; unicycles: constant speed)",
-                   lo=1e-9),
+                   lo=0.0, lo_open=True),
     "max_turn": Param(math.pi / 4, "unicycles: largest heading change per control cycle (rad)",
-                      lo=1e-6, hi=math.pi),
+                      lo=0.0, lo_open=True, hi=math.pi),
     "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
                                 "(0: off)", lo=0.0),
     "stuck_radius": Param(2.0, "that disk's radius, in goal radii", lo=0.0),
@@ -36,7 +36,7 @@ COMMON = {
 class FieldPlanner(Planner):
     """Base of the potential-field planners: ``velocity(...)`` each cycle, batched over robots."""
 
-    params: ClassVar[dict[str, Param]] = dict(COMMON)
+    parameters: ClassVar[dict[str, Param]] = dict(COMMON)
 
     def prepare(self, scenario, rng: np.random.Generator) -> Any:
         """Work done once per run before the loop (a harmonic field, tuned gains, ...)."""

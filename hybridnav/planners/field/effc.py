@@ -83,7 +83,7 @@ class EFFC(FieldPlanner):
 
     name = "effc"
     description = "evolutionary fuzzy force control: fuzzy-weighted blend of unit APF forces"
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         "fis": Param("effc-2rule", "fuzzy system: a built-in name or a .json, .fll or .fis file"),
         **COMMON,
     }

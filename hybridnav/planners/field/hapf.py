@@ -82,7 +82,7 @@ class HAPF(FieldPlanner):
     description = "harmonic potential field: Laplace's equation on the grid, gradient descent"
     moving_obstacles = False
     moving_targets = False
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         "resolution": Param(0.0, "grid cell size (0: the scenario's [grid] resolution, else 1/100 "
                                  "of the shorter workspace side)", lo=0.0),
         "margin": Param(0.0, "extra clearance added to the robot radius when inflating obstacles",

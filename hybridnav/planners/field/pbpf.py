@@ -40,8 +40,8 @@ class PBPF(APF):
     description = "pseudo-bacterial potential field: a bacterial GA tunes the APF gains offline"
     moving_targets = False
     stochastic = True
-    params: ClassVar[dict[str, Param]] = {
-        **APF.params,
+    parameters: ClassVar[dict[str, Param]] = {
+        **APF.parameters,
         "population": Param(10, "bacteria", lo=2),
         "generations": Param(8, "generations", lo=1),
         "clones": Param(3, "clones per bacterium in the bacterial mutation", lo=1),

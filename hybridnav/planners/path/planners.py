@@ -141,8 +141,8 @@ log = logging.getLogger(__name__)
 # --------------------------------------------------------------------------------------------
 
 TRACKING: dict[str, Param] = {
-    "speed": Param(1.0, "tracking speed, grid cells per second", lo=1e-9),
-    "lookahead": Param(0.5, "pure-pursuit carrot distance along the path, grid cells", lo=1e-6),
+    "speed": Param(1.0, "tracking speed, grid cells per second", lo=0.0, lo_open=True),
+    "lookahead": Param(0.5, "pure-pursuit carrot distance along the path, grid cells", lo=0.0, lo_open=True),
     "margin": Param(0.25, "clearance kept beyond the robot radius when planning, grid cells",
                     lo=0.0),
     "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
@@ -179,7 +179,7 @@ class PathPlanner(Planner):
     drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"disk"}),)   # grid paths: one disk
     moving_obstacles: ClassVar[bool] = False
     moving_targets: ClassVar[bool] = False
-    params: ClassVar[dict[str, Param]] = dict(TRACKING)
+    parameters: ClassVar[dict[str, Param]] = dict(TRACKING)
 
     @abstractmethod
     def plan(self, ctx: _Context, robot, rngs: list[np.random.Generator]) -> PlannedPath:
@@ -351,7 +351,7 @@ class AStarPlanner(PathPlanner):
 
     name = "astar"
     description = "A* on the inflated grid (octile, no corner cutting), pure-pursuit tracking"
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         **GRID,
         "heuristic": Param("octile", "A* heuristic", choices=HEURISTICS),
         **TRACKING,
@@ -382,7 +382,7 @@ class DijkstraPlanner(AStarPlanner):
 
     name = "dijkstra"
     description = "Dijkstra on the inflated grid (octile, no corner cutting), pure-pursuit tracking"
-    params: ClassVar[dict[str, Param]] = {**GRID, **TRACKING}
+    parameters: ClassVar[dict[str, Param]] = {**GRID, **TRACKING}
 
     def search(self, grid, s, t):
         v = self.values
@@ -404,7 +404,7 @@ SWARM: dict[str, Param] = {
     "w": Param(0.5, "PSO: inertia weight (RFD-PSO Table 1)", lo=0.0),
     "c1": Param(0.75, "PSO: cognitive coefficient (RFD-PSO Table 1)", lo=0.0),
     "c2": Param(0.75, "PSO: social coefficient (RFD-PSO Table 1)", lo=0.0),
-    "vmax": Param(0.2, "PSO: velocity limit, fraction of the workspace size", lo=1e-9, hi=1.0),
+    "vmax": Param(0.2, "PSO: velocity limit, fraction of the workspace size", lo=0.0, lo_open=True, hi=1.0),
     "penalty": Param(1.0, "PSO: cost per colliding segment, in workspace diagonals", lo=0.0),
     "restarts": Param(0, "PSO: further runs from new random swarms while the best path "
                          "collides", lo=0),
@@ -417,7 +417,7 @@ class RFDPlanner(PathPlanner):
     name = "rfd"
     description = "river formation dynamics on the inflated grid, pure-pursuit tracking"
     stochastic = True
-    params: ClassVar[dict[str, Param]] = {**GRID, **RFD, **TRACKING}
+    parameters: ClassVar[dict[str, Param]] = {**GRID, **RFD, **TRACKING}
 
     def rfd_path(self, ctx, robot, rng) -> PlannedPath:
         v = self.values
@@ -446,7 +446,7 @@ class PSOPathPlanner(PathPlanner):
     description = ("PSO over K waypoints: length + penalty per colliding segment (RFD-PSO's "
                    "Table 1 parameters), pure-pursuit tracking")
     stochastic = True
-    params: ClassVar[dict[str, Param]] = {**SWARM, **TRACKING}
+    parameters: ClassVar[dict[str, Param]] = {**SWARM, **TRACKING}
 
     def seed_particle(self, ctx, robot, rngs) -> tuple[NDArray | None, PlannedPath | None]:
         """The waypoints of a seeded particle and the plan they come from (plain PSO: none)."""
@@ -521,7 +521,7 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
     description = ("RFD-PSO: river formation dynamics seeds one PSO particle (w 0.5, c1 = c2 = "
                    "0.75), pure-pursuit tracking")
     stochastic = True
-    params: ClassVar[dict[str, Param]] = {**GRID, **RFD, **SWARM, **TRACKING}
+    parameters: ClassVar[dict[str, Param]] = {**GRID, **RFD, **SWARM, **TRACKING}
 
     def seed_particle(self, ctx, robot, rngs):
         base = self.rfd_path(ctx, robot, rngs[0])

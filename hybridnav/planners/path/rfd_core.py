@@ -102,6 +102,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import check_int, check_real
 from hybridnav.planners.path.gridsearch import (
     _MOVES,
     _as_cell,
@@ -353,23 +354,6 @@ def _deposit(
 # --------------------------------------------------------------------------------------------
 
 
-def _positive(name: str, v: Any, *, allow_zero: bool = False) -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        x = math.nan
-    if isinstance(v, bool) or not math.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
-        raise HybridnavError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} "
-                             f"finite number, got {v!r}")
-    return x
-
-
-def _count(name: str, v: Any, minimum: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum:
-        raise HybridnavError(f"{name}: expected an integer >= {minimum}, got {v!r}")
-    return int(v)
-
-
 def rfd(
     grid: OccupancyGrid,
     start: ArrayLike,
@@ -462,17 +446,17 @@ def rfd(
     sc, gc = _as_cell(start, "start"), _as_cell(goal, "goal")
     _check_endpoint(grid, sc, "start")
     _check_endpoint(grid, gc, "goal")
-    drops = _count("drops", drops)
-    iterations = _count("iterations", iterations)
-    patience = _count("patience", patience)
-    altitude0 = _positive("altitude0", altitude0)
-    slope = _positive("slope", slope, allow_zero=True)
-    erosion_floor = _positive("erosion_floor", erosion_floor, allow_zero=True)
-    omega = _positive("omega", omega)
-    delta = _positive("delta", delta)
-    deposit = _positive("deposit", deposit, allow_zero=True)
+    drops = check_int("drops", drops)
+    iterations = check_int("iterations", iterations)
+    patience = check_int("patience", patience)
+    altitude0 = check_real("altitude0", altitude0, 0.0, lo_open=True)
+    slope = check_real("slope", slope, 0.0)
+    erosion_floor = check_real("erosion_floor", erosion_floor, 0.0)
+    omega = check_real("omega", omega, 0.0, lo_open=True)
+    delta = check_real("delta", delta, 0.0, lo_open=True)
+    deposit = check_real("deposit", deposit, 0.0)
     if max_steps is not None:
-        max_steps = _count("max_steps", max_steps)
+        max_steps = check_int("max_steps", max_steps)
     if isinstance(seed, bool) or not (seed is None or isinstance(seed, np.random.Generator)
                                       or (isinstance(seed, (int, np.integer)) and seed >= 0)):
         raise HybridnavError(f"seed: expected a non-negative integer, a numpy Generator or None, got {seed!r}")
@@ -482,7 +466,7 @@ def rfd(
     N = g.nb.shape[0]
     s = int(g.node_of[sc[1], sc[0]])
     t = int(g.node_of[gc[1], gc[0]])
-    E = 0.5 * (N - 1) if erosion is None else _positive("erosion", erosion)
+    E = 0.5 * (N - 1) if erosion is None else check_real("erosion", erosion, 0.0, lo_open=True)
     steps_cap = max(N - 1, 1) if max_steps is None else max_steps
     params = dict(drops=drops, iterations=iterations, patience=patience, diagonal=diagonal,
                   corner_cutting=corner_cutting, altitude0=altitude0, slope=slope, erosion=E,

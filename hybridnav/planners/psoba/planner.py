@@ -194,14 +194,14 @@ class PSOBAPlanner(Planner):
     moving_obstacles: ClassVar[bool] = True
     moving_targets: ClassVar[bool] = True
     stochastic: ClassVar[bool] = True
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         "step": Param(3.0, "radius of the disk the bats search around the robot: the spacing of "
-                           "path points, robot radii", lo=1e-6),
+                           "path points, robot radii", lo=0.0, lo_open=True),
         "ds": Param(1.5, "local search safety distance (eq. 22): a repaired point's distance "
-                         "from the nearest obstacle, robot radii (> 1 + margin)", lo=1e-6),
+                         "from the nearest obstacle, robot radii (> 1 + margin)", lo=0.0, lo_open=True),
         "margin": Param(0.1, "a move is feasible when a disk of radius (1 + margin) robot radii "
                              "swept along it meets no obstacle", lo=0.0),
-        "sr": Param(6.0, "sensing radius of the range sensors, robot radii", lo=1e-6),
+        "sr": Param(6.0, "sensing radius of the range sensors, robot radii", lo=0.0, lo_open=True),
         "sensors": Param(12, "number of range sensors (equal sectors)", lo=3),
         "w1": Param(0.5, "weight of the distance in the fitness (w2 = 1 - w1)", lo=0.0, hi=1.0),
         "floor": Param(0.3, "lower end of the normalised distance near the goal", lo=0.0,
@@ -210,12 +210,12 @@ class PSOBAPlanner(Planner):
         "pso_iterations": Param(5, "PSO iterations", lo=1),
         "bats": Param(12, "bats per bat run", lo=1),
         "bat_iterations": Param(12, "iterations per bat run", lo=1),
-        "alpha_min": Param(0.1, "lower bound of the bats' loudness decay alpha", lo=1e-6,
+        "alpha_min": Param(0.1, "lower bound of the bats' loudness decay alpha", lo=0.0, lo_open=True,
                            hi=1.0),
-        "alpha_max": Param(1.0, "upper bound of alpha", lo=1e-6, hi=1.0),
+        "alpha_max": Param(1.0, "upper bound of alpha", lo=0.0, lo_open=True, hi=1.0),
         "gamma_min": Param(0.0, "lower bound of the bats' pulse-rate constant gamma", lo=0.0),
         "gamma_max": Param(1.0, "upper bound of gamma", lo=0.0),
-        "speed": Param(1.0, "driving speed, robot radii per second", lo=1e-6),
+        "speed": Param(1.0, "driving speed, robot radii per second", lo=0.0, lo_open=True),
         "memory": Param(120.0, "seconds a wall-following position is remembered (0: no memory)",
                         lo=0.0),
         "patience": Param(10.0, "seconds without any possible move before the robot is stuck",

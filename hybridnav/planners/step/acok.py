@@ -29,15 +29,15 @@ class ACOKinematic(StepPlanner):
     name = "aco-kinematic"
     description = "ACO-Kinematic: ACOR places every step, kinematic equations drive to it"
     direct_first = False
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         "a": Param(0.18, "safety weight of the circular obstacles (eq. 13)", lo=0.0),
         "b": Param(0.18, "safety weight of the line segments (eq. 13)", lo=0.0),
         "c": Param(0.18, "safety weight of the other robots (eq. 13)", lo=0.0),
         "d": Param(0.01, "weight of the distance to the goal (eq. 13)", lo=0.0),
         "k": Param(int(ACO_KINEMATIC["k"]), "archive size (population)", lo=2),
         "m": Param(int(ACO_KINEMATIC["m"]), "sample size (ants per generation)", lo=1),
-        "xi": Param(float(ACO_KINEMATIC["xi"]), "deviation-distance ratio", lo=1e-12),
-        "q": Param(float(ACO_KINEMATIC["q"]), "intensification factor", lo=1e-12),
+        "xi": Param(float(ACO_KINEMATIC["xi"]), "deviation-distance ratio", lo=0.0, lo_open=True),
+        "q": Param(float(ACO_KINEMATIC["q"]), "intensification factor", lo=0.0, lo_open=True),
         "iterations": Param(1, "ACOR generations per step", lo=1),
         **COMMON,
     }

@@ -87,7 +87,7 @@ COMMON: dict[str, Param] = {
                       "the robot check its move (FAStep-Kinematic eq. 11)", lo=0.0),
     "reach": Param(4.0, "plan the next step within this many robot radii of the current one "
                         "(at least the goal radius)", lo=0.0),
-    "horizon": Param(60.0, "look-ahead of the feasibility rollout (s)", lo=1e-6),
+    "horizon": Param(60.0, "look-ahead of the feasibility rollout (s)", lo=0.0, lo_open=True),
     "plan_dt": Param(0.0, "integration step of the feasibility rollout (s); 0: the scenario's "
                           "dt, so the rollout replays the simulation's own steps", lo=0.0),
     "distance": Param("geodesic", "distance-to-goal term: 'geodesic' along the shortest "

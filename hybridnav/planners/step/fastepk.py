@@ -39,7 +39,7 @@ class FAStepKinematic(StepPlanner):
                    "steps round obstacles in the way")
     direct_first = True
     weight_names = ("a", "a_lines", "b", "c")
-    params: ClassVar[dict[str, Param]] = {
+    parameters: ClassVar[dict[str, Param]] = {
         "a": Param(0.18, "safety weight of the circular obstacles (eq. 10)", lo=0.0),
         "a_lines": Param(0.18, "safety weight of the line segments (minimum distance technique)",
                          lo=0.0),

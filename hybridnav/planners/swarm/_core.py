@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import check_int, check_real  # noqa: F401  (the optimizers import them from here)
 
 __all__ = ["BoundsLike", "History", "Objective", "OptResult", "SeedLike"]
 
@@ -106,39 +107,6 @@ class OptResult:
 
 # --------------------------------------------------------------------------------------------
 # validation helpers
-
-
-def check_int(name: str, value: Any, minimum: int = 1) -> int:
-    """``value`` as an ``int`` >= ``minimum``, or a :class:`HybridnavError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        if isinstance(value, numbers.Real) and not isinstance(value, bool) \
-                and math.isfinite(value) and float(value) == int(value):
-            value = int(value)
-        else:
-            raise HybridnavError(f"{name}: expected an integer >= {minimum}, got {value!r}")
-    value = int(value)
-    if value < minimum:
-        raise HybridnavError(f"{name}: expected an integer >= {minimum}, got {value}")
-    return value
-
-
-def check_real(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,
-               lo_open: bool = False, hi_open: bool = False) -> float:
-    """``value`` as a finite ``float`` in the given interval, or a :class:`HybridnavError`."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
-            or not math.isfinite(float(value)):
-        raise HybridnavError(f"{name}: expected a finite number, got {value!r}")
-    value = float(value)
-    bad = ((lo is not None and (value < lo or (lo_open and value == lo)))
-           or (hi is not None and (value > hi or (hi_open and value == hi))))
-    if bad:
-        left = "(" if lo_open else "["
-        right = ")" if hi_open else "]"
-        lo_s = "-inf" if lo is None else f"{lo:g}"
-        hi_s = "inf" if hi is None else f"{hi:g}"
-        raise HybridnavError(f"{name}: expected a number in {left}{lo_s}, {hi_s}{right}, "
-                             f"got {value!r}")
-    return value
 
 
 def check_bounds(bounds: BoundsLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
