@@ -41,14 +41,14 @@ class Timers:
     """Wraps Model.rollout, the compiled call and feasible_steps; splits in-plan and other time."""
 
     def __init__(self) -> None:
-        from hybridnav.models import base
+        from hybridnav.models import base, compile as compiled
         from hybridnav.planners.step import base as stepping
 
         self.t: dict[str, float] = defaultdict(float)
         self.rows: dict[str, int] = defaultdict(int)
         self.in_plan = False
         timers = self
-        orig_rollout, orig_call = base.Model.rollout, base._Buffered.__call__
+        orig_rollout, orig_call = base.Model.rollout, compiled._Buffered.__call__
         orig_feasible = stepping.feasible_steps
 
         def where() -> str:
@@ -77,7 +77,7 @@ class Timers:
                 timers.t["feasible_" + where()] += time.perf_counter() - tic
 
         base.Model.rollout = rollout
-        base._Buffered.__call__ = call
+        compiled._Buffered.__call__ = call
         stepping.feasible_steps = feasible   # looked up at call time by the planning closures
 
     def instrument(self, planner) -> None:

@@ -136,7 +136,15 @@ class DaskBackend(Backend):
 
 
 def make_backend(workers: int = 1, dask: str | Any = "") -> Backend:
-    """``dask`` (an address, ``"local"``, or a client) wins; else processes when ``workers > 1``."""
+    """``dask`` (an address, ``"local"``, or a client) wins; else processes when ``workers > 1``.
+
+    Parameters
+    ----------
+    workers : int
+        Local worker processes (1: this process).
+    dask : str or distributed.Client
+        A scheduler address, ``"local"`` (a new local cluster) or a client; empty: none.
+    """
     if dask:
         return DaskBackend("" if dask == "local" else dask, workers=max(workers, 1))
     if workers > 1:

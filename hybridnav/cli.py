@@ -86,7 +86,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hybridnav import planners
-    from hybridnav.fileio import atomic_write_text
     from hybridnav.plotting import plot_result, save_figure
     from hybridnav.world import load_scenario
 
@@ -102,12 +101,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     result.write(out)
     save_figure(plot_result(scenario, result), out / "path.png")
-    extra = planner.diagnostics(scenario, result)
-    for name, item in extra.items():      # figures, or the text of data files
-        if isinstance(item, str):
-            atomic_write_text(out / name, item)
-        else:
-            save_figure(item, out / name)
+    extra = planner.diagnostics(scenario, result)     # figures drawn from the result alone
+    for name, fig in extra.items():
+        save_figure(fig, out / name)
     print(f"{scenario.name} with {planner.name} (seed {args.seed}):")
     print(f"  {'robot':<10} {'outcome':<14} {'length':>10} {'time':>9} {'clearance':>10} "
           f"{'compute':>9}")
@@ -117,9 +113,36 @@ def _cmd_run(args: argparse.Namespace) -> int:
             f"{r.min_clearance:.3g}"
         print(f"  {r.name:<10} {r.outcome:<14} {r.path_length:>10.4g} {t:>9} {c:>10} "
               f"{r.compute_time:>8.2f}s")
-    files = ["result.json", *(f"trajectory_{r.name}.csv" for r in result.robots), "path.png",
-             *extra]
+    files = ["result.json", *(f"trajectory_{r.name}.csv" for r in result.robots),
+             *result.extra_files().values(), "path.png", *extra]
     print(f"wrote {out}/: {', '.join(files)}")
+    return 0
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hybridnav import planners
+    from hybridnav.plotting import plot_result, save_figure
+    from hybridnav.results import read_result
+    from hybridnav.world import load_scenario
+
+    result = read_result(args.result)
+    scenario = load_scenario(args.scenario or result.scenario)
+    if scenario.name != result.scenario:
+        raise HybridnavError(f"--scenario {args.scenario}: the result in {args.result} is of "
+                             f"scenario {result.scenario!r}, not {scenario.name!r}")
+    if result.planner not in planners.PLANNERS:
+        raise HybridnavError(f"{Path(args.result) / 'result.json'}: planner: expected one of "
+                             f"{', '.join(sorted(planners.PLANNERS))}, got {result.planner!r}")
+    out = Path(args.out or args.result)
+    out.mkdir(parents=True, exist_ok=True)
+    save_figure(plot_result(scenario, result), out / "path.png")
+    # any instance draws from the result alone (its extras), not from a run of its own
+    figures = planners.get(result.planner).diagnostics(scenario, result)
+    for name, fig in figures.items():
+        save_figure(fig, out / name)
+    print(f"wrote {out}/: {', '.join(['path.png', *figures])}")
     return 0
 
 
@@ -326,6 +349,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("plot", help="redraw path.png and the planner's diagnostics from a result "
+                                    "folder written by 'run'")
+    p.add_argument("result", metavar="DIR", help="a folder with result.json")
+    p.add_argument("--scenario", help="the scenario the result is of, when it is not built in "
+                                      "(default: the result's scenario name)")
+    p.add_argument("--out", metavar="DIR", help="folder for the figures (default: DIR)")
+    p.set_defaults(func=_cmd_plot)
 
     p = sub.add_parser("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
                                        "plots")

@@ -185,19 +185,58 @@ class Param:
 def check_value(where: str, key: str, value: Any, kind: type, lo: float | None = None,
                 hi: float | None = None, choices: tuple | None = None, *,
                 lo_open: bool = False, hi_open: bool = False) -> Any:
-    """Validate one setting against an undeclared constraint (see :meth:`Param.check`)."""
+    """Validate one setting against an undeclared constraint (see :meth:`Param.check`).
+
+    Parameters
+    ----------
+    where : str
+        Message prefix naming the file, e.g. ``"job.toml: "`` (may be empty).
+    key : str
+        The dotted key the message names.
+    value : any
+    kind : type
+        ``bool``, ``int``, ``float``, ``str``, ``list``, ``dict``, ...
+    lo, hi : float, optional
+        Bounds of a number (closed unless ``lo_open`` / ``hi_open``).
+    choices : tuple, optional
+        The allowed values.
+    lo_open, hi_open : bool
+        Make the bound strict.
+    """
     return Param(None, kind=kind, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open,
                  choices=choices).check(key, value, where)
 
 
 def check_int(name: str, value: Any, minimum: int = 1) -> int:
-    """``value`` as an ``int`` >= ``minimum``, or a :class:`HybridnavError` naming ``name``."""
+    """``value`` as an ``int`` >= ``minimum``, or a :class:`HybridnavError` naming ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The key the message names.
+    value : any
+    minimum : int
+        The smallest allowed value.
+    """
     return Param(0, lo=minimum).check(name, value)
 
 
 def check_real(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,
                lo_open: bool = False, hi_open: bool = False, allow_inf: bool = False) -> float:
-    """``value`` as a finite ``float`` in the given interval, or a :class:`HybridnavError`."""
+    """``value`` as a finite ``float`` in the given interval, or a :class:`HybridnavError`.
+
+    Parameters
+    ----------
+    name : str
+        The key the message names.
+    value : any
+    lo, hi : float, optional
+        Bounds (closed unless ``lo_open`` / ``hi_open``).
+    lo_open, hi_open : bool
+        Make the bound strict.
+    allow_inf : bool
+        Accept ``inf`` (and ``-inf``) within the bounds.
+    """
     return Param(0.0, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open,
                  allow_inf=allow_inf).check(name, value)
 
@@ -205,7 +244,19 @@ def check_real(name: str, value: Any, lo: float | None = None, hi: float | None 
 def check_range(where: str, key: str, value: Any, kind: type = float, lo: float | None = None,
                 hi: float | None = None) -> tuple[Any, Any]:
     """A ``[low, high]`` pair with ``low <= high``, both within ``[lo, hi]``; a single number
-    ``v`` means ``[v, v]``."""
+    ``v`` means ``[v, v]``.
+
+    Parameters
+    ----------
+    where : str
+        Message prefix naming the file.
+    key : str
+    value : number or [low, high]
+    kind : type
+        ``int`` or ``float``.
+    lo, hi : float, optional
+        Bounds of both ends (closed).
+    """
     if not isinstance(value, (list, tuple)):
         value = [value, value]
     if len(value) != 2:
@@ -219,7 +270,14 @@ def check_range(where: str, key: str, value: Any, kind: type = float, lo: float 
 
 
 def describe_params(params: Mapping[str, Param], indent: str = "  ") -> list[str]:
-    """One line per setting: ``key = default    doc (what a valid value is)``, for listings."""
+    """One line per setting: ``key = default    doc (what a valid value is)``, for listings.
+
+    Parameters
+    ----------
+    params : dict of str to Param
+    indent : str
+        Prefix of every line.
+    """
     lines = []
     for key, p in params.items():
         default = f"{p.default:g}" if isinstance(p.default, float) else repr(p.default)

@@ -7,9 +7,14 @@ A planner run that writes to a folder leaves there
   ``smoothness`` (see :func:`smoothness`), ``time_to_goal`` (null unless reached),
   ``min_clearance`` (null when there was nothing to be near), ``compute_time`` and any extra
   per-robot metrics a planner adds;
-* ``trajectory_<robot name>.csv`` per robot, header ``t,x,y`` then the model's other state names.
+* ``trajectory_<robot name>.csv`` per robot, header ``t,x,y`` then the model's other state names;
+* one file per entry of :attr:`Result.extras`, what a planner records for its diagnostics: a
+  *table* (a mapping of column names to equal-length 1-D arrays, numbers or strings) is written as
+  ``<name>.csv`` with a header row, an *array* (any ``numpy.ndarray``) as ``<name>.npy``
+  (``numpy.save``, no pickles); ``result.json`` lists them under ``extras`` (name -> file).
 
-Both are written atomically. :func:`read_result` reads a folder back.
+All are written atomically. :func:`read_result` reads a folder back, extras included, so a
+planner's ``diagnostics(scenario, result)`` works on a result read from disk.
 """
 
 from __future__ import annotations
@@ -26,11 +31,17 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_write_text, dumps_json, json_ready
+from hybridnav.fileio import (
+    atomic_write_bytes,
+    atomic_write_text,
+    dumps_json,
+    json_ready,
+)
 
 __all__ = [
     "OUTCOMES",
     "Result",
+    "check_extras",
     "RobotResult",
     "path_length",
     "read_result",
@@ -183,7 +194,13 @@ class RobotResult:
 
 @dataclass
 class Result:
-    """One planner run on one scenario: what was run, and every robot's outcome."""
+    """One planner run on one scenario: what was run, every robot's outcome, and the extras.
+
+    ``extras`` holds what the planner recorded for its diagnostics (per-cycle signals, planned
+    paths, search histories, fields): name -> table (mapping of column -> 1-D array, all of one
+    length) or ``numpy.ndarray``. They are written beside ``result.json`` and read back with it
+    (see the module docstring), so nothing a diagnostic needs stays on the planner object.
+    """
 
     scenario: str
     planner: str
@@ -191,6 +208,7 @@ class Result:
     seed: int | None
     robots: list[RobotResult]
     version: str = ""
+    extras: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.version:
@@ -200,6 +218,12 @@ class Result:
         names = [r.name for r in self.robots]
         if len(set(names)) != len(names):
             raise HybridnavError(f"result: robots: duplicate robot names in {names}")
+        self.extras = check_extras(self.extras)
+
+    def extra_files(self) -> dict[str, str]:
+        """Extra name -> the file it is written to (``<name>.csv`` or ``<name>.npy``)."""
+        return {k: f"{k}.npy" if isinstance(v, np.ndarray) else f"{k}.csv"
+                for k, v in self.extras.items()}
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``result.json``."""
@@ -210,6 +234,7 @@ class Result:
             "seed": self.seed,
             "version": self.version,
             "robots": [r.summary() for r in self.robots],
+            "extras": self.extra_files(),
         }
 
     def write(self, folder: str | Path) -> Path:
@@ -222,11 +247,25 @@ def write_result(result: Result, folder: str | Path) -> Path:
 
     Trajectories are written first and ``result.json`` last, so a folder with a ``result.json``
     is complete.
+
+    Parameters
+    ----------
+    result : Result
+    folder : str or Path
+        Created if needed.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     for r in result.robots:
         atomic_write_text(folder / f"trajectory_{r.name}.csv", r.trajectory_csv())
+    for name, file in result.extra_files().items():
+        value = result.extras[name]
+        if isinstance(value, np.ndarray):
+            buf = io.BytesIO()
+            np.save(buf, value, allow_pickle=False)
+            atomic_write_bytes(folder / file, buf.getvalue())
+        else:
+            atomic_write_text(folder / file, _table_csv(value))
     path = folder / "result.json"
     atomic_write_text(path, dumps_json(result.to_dict()))
     return path
@@ -261,8 +300,92 @@ def read_result(folder: str | Path) -> Result:
             compute_time=entry.get("compute_time", 0.0),
             metrics={k: v for k, v in entry.items() if k not in standard},
         ))
+    extras = data.get("extras", {})          # results written before extras have none
+    if not isinstance(extras, dict) or not all(isinstance(v, str) for v in extras.values()):
+        raise HybridnavError(f"{path}: extras: expected an object of name -> file name")
     return Result(scenario=data["scenario"], planner=data["planner"], params=data["params"],
-                  seed=data["seed"], robots=robots, version=data["version"])
+                  seed=data["seed"], robots=robots, version=data["version"],
+                  extras={k: _read_extra(folder, k, f) for k, f in extras.items()})
+
+
+# --------------------------------------------------------------------------------------------
+# extras: tables and arrays
+
+
+def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
+    """Validate and normalize the extras of a result (tables become dicts of 1-D arrays).
+
+    Raises
+    ------
+    HybridnavError
+        A name that is not a safe file name or collides with the result's own files, or a table
+        whose columns are not 1-D of one length.
+    """
+    if not isinstance(extras, Mapping):
+        raise HybridnavError(f"result: extras: expected a mapping, got {type(extras).__name__}")
+    out: dict[str, Any] = {}
+    for name, value in extras.items():
+        if (not isinstance(name, str) or not _SAFE_NAME.match(name) or name == "result"
+                or name.startswith("trajectory_")):
+            raise HybridnavError(f"result: extras: expected names of letters, digits, '_', '-' "
+                                 f"or '.' other than result and trajectory_*, got {name!r}")
+        if isinstance(value, np.ndarray):
+            out[name] = value
+            continue
+        if not isinstance(value, Mapping) or not value:
+            raise HybridnavError(f"result: extras.{name}: expected a table (column -> 1-D array)"
+                                 f" or a numpy array, got {type(value).__name__}")
+        table = {}
+        for col, v in value.items():
+            arr = np.asarray(v)
+            if arr.dtype.kind not in "fiub":
+                arr = arr.astype(str)
+            elif arr.dtype.kind != "f":
+                arr = arr.astype(float)
+            if arr.ndim != 1 or not isinstance(col, str) or not col or "," in col:
+                raise HybridnavError(f"result: extras.{name}.{col}: expected a named 1-D column")
+            table[col] = arr
+        if len({len(a) for a in table.values()}) != 1:
+            raise HybridnavError(f"result: extras.{name}: expected columns of one length, got "
+                                 f"{ {k: len(a) for k, a in table.items()} }")
+        out[name] = table
+    return out
+
+
+def _table_csv(table: Mapping[str, np.ndarray]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(list(table))
+    cols = [[repr(float(x)) for x in a] if a.dtype.kind == "f" else [str(x) for x in a]
+            for a in table.values()]
+    w.writerows(zip(*cols))
+    return buf.getvalue()
+
+
+def _read_extra(folder: Path, name: str, file: str) -> Any:
+    path = folder / file
+    if file != f"{name}.npy" and file != f"{name}.csv":
+        raise HybridnavError(f"{folder / 'result.json'}: extras.{name}: expected {name}.csv or "
+                             f"{name}.npy, got {file!r}")
+    try:
+        if file.endswith(".npy"):
+            return np.load(path, allow_pickle=False)
+        rows = list(csv.reader(path.read_text(encoding="utf-8").splitlines()))
+    except FileNotFoundError:
+        raise HybridnavError(f"{path}: no such file (listed in result.json extras)") from None
+    except (ValueError, OSError, UnicodeDecodeError) as exc:
+        raise HybridnavError(f"{path}: cannot read the extra {name!r}: {exc}") from None
+    if not rows or any(len(r) != len(rows[0]) for r in rows):
+        raise HybridnavError(f"{path}: expected a header and rows of {len(rows[0]) if rows else 0}"
+                             " fields")
+    table = {}
+    for j, col in enumerate(rows[0]):
+        values = [r[j] for r in rows[1:]]
+        try:
+            table[col] = np.array([float(v) for v in values], dtype=float)
+        except ValueError:
+            table[col] = np.array(values, dtype=str)
+    return table
 
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:

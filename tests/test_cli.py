@@ -102,3 +102,22 @@ def test_export_bad_file_exits_2(tmp_path):
     bad.write_text("[System]\nName='x'\nType='sugeno'\n")
     proc = run("export", str(bad), "--format", "json")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "bad.fis" in proc.stderr
+
+
+def test_plot_redraws_the_diagnostics_from_a_result_folder(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["run", "effc-train-1", "--planner", "hapf", "--out", str(run)]) == 0
+    drawn = sorted(p.name for p in run.glob("*.png"))
+    assert drawn == ["harmonic_field.png", "path.png"]
+    # the extras the figures are drawn from are files beside result.json
+    names = [p.name for p in run.iterdir()]
+    assert any(n.startswith("harmonic_potential_") and n.endswith(".npy") for n in names)
+    assert any(n.startswith("harmonic_grid_") and n.endswith(".csv") for n in names)
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(tmp_path / "again")]) == 0
+    assert sorted(p.name for p in (tmp_path / "again").glob("*.png")) == drawn
+    assert "wrote" in capsys.readouterr().out
+    assert main(["plot", str(run), "--scenario", "effc-train-2"]) == 2
+    assert "is of scenario 'effc-train-1', not 'effc-train-2'" in capsys.readouterr().err
+    assert main(["plot", str(tmp_path / "nothing")]) == 2
+    assert "no such file" in capsys.readouterr().err

@@ -27,7 +27,7 @@ def small():
 @pytest.mark.parametrize("name", sorted(planners.PLANNERS))
 def test_planner_refuses_an_unknown_parameter(name):
     cls = planners.PLANNERS[name]
-    expected = ", ".join(sorted(cls.params)) or "(none)"
+    expected = ", ".join(sorted(cls.parameters)) or "(none)"
     with pytest.raises(HybridnavError) as err:
         planners.get(name, no_such_parameter=1)
     assert str(err.value) == (f"planner {name}: unknown parameter 'no_such_parameter'; "
@@ -59,6 +59,35 @@ def test_planner_outcome_seed_and_result_round_trip(name, small, tmp_path):
     for a, b in zip(first.robots, back.robots):
         assert b.outcome == a.outcome
         np.testing.assert_allclose(b.states, a.states, rtol=1e-12, atol=1e-12)
+    assert back.extras.keys() == first.extras.keys()
+    for key, value in first.extras.items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(back.extras[key], value)
+        else:
+            assert back.extras[key].keys() == value.keys()
+            for col in value:
+                np.testing.assert_array_equal(back.extras[key][col], value[col])
+
+
+@pytest.mark.parametrize("name", sorted(planners.PLANNERS))
+def test_planner_is_stateless_and_diagnoses_a_result_read_from_disk(name, small, tmp_path):
+    from matplotlib.figure import Figure
+
+    planner = planners.get(name)
+    before = dict(vars(planner))
+    first = planner.run(small, seed=3)
+    assert vars(planner).keys() == before.keys()            # a run leaves nothing on the object
+    assert all(vars(planner)[k] is v for k, v in before.items())
+    second = planner.run(small, seed=3)                     # so one instance runs again alike
+    for a, b in zip(first.robots, second.robots):
+        np.testing.assert_array_equal(a.states, b.states)
+    figures = planners.get(name).diagnostics(small, first)   # another instance: from the result
+    back = read_result(first.write(tmp_path / name).parent)
+    again = planners.get(name).diagnostics(small, back)
+    assert again.keys() == figures.keys()
+    assert all(isinstance(f, Figure) for f in again.values())
+    for key in figures:
+        assert len(again[key].axes) == len(figures[key].axes)
 
 
 @pytest.mark.parametrize("name", sorted(models.MODELS))

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
+from types import SimpleNamespace
 
 import networkx as nx
 import numpy as np
@@ -22,7 +24,7 @@ from hybridnav.planners.path.planners import (
     pull_tight,
     resample_waypoints,
 )
-from hybridnav.results import OUTCOMES, path_length
+from hybridnav.results import OUTCOMES, path_length, read_result
 from hybridnav.world import (
     Circle,
     World,
@@ -63,11 +65,18 @@ def distance_to_polyline(P, path):
     return np.hypot(*(P[:, None] - Q).transpose(2, 0, 1)).min(axis=1)
 
 
-def plan_is_valid(scenario, planner, robot_result, clearance):
+def planned(result, k=0):
+    """The planned path of robot ``k`` as the result carries it (extras ``planned_<robot>``)."""
+    tab = result.extras[f"planned_{result.robots[k].name}"]
+    return np.column_stack([tab["x"], tab["y"]])
+
+
+def plan_is_valid(scenario, result, clearance):
     """The planned path runs start -> goal, is collision-free and its length is reported."""
     r = scenario.robots[0]
-    p = planner.last_plans[0]
-    assert p.found
+    robot_result = result.robots[0]
+    p = SimpleNamespace(points=planned(result))
+    assert len(p.points)
     np.testing.assert_array_equal(p.points[0], r.start)
     np.testing.assert_array_equal(p.points[-1], r.goal)
     world = obstacle_world(scenario)
@@ -97,10 +106,10 @@ def test_every_planner_reaches_the_goal_of_the_synthetic_room(cls, model):
     # (grid paths: half the margin, the chords between cell centres may dip below the
     # inflation a little)
     cell = s.grid.resolution
-    plan_is_valid(s, planner, r, 0.3 + (0.25 if cls in (PSOPathPlanner, RFDPSOPlanner)
+    plan_is_valid(s, res, 0.3 + (0.25 if cls in (PSOPathPlanner, RFDPSOPlanner)
                                         else 0.125) * cell)
     # the robot stays near its path: within the lookahead (point mass) or a cell (unicycle)
-    dev = distance_to_polyline(r.states[:, :2], planner.last_plans[0].points)
+    dev = distance_to_polyline(r.states[:, :2], planned(res))
     assert dev.max() < (0.5 if model == "point_mass" else 1.0) * cell
     assert r.summary()["smoothness"] >= 0
 
@@ -109,11 +118,11 @@ def test_every_planner_reaches_the_goal_of_the_synthetic_room(cls, model):
                          ids=lambda c: c.name)
 def test_reaches_the_goal_of_rfd_pso_700_with_the_differential_drive(cls):
     s = load_scenario("rfd-pso-700")
-    planner = cls()
-    r = planner.run(s, seed=0).robots[0]
+    res = cls().run(s, seed=0)
+    r = res.robots[0]
     assert s.robots[0].model == "unicycle"
     assert r.outcome == "reached" and r.min_clearance > 0
-    plan_is_valid(s, planner, r, 12.5 if cls is RFDPSOPlanner else 11.25)
+    plan_is_valid(s, res, 12.5 if cls is RFDPSOPlanner else 11.25)
     # no path can be shorter than the straight line (80, 450) -> (600, 100)
     assert r.metrics["planned_length"] > math.hypot(520, 350)
 
@@ -121,10 +130,10 @@ def test_reaches_the_goal_of_rfd_pso_700_with_the_differential_drive(cls):
 def test_pso_alone_on_rfd_pso_700():
     s = load_scenario("rfd-pso-700")
     # seed 8 finds a collision-free path in its first run
-    planner = PSOPathPlanner()
-    r = planner.run(s, seed=8).robots[0]
+    res = PSOPathPlanner().run(s, seed=8)
+    r = res.robots[0]
     assert r.outcome == "reached" and r.metrics["pso_runs"] == 1 and r.min_clearance > 0
-    plan_is_valid(s, planner, r, 12.5)
+    plan_is_valid(s, res, 12.5)
     # seed 0's single run ends on a path with a colliding segment: no plan, the robot is stuck
     # (not an exception); a few restarts find one
     r0 = PSOPathPlanner().run(s, seed=0).robots[0]
@@ -137,12 +146,12 @@ def test_pso_alone_on_rfd_pso_700():
 @pytest.mark.parametrize("cls", ALL, ids=lambda c: c.name)
 def test_every_planner_reaches_the_goal_of_arena(cls):
     s = load_scenario("arena")
-    planner = cls()
-    r = planner.run(s, seed=0).robots[0]
+    res = cls().run(s, seed=0)
+    r = res.robots[0]
     assert r.outcome == "reached"
     # the map's cells are the obstacles the run is checked against
     assert 0 < r.min_clearance < math.inf
-    plan_is_valid(s, planner, r, 0.4)
+    plan_is_valid(s, res, 0.4)
 
 
 # --------------------------------------------------------------------------------------------
@@ -167,7 +176,8 @@ def test_astar_length_is_networkx_optimal_on_the_inflated_grid(scenario):
     s = load_scenario(scenario)
     planner = AStarPlanner()
     r = planner.run(s).robots[0]
-    p = planner.last_plans[0]
+    p = planner.plans(s)[0]                  # the same plan, with the planner's internals
+    assert r.metrics["planned_length"] == p.length
     grid = p.info["grid"]
     cells = grid.to_cell(np.array([s.robots[0].start, s.robots[0].goal]))
     ref = nx.astar_path_length(grid.to_networkx(), tuple(cells[0]), tuple(cells[1]),
@@ -188,17 +198,17 @@ def test_astar_length_is_networkx_optimal_on_the_inflated_grid(scenario):
 def test_rfd_pso_is_never_longer_than_its_rfd_path(seed):
     s = load_scenario("rfd-pso-700")
     rfd, hybrid = RFDPlanner(), RFDPSOPlanner()
-    a = rfd.run(s, seed=seed).robots[0]
-    b = hybrid.run(s, seed=seed).robots[0]
+    ra, rb = rfd.run(s, seed=seed), hybrid.run(s, seed=seed)
+    a, b = ra.robots[0], rb.robots[0]
     # the same seed plans the same RFD path in both
-    np.testing.assert_array_equal(hybrid.last_plans[0].info["rfd_points"],
-                                  rfd.last_plans[0].points)
+    np.testing.assert_array_equal(planned(ra), np.column_stack(
+        [rb.extras["rfd_path_" + rb.robots[0].name][k] for k in "xy"]))
     assert b.metrics["rfd_length"] == a.metrics["planned_length"]
     assert b.metrics["planned_length"] <= a.metrics["planned_length"]
     # the seed particle: corners from the RFD path, points added on straight pieces only; it
     # is no longer than the RFD path and collision-free
-    seed_pts = hybrid.last_plans[0].info["seed_points"]
-    vertices = {tuple(v) for v in rfd.last_plans[0].points}
+    seed_pts = np.column_stack([rb.extras["rfd_seed_" + rb.robots[0].name][k] for k in "xy"])
+    vertices = {tuple(v) for v in planned(ra)}
     for j in range(1, len(seed_pts) - 1):
         if tuple(seed_pts[j]) not in vertices:
             assert distance_to_polyline(seed_pts[j][None], seed_pts[[j - 1, j + 1]])[0] < 1e-9
@@ -218,13 +228,14 @@ def test_rfd_pso_is_never_longer_than_its_rfd_path(seed):
 def test_seeds_reproduce_results_exactly(cls):
     s = synthetic()
     planners = [cls() for _ in range(3)]
-    a, b, _ = (p.run(s, seed=k).robots[0] for p, k in zip(planners, (5, 5, 6), strict=True))
+    runs = [p.run(s, seed=k) for p, k in zip(planners, (5, 5, 6), strict=True)]
+    a, b = runs[0].robots[0], runs[1].robots[0]
     np.testing.assert_array_equal(a.states, b.states)
     timing = ("planning_time", "compute_time")
     sa, sb = ({k: v for k, v in r.summary().items() if k not in timing} for r in (a, b))
     assert sa == sb
     # another seed plans another path
-    assert not np.array_equal(planners[0].last_plans[0].points, planners[2].last_plans[0].points)
+    assert not np.array_equal(planned(runs[0]), planned(runs[2]))
     assert cls.stochastic
 
 
@@ -332,7 +343,7 @@ def test_resample_and_pull_tight_keep_the_polyline():
     assert not blocked.segment_collides(tight[:-1], tight[1:], radius=0.1).any()
 
 
-def test_diagnostics_draw_the_planned_paths():
+def test_diagnostics_draw_the_planned_paths(tmp_path):
     s = synthetic()
     for cls, n_axes in ((AStarPlanner, 1), (RFDPSOPlanner, 2)):
         planner = cls()
@@ -341,7 +352,12 @@ def test_diagnostics_draw_the_planned_paths():
         assert list(figs) == ["planned_paths.png"]
         fig = figs["planned_paths.png"]
         assert isinstance(fig, Figure) and len(fig.axes) == n_axes
-        planned = planner.last_plans[0].points
         lines = [ln for ln in fig.axes[0].lines if ln.get_linestyle() == "--"]
-        assert any(np.array_equal(np.column_stack(ln.get_data()), planned) for ln in lines)
-    assert AStarPlanner().diagnostics(s, res) == {}
+        assert any(np.array_equal(np.column_stack(ln.get_data()), planned(res)) for ln in lines)
+        # the same figure from the result read back from disk
+        res.write(tmp_path / cls.name)
+        again = planner.diagnostics(s, read_result(tmp_path / cls.name))["planned_paths.png"]
+        lines = [ln for ln in again.axes[0].lines if ln.get_linestyle() == "--"]
+        assert any(np.array_equal(np.column_stack(ln.get_data()), planned(res)) for ln in lines)
+    # a result without planned paths draws nothing
+    assert AStarPlanner().diagnostics(s, dataclasses.replace(res, extras={})) == {}

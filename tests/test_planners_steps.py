@@ -140,11 +140,12 @@ def test_fastep_kinematic_drives_the_straight_line_when_it_is_free():
                   [{"name": "R1", "model": "point_mass", "start": [5.0, 45.0],
                     "goal": [45.0, 5.0], "goal_radius": 1e-7}])
     p = planners.get("fastep-kinematic")
-    r = p.run(s, seed=0).robots[0]
+    res = p.run(s, seed=0)
+    r = res.robots[0]
     assert r.outcome == "reached" and r.metrics["steps_planned"] == 0
     assert r.path_length == pytest.approx(math.dist((5, 45), (45, 5)), abs=1e-6)
-    tab = p.step_tables()["R1"]
-    assert np.all(tab["cost"] == 0) and set(tab["mode"]) == {1}
+    tab = res.extras["steps_R1"]
+    assert np.all(tab["cost"] == 0) and set(tab["mode"]) == {"goal"}
     # the controller signals are eq. 12, xdot = alpha1 (x1 - x), at every cycle
     X = r.states[: len(tab["t"])]
     np.testing.assert_allclose(tab["xdot"], 0.1 * (45.0 - X[:, 0]), rtol=0, atol=1e-12)
@@ -163,7 +164,7 @@ def test_step_planners_reach_the_paper_scenarios_with_their_margin(name, scen):
     assert r.min_clearance >= margin - 1e-6
     assert r.metrics["steps_planned"] >= 1
     # every step is where the robot's whole-body disk keeps the margin
-    W = np.array(p.waypoints["R1"])[:, 1:3]
+    W = np.column_stack([res.extras["waypoints_R1"]["x"], res.extras["waypoints_R1"]["y"]])
     assert np.all(s.world.clearance(W) >= 0.5 + margin - 1e-9)
     straight = math.dist(s.robots[0].start, s.robots[0].goal)
     assert straight < r.path_length < 1.3 * straight
@@ -205,10 +206,10 @@ def test_tractor_trailers_keep_their_half_diagonal_and_reach():
     m = s.model(s.robots[0])
     half_diag = math.hypot(m.params["L"], m.params["b"]) / 2
     assert m.radius == pytest.approx(half_diag)
-    for name, pts in p.waypoints.items():
-        if pts:
-            W = np.array(pts)[:, 1:3]
-            assert np.all(s.world.clearance(W) >= half_diag)
+    for r in res.robots:
+        pts = res.extras[f"waypoints_{r.name}"]
+        W = np.column_stack([pts["x"], pts["y"]])
+        assert np.all(s.world.clearance(W) >= half_diag)
 
 
 def test_coarse_planning_steps_change_nothing_for_the_point_mass():

@@ -36,7 +36,7 @@ def test_write_and_read_back(tmp_path):
     res = make_result()
     path = res.write(tmp_path / "out")
     data = json.loads(path.read_text())
-    assert set(data) == {"scenario", "planner", "params", "seed", "version", "robots"}
+    assert set(data) == {"scenario", "planner", "params", "seed", "version", "robots", "extras"}
     assert data["version"] == __version__
     r1, r2 = data["robots"]
     # R1 turns from atan2(4, 3) to +y and back: twice the angle between (3, 4) and (0, 1)
@@ -147,4 +147,66 @@ def test_read_result_errors_name_the_file(tmp_path):
         read_result(tmp_path)
     (tmp_path / "result.json").write_text('{"scenario": "x"}')
     with pytest.raises(HybridnavError, match="result.json: planner: missing"):
+        read_result(tmp_path)
+
+
+# ---- extras: what a planner records for its diagnostics --------------------------------------
+
+def test_extras_are_written_as_documented_files_and_read_back(tmp_path):
+    import dataclasses
+
+    res = dataclasses.replace(make_result(), extras={
+        "signals_R1": {"t": [0.0, 0.1, 0.2], "w": [0.5, 0.25, 1e-300]},
+        "path_points_R1": {"t": [0.0, 1.0], "mode": ["goal", "wall"],
+                           "fitness": [1.5, math.nan]},
+        "potential": np.arange(12.0).reshape(3, 4) / 7.0,
+        "empty": {"x": [], "y": []},
+    })
+    res.write(tmp_path)
+    data = json.loads((tmp_path / "result.json").read_text())
+    assert data["extras"] == {"signals_R1": "signals_R1.csv", "path_points_R1": "path_points_R1.csv",
+                              "potential": "potential.npy", "empty": "empty.csv"}
+    assert (tmp_path / "signals_R1.csv").read_text().splitlines() == [
+        "t,w", "0.0,0.5", "0.1,0.25", "0.2,1e-300"]
+    assert (tmp_path / "path_points_R1.csv").read_text().splitlines()[2] == "1.0,wall,nan"
+    np.testing.assert_array_equal(np.load(tmp_path / "potential.npy"), res.extras["potential"])
+    back = read_result(tmp_path)
+    assert back.extras.keys() == res.extras.keys()
+    for name, value in res.extras.items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(back.extras[name], value)     # bit for bit
+        else:
+            for col in value:
+                np.testing.assert_array_equal(back.extras[name][col], value[col])
+    assert back.extras["path_points_R1"]["mode"].dtype.kind == "U"
+
+
+def test_old_result_folders_without_extras_still_read(tmp_path):
+    make_result().write(tmp_path)
+    data = json.loads((tmp_path / "result.json").read_text())
+    del data["extras"]
+    (tmp_path / "result.json").write_text(json.dumps(data))
+    assert read_result(tmp_path).extras == {}
+
+
+@pytest.mark.parametrize("extras, message", [
+    ({"trajectory_R1": {"t": [0.0]}}, r"result: extras: expected names .* got 'trajectory_R1'"),
+    ({"result": {"t": [0.0]}}, r"result: extras: expected names .* got 'result'"),
+    ({"../up": {"t": [0.0]}}, r"result: extras: expected names .* got '../up'"),
+    ({"s": {"t": [0.0, 1.0], "w": [1.0]}}, r"result: extras.s: expected columns of one length"),
+    ({"s": {"t": [[0.0, 1.0]]}}, r"result: extras.s.t: expected a named 1-D column"),
+    ({"s": [1.0, 2.0]}, r"result: extras.s: expected a table .* got list"),
+])
+def test_bad_extras_are_refused_with_the_key(extras, message):
+    r = make_result()
+    with pytest.raises(HybridnavError, match=message):
+        Result(r.scenario, r.planner, r.params, r.seed, r.robots, extras=extras)
+
+
+def test_a_listed_extra_that_is_missing_names_the_file(tmp_path):
+    import dataclasses
+
+    dataclasses.replace(make_result(), extras={"s": {"t": [0.0]}}).write(tmp_path)
+    (tmp_path / "s.csv").unlink()
+    with pytest.raises(HybridnavError, match=r"s\.csv: no such file \(listed in result.json"):
         read_result(tmp_path)

@@ -252,6 +252,8 @@ def compare(
         Scenario names or paths.
     runs : int
         Runs per combination (run ``r`` uses :func:`run_seed`).
+    seed : int
+        The base seed (run ``r`` of every combination uses ``run_seed(seed, r)``).
     params : dict, optional
         ``{label: {parameter: value}}`` overrides (``--set label.parameter=value``); a plain
         name is its own label. A variant's own parameters win over these.

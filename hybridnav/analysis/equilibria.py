@@ -57,6 +57,18 @@ def find_equilibria(
     negative: a local minimum of ``V`` for a gradient flow), ``"unstable"``, ``"saddle"`` or
     ``"degenerate"`` (a zero real part). Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
+
+    Parameters
+    ----------
+    model : Model
+    target : (float, float)
+        The target the closed loop drives to.
+    region : dict or Box
+        Bounds of every state (``{name: (lo, hi)}``).
+    seed : int
+        Seeds the sampled starts.
+    starts : int
+        Uniform random Newton starts (besides the smallest-field points and the run ends).
     """
     box = as_box(model, region)
     tgt = _target(target)

@@ -39,6 +39,18 @@ def linearize(
     ``control.StateSpace`` with named states, inputs and outputs; ``sys.nominal_rate`` holds
     ``f(x0, u0)`` (resp. ``F(x0)``).
 
+    Parameters
+    ----------
+    model : Model
+    x0 : sequence of float
+        The point: plant states (open loop) or all states (closed loop).
+    u0 : sequence of float, optional
+        The input of the open-loop point (required for the open loop).
+    target : (float, float), optional
+        Linearize the closed loop driving to it (default: the open loop).
+    name : str, optional
+        The system's name (default ``"<model>_lin"``).
+
     Raises
     ------
     HybridnavError
@@ -128,6 +140,21 @@ def linearize_expression(
 
     ``symbols`` / ``values`` substitute parameters first (e.g. ``model.sym.p`` and
     ``model.p_value()``). The result has no inputs (``B`` is ``(n, 0)``) and ``C = I``.
+
+    Parameters
+    ----------
+    z : casadi.SX
+        The state symbols.
+    zdot : casadi.SX
+        Their derivatives.
+    z0 : sequence of float
+        The point.
+    names : sequence of str
+        State names.
+    symbols, values : optional
+        Parameter symbols and their values, substituted first.
+    name : str
+        The system's name.
     """
     if symbols is not None:
         zdot = cs.substitute(zdot, symbols, cs.DM(np.asarray(values, dtype=float)))
@@ -145,7 +172,14 @@ def linearize_expression(
 
 
 def is_stable(sys: control.StateSpace, tol: float = 1e-12) -> bool:
-    """Whether every eigenvalue of ``A`` has a real part below ``-tol`` (asymptotic stability)."""
+    """Whether every eigenvalue of ``A`` has a real part below ``-tol`` (asymptotic stability).
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+    tol : float
+        Margin below zero the real parts must keep.
+    """
     return bool(np.all(np.linalg.eigvals(sys.A).real < -tol))
 
 
@@ -184,7 +218,15 @@ class LinearizationReport:
 
 
 def summarize(sys: control.StateSpace, point: dict[str, float] | None = None) -> LinearizationReport:
-    """Eigenvalues, stability and controllability rank of a linearized system."""
+    """Eigenvalues, stability and controllability rank of a linearized system.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        From :func:`linearize`.
+    point : dict, optional
+        State name -> value of the linearization point (for the report).
+    """
     return LinearizationReport(
         name=sys.name, point=dict(point or {}), A=np.asarray(sys.A), B=np.asarray(sys.B),
         eigenvalues=np.linalg.eigvals(sys.A), stable=is_stable(sys),
@@ -235,6 +277,13 @@ def discrete_step(model: Model, x0: Sequence[float], target: Sequence[float]) ->
     to ``target``): the Jacobian of the RK4 step map, exactly, from CasADi. The simulated system is
     locally stable there when its spectral radius is below 1 — for the point mass exactly when
     ``alpha_i dt`` is below :func:`rk4_stability_limit`.
+
+    Parameters
+    ----------
+    model : Model
+    x0 : sequence of float
+        The state (an equilibrium of the closed loop).
+    target : (float, float)
 
     Raises
     ------

@@ -71,6 +71,15 @@ _IPOPT = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt
 def lyapunov_functions(model: Model, V=None, *, target, params: Mapping[str, float] | None = None):
     """Numeric CasADi functions ``x -> (V, Vdot)`` and the symbolic expressions behind them.
 
+    Parameters
+    ----------
+    model : Model
+    V : casadi.SX, callable or None
+        The candidate (None: the model's own, :meth:`Model.lyapunov_candidate`).
+    target : (float, float)
+    params : dict, optional
+        Model parameters overriding the model's values.
+
     Returns
     -------
     model : Model

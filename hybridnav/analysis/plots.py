@@ -197,6 +197,16 @@ def plot_basin(model: Model, *, target: Sequence[float], region, levels: Mapping
 
     Parameters
     ----------
+    model : Model
+    target : (float, float)
+    region : dict or Box
+        Bounds of the plotted ``x``, ``y``.
+    fixed : dict, optional
+        Values of the other states (default 0, see :func:`hybridnav.analysis.roa.basin`).
+    n : int
+        Grid points per axis.
+    ax : matplotlib.axes.Axes, optional
+        Draw into it (default: a new figure).
     levels : dict
         ``{label: (V, level)}``: each certified sublevel set ``{V <= level}`` (``V`` a candidate as
         accepted by :func:`hybridnav.analysis.check_lyapunov`, ``None`` for the model's own) is

@@ -37,6 +37,12 @@ class Box:
 def as_box(model, region: Mapping[str, Sequence[float]] | Box) -> Box:
     """Turn ``{state name: (lo, hi)}`` into a :class:`Box` over all of ``model``'s states.
 
+    Parameters
+    ----------
+    model : Model
+    region : dict or Box
+        ``{state name: (lo, hi)}`` for every state (a Box is returned as it is).
+
     Raises
     ------
     HybridnavError

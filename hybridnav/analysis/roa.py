@@ -108,6 +108,17 @@ def estimate_roa(
 
     Parameters
     ----------
+    model : Model
+    V : casadi.SX, callable or None
+        The Lyapunov candidate (as :func:`hybridnav.analysis.check_lyapunov` accepts it; None:
+        the model's own).
+    target : (float, float)
+    region : dict or Box
+        Bounds of every state the estimate is taken in.
+    params : dict, optional
+        Model parameters overriding the model's values.
+    seed : int
+        Seeds the sampling and the simulated starts.
     rtol : float
         Bisection stops when the bracket is narrower than ``rtol`` times the upper bound; levels
         below an equilibrium's ``V`` are that ``V`` times ``1 - rtol``.
@@ -321,6 +332,19 @@ def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, 
 
     Parameters
     ----------
+    model : Model
+    target : (float, float)
+    region : dict or Box
+        Bounds of the plotted states, e.g. ``{"x": (lo, hi), "y": (lo, hi)}``.
+    fixed : dict, optional
+        Values of the other states (default 0).
+    n : int
+        Grid points per axis.
+    horizon : float, optional
+        Simulated time per start (default ``20000 dt``).
+    radius : float, optional
+        A start has converged when it ends within ``radius`` of the target (default 1e-3 of the
+        region's ``(x, y)`` diagonal).
     method : str
         ``"continuous"`` (default): the closed-loop ODE, the system the Lyapunov certificates are
         about, integrated by CVODES (CasADi's ``integrator``, tolerances 1e-7 relative and 1e-9

@@ -22,6 +22,9 @@ def grid_starts(model: Model, target: Sequence[float], positions: np.ndarray,
 
     Parameters
     ----------
+    model : Model
+    target : (float, float)
+        The target every start drives to.
     positions : ndarray, shape (P, 2)
     initial : dict
         State name -> values to combine (e.g. ``{"theta0": [...], "theta1": [...]}``); a value
@@ -68,6 +71,21 @@ def closed_loop_sweep(
     ``max_V_increase`` (the largest rise of ``V`` above its running minimum, relative to
     ``V(0)``; positive exactly when ``V_monotone`` is false), and, for models with ``theta0`` and ``theta1``, ``max_gap`` (largest
     ``|theta0 - theta1|``, wrapped) and ``jackknife`` (``max_gap >= jackknife``).
+
+    Parameters
+    ----------
+    model : Model
+    X0 : ndarray, shape (N, nx)
+        Start states.
+    target : (float, float)
+    steps : int
+        Control cycles per run.
+    V : casadi.SX, callable or None
+        The tabulated function (None: the model's Lyapunov candidate).
+    goal_radius : float
+        Distance that counts as reached.
+    jackknife : float
+        Hitch angle (rad) that counts as jackknifed (tractor-trailer).
 
     Returns
     -------

@@ -36,6 +36,14 @@ class LbCS(Model):
 
     Parameters
     ----------
+    dt : float
+        Control and integration step (s).
+    jit : bool or None
+        JIT-compile the batched functions (None: when a compiler works).
+    radius : float, optional
+        The robot radius; the same as ``rp`` (default 0.5).
+    **params
+        ``obstacles`` and the numeric parameters below.
     obstacles : sequence of (cx, cy, r)
         The circular obstacles (option; part of the model's structure).
     beta, delta1, delta2, rp : float

@@ -52,7 +52,15 @@ for _old, _new in MOVED.items():
 
 
 def get(name: str, **params: Any) -> Planner:
-    """The planner ``name`` with parameter overrides (strings are parsed as on the CLI)."""
+    """The planner ``name`` with parameter overrides (strings are parsed as on the CLI).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PLANNERS`.
+    **params
+        Parameter values (see ``Planner.parameters``; ``hybridnav planners`` lists them).
+    """
     try:
         cls = PLANNERS[name]
     except KeyError:

@@ -50,7 +50,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav.models import LbCS
-from hybridnav.models.base import _Buffered
+from hybridnav.models.compile import _Buffered
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.results import Result

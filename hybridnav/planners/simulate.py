@@ -44,6 +44,8 @@ class Simulation:
     active: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     outcome: list = field(default_factory=list)
     time_to_goal: list = field(default_factory=list)
+    #: the run's own storage: what a planner keeps for this run only (its context, traced
+    #: signals), so that nothing per-run lives on the planner object
     notes: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -90,6 +92,7 @@ def simulate(
     stuck_window: float = 10.0,
     stuck_radius: np.ndarray | float | None = None,
     max_steps: int | None = None,
+    notes: dict[str, Any] | None = None,
 ) -> tuple[list[RobotResult], Simulation]:
     """Run the closed loop of every robot of ``scenario`` under ``controller``.
 
@@ -106,6 +109,8 @@ def simulate(
         goal radius). ``stuck_window <= 0`` disables it.
     max_steps : int, optional
         Step budget (default ``ceil(max_time / dt)``).
+    notes : dict, optional
+        The run's storage :attr:`Simulation.notes` starts with (e.g. the planner's context).
 
     Returns
     -------
@@ -124,7 +129,7 @@ def simulate(
         goal = r.goal if r.goal is not None else starts[r.goal_follow]
         X.append(m.initial_state(r.start, goal, r.initial))
     sim = Simulation(scenario, models, X, active=np.ones(n, dtype=bool), outcome=[None] * n,
-                     time_to_goal=[None] * n)
+                     time_to_goal=[None] * n, notes=dict(notes or {}))
     groups = model_groups(models)
     world = scenario.world
     goal_r = np.array([r.goal_radius for r in robots])

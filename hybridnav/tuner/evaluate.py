@@ -134,6 +134,9 @@ def simulate_genomes(job_json: str, which: str, genomes: np.ndarray,
         ``(VALIDATION_KEY, 0)`` for all (common random numbers).
     noise : bool
         False: the nominal runs (one repeat, no noise).
+    record_paths : bool
+        Also record every robot's positions (see
+        :func:`hybridnav.planners.field.lockstep.lockstep_field`).
 
     Returns
     -------

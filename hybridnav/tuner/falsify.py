@@ -127,6 +127,8 @@ def falsify(job_json: str, genome: np.ndarray, *, budget: int = 600, population:
         solvability grid (0.05).
     seed : int
         Seeds the swarm.
+    progress : callable, optional
+        ``progress(evaluated, budget)`` after each swarm iteration.
     """
     from hybridnav.planners.swarm import minimize
     from hybridnav.tuner.evaluate import _context, run_costs, scenario_set, simulate_on

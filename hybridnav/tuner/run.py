@@ -41,7 +41,21 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
             progress: Callable[[dict[str, Any]], None] | None = None,
             dask_client: Any = None) -> tuple[TuneResult, list[str]]:
     """Run ``job`` on its backend, write every output into ``out``; returns the result and the
-    names of the files written."""
+    names of the files written.
+
+    Parameters
+    ----------
+    job : Job
+        From :func:`load_job`.
+    out : str or Path
+        The output folder (checkpoints, systems, tables, plots, ``report.md``).
+    resume : bool
+        Continue from the checkpoint in ``out`` (refused when the job changed).
+    progress : callable, optional
+        ``progress(info)`` after each generation (``info``: generation, best, mean, ...).
+    dask_client : distributed.Client, optional
+        Run on this client instead of the job's backend settings.
+    """
     out = Path(out)
     be = job["backend"]
     backend = make_backend(be["workers"], dask_client or be["dask"])
@@ -54,7 +68,18 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
 def write_outputs(job: Job, result: TuneResult, out: Path,
                   backend: Backend | None = None) -> list[str]:
     """Judge the result on the validation and test sets; write the systems, tables, plots,
-    exports and ``report.md``."""
+    exports and ``report.md``.
+
+    Parameters
+    ----------
+    job : Job
+    result : TuneResult
+        From :func:`tune`.
+    out : Path
+        The output folder.
+    backend : Backend, optional
+        Runs the judging simulations (default: the job's).
+    """
     from hybridnav import planners
     from hybridnav.fuzzy import plots
     from hybridnav.tuner.evaluate import uncovered_fraction

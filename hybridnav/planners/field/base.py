@@ -51,31 +51,26 @@ class FieldPlanner(Planner):
         """
 
     def trace(self, sim: Simulation, idx: np.ndarray, **signals: np.ndarray) -> None:
-        """Record per-robot signals of this cycle (plotted and written by ``hybridnav run``)."""
+        """Record per-robot signals of this cycle (in the run's ``sim.notes``; the result carries
+        them as the extras ``signals_<robot>``, plotted and written by ``hybridnav run``)."""
+        store = sim.notes.setdefault("signals", {})
         for j, i in enumerate(idx):
-            rec = self.traces.setdefault(sim.scenario.robots[i].name, {"t": []})
+            rec = store.setdefault(sim.scenario.robots[i].name, {"t": []})
             rec["t"].append(sim.t)
             for key, values in signals.items():
                 rec.setdefault(key, []).append(float(values[j]))
 
+    def extras(self, scenario, state: Any) -> dict[str, Any]:
+        """What the run's offline work leaves for diagnostics (a field, a search log), as
+        :attr:`hybridnav.results.Result.extras` entries; default none."""
+        return {}
+
     def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
         """``signals.png``: the traced signals of every robot over time."""
-        if not self.traces:
-            return {}
-        from matplotlib.figure import Figure
+        from hybridnav.plotting import plot_signals
 
-        keys = sorted({k for rec in self.traces.values() for k in rec if k != "t"})
-        fig = Figure(figsize=(7.0, 2.0 + 1.6 * len(keys)), layout="constrained")
-        axes = fig.subplots(len(keys), 1, sharex=True, squeeze=False)[:, 0]
-        for name, rec in self.traces.items():
-            for ax, key in zip(axes, keys):
-                if key in rec:
-                    ax.plot(rec["t"], rec[key], label=name, linewidth=1.0)
-                    ax.set_ylabel(key)
-        axes[0].legend(fontsize=8)
-        axes[-1].set_xlabel("t [s]")
-        axes[0].set_title(f"{self.name}: signals along the run")
-        return {"signals.png": fig}
+        fig = plot_signals(result)
+        return {} if fig is None else {"signals.png": fig}
 
     def model_overrides(self, robot) -> dict[str, Any]:
         """Model options for a robot (models with a heading controller, the unicycle: that
@@ -90,11 +85,9 @@ class FieldPlanner(Planner):
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
         rng = np.random.default_rng(seed)
-        self.traces: dict[str, dict[str, list[float]]] = {}
         tic = time.perf_counter()
         state = self.prepare(scenario, rng)
         prep = time.perf_counter() - tic
-        self.last_state = state
         models = [scenario.model(r, **self.model_overrides(r)) for r in scenario.robots]
         speed = self.values["speed"]
         last = np.zeros((len(models), 2))       # the last non-zero command of each robot
@@ -120,10 +113,12 @@ class FieldPlanner(Planner):
             return T
 
         goal_r = np.array([r.goal_radius for r in scenario.robots])
-        robots, _ = simulate(scenario, models, controller,
-                             stuck_window=self.values["stuck_window"],
-                             stuck_radius=self.values["stuck_radius"] * goal_r)
+        robots, sim = simulate(scenario, models, controller,
+                               stuck_window=self.values["stuck_window"],
+                               stuck_radius=self.values["stuck_radius"] * goal_r)
         for r in robots:   # offline work (a field solve, a gain search) is part of the cost
             r.compute_time += prep / len(robots)
+        extras = {f"signals_{name}": rec for name, rec in sim.notes.get("signals", {}).items()}
+        extras.update(self.extras(scenario, state))
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
-                      seed=seed, robots=robots)
+                      seed=seed, robots=robots, extras=extras)

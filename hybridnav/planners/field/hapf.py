@@ -10,7 +10,7 @@ leads to the goal from every connected free cell. Static worlds and fixed goals 
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -114,23 +114,24 @@ class HAPF(FieldPlanner):
             ))
         return fields
 
+    def extras(self, scenario, state) -> dict[str, Any]:
+        """Each robot's harmonic potential on its grid (``harmonic_potential_<robot>``) and the
+        grid's extent (``harmonic_grid_<robot>``: ``x0, x1, y0, y1``)."""
+        out: dict[str, Any] = {}
+        for r, (_, _, phi, grid) in zip(scenario.robots, state):
+            x0, x1, y0, y1 = grid.extent
+            out[f"harmonic_potential_{r.name}"] = np.asarray(phi, dtype=float)
+            out[f"harmonic_grid_{r.name}"] = {"x0": [x0], "x1": [x1], "y0": [y0], "y1": [y1]}
+        return out
+
     def diagnostics(self, scenario, result):
         """``signals.png`` and ``harmonic_field.png`` (the potential of the first robot)."""
-        from matplotlib.figure import Figure
-
-        from hybridnav.plotting import plot_result
+        from hybridnav.plotting import plot_potential
 
         out = dict(super().diagnostics(scenario, result))
-        _, _, phi, grid = self.last_state[0]
-        fig = Figure(figsize=(6.6, 6.0), layout="constrained")
-        ax = fig.add_subplot()
-        x0, x1, y0, y1 = grid.extent
-        im = ax.imshow(np.log10(np.maximum(1.0 - phi, 1e-16)), origin="lower",
-                       extent=(x0, x1, y0, y1), cmap="magma", zorder=0)
-        fig.colorbar(im, ax=ax, label="log10(1 - phi)")
-        plot_result(scenario, result, ax=ax)
-        ax.set_title(f"{scenario.name}: harmonic potential")
-        out["harmonic_field.png"] = fig
+        fig = plot_potential(scenario, result)
+        if fig is not None:
+            out["harmonic_field.png"] = fig
         return out
 
     def velocity(self, state, sim: Simulation, idx, P, goals):

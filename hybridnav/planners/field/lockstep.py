@@ -69,6 +69,8 @@ def lockstep_field(
         The velocity's length (the field gives the direction).
     stuck_window, stuck_radius :
         No-progress test: seconds, and a radius in goal radii.
+    record_paths : bool
+        Also return every robot's positions per control cycle (for plots; costs memory).
     stack : WorldStack, optional
         The scenarios' worlds packed (:class:`hybridnav.planners.field.worldstack.WorldStack`); built
         here when not given. Collision and bounds tests ask it for all robots at once.

@@ -33,6 +33,14 @@ __all__ = ["PBPF"]
 GENES = ("xi", "eta", "rho0")
 
 
+@dataclasses.dataclass(frozen=True)
+class _Tuned:
+    """A run's tuned gains ``(n_robots, 3)`` and each robot's best fitness per generation."""
+
+    gains: np.ndarray
+    logs: list
+
+
 class PBPF(APF):
     """APF whose gains a pseudo-bacterial GA tunes for the scenario first."""
 
@@ -64,29 +72,27 @@ class PBPF(APF):
             best, history = self._search(single, rng, lo, hi)
             tuned.append(np.exp(best))
             logs.append(history)
-        self.search_log = logs
-        return np.array(tuned)
+        return _Tuned(np.array(tuned), logs)
+
+    def extras(self, scenario, state) -> dict[str, Any]:
+        """Best fitness per generation of each robot's search (``pbpf_search_<robot>``)."""
+        return {f"pbpf_search_{r.name}": {"generation": np.arange(len(h)), "best": h}
+                for r, h in zip(scenario.robots, state.logs)}
 
     def diagnostics(self, scenario, result):
         """``signals.png`` and ``pbpf_search.png`` (best fitness per generation, per robot)."""
-        from matplotlib.figure import Figure
+        from hybridnav.plotting import plot_gain_search
 
         out = dict(super().diagnostics(scenario, result))
-        fig = Figure(figsize=(6.0, 3.6), layout="constrained")
-        ax = fig.add_subplot()
-        for r, history in zip(scenario.robots, self.search_log):
-            ax.plot(range(len(history)), history, marker="o", label=r.name)
-        ax.set_xlabel("generation")
-        ax.set_ylabel("best fitness (path length, penalized)")
-        ax.set_title("pseudo-bacterial gain search")
-        ax.legend(fontsize=8)
-        out["pbpf_search.png"] = fig
+        fig = plot_gain_search(result)
+        if fig is not None:
+            out["pbpf_search.png"] = fig
         return out
 
     def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
         g = dict(super().gains(state, idx))
         for j, name in enumerate(GENES):
-            g[name] = state[idx, j]
+            g[name] = state.gains[idx, j]
         return g
 
     def _fitness(self, scenario, genomes: np.ndarray) -> np.ndarray:

@@ -115,7 +115,7 @@ from hybridnav.planners.path.gridsearch import HEURISTICS, astar, dijkstra
 from hybridnav.planners.path.rfd_core import rfd
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.planners.swarm import pso
-from hybridnav.results import Result, path_length
+from hybridnav.results import Result
 from hybridnav.world import World
 from hybridnav.world.grid import OccupancyGrid, build_grid
 
@@ -189,6 +189,27 @@ class PathPlanner(Planner):
         """Robot radius plus the margin, in world units."""
         return float(robot.radius) + self.values["margin"] * ctx.cell
 
+    def plans(self, scenario, seed: int | None = None) -> list[PlannedPath]:
+        """Plan every robot's path without simulating: the paths :meth:`run` follows with the
+        same seed (with the planner's internals in ``info``: its grid, search, swarm result)."""
+        return self._plan_all(scenario, seed)[2]
+
+    def _plan_all(self, scenario, seed):
+        self.check_scenario(scenario)
+        world = obstacle_world(scenario)
+        ctx = _Context(scenario, world, _cell_size(scenario))
+        children = np.random.SeedSequence(seed).spawn(len(scenario.robots))
+        plans: list[PlannedPath] = []
+        for robot, child in zip(scenario.robots, children):
+            rngs = [np.random.default_rng(s) for s in child.spawn(2)]
+            tic = time.perf_counter()
+            p = self.plan(ctx, robot, rngs)
+            p.time = time.perf_counter() - tic
+            if not p.found:
+                log.info("%s: robot %s: no path (%s)", self.name, robot.name, p.reason)
+            plans.append(p)
+        return ctx, world, plans
+
     def run(self, scenario, seed: int | None = None) -> Result:
         """Plan every robot's path, then simulate the robots following them.
 
@@ -205,20 +226,7 @@ class PathPlanner(Planner):
         Result
             Per robot, ``planned_length``, ``planning_time`` and ``waypoints`` in ``metrics``.
         """
-        self.check_scenario(scenario)
-        world = obstacle_world(scenario)
-        ctx = _Context(scenario, world, _cell_size(scenario))
-        children = np.random.SeedSequence(seed).spawn(len(scenario.robots))
-        plans: list[PlannedPath] = []
-        for robot, child in zip(scenario.robots, children):
-            rngs = [np.random.default_rng(s) for s in child.spawn(2)]
-            tic = time.perf_counter()
-            p = self.plan(ctx, robot, rngs)
-            p.time = time.perf_counter() - tic
-            if not p.found:
-                log.info("%s: robot %s: no path (%s)", self.name, robot.name, p.reason)
-            plans.append(p)
-        self.last_plans = plans
+        ctx, world, plans = self._plan_all(scenario, seed)
         sim_scenario = scenario
         if scenario.grid is not None and scenario.grid.map is not None:
             sim_scenario = dataclasses.replace(scenario, world=world)   # map cells as obstacles
@@ -233,7 +241,7 @@ class PathPlanner(Planner):
                              planning_time=p.time, waypoints=p.waypoints if p.found else None,
                              **p.metrics)
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
-                      seed=seed, robots=robots)
+                      seed=seed, robots=robots, extras=_plan_extras(scenario, plans))
 
     def _controller(self, ctx: _Context, plans: list[PlannedPath], models):
         """The pure-pursuit controller of every robot (see the module docstring)."""
@@ -275,50 +283,10 @@ class PathPlanner(Planner):
 
     def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
         """``planned_paths.png``: the runs with the planned paths (and the swarm's best cost)."""
-        plans = getattr(self, "last_plans", None)
-        if not plans:
-            return {}
-        from matplotlib.figure import Figure
+        from hybridnav.plotting import plot_planned
 
-        from hybridnav.plotting import plot_result
-
-        opts = [p.info.get("opt") for p in plans if p.info.get("opt") is not None]
-        fig = Figure(figsize=(11.5 if opts else 6.6, 6.2), layout="constrained")
-        axes = fig.subplots(1, 2, width_ratios=(1.35, 1.0)) if opts else [fig.add_subplot()]
-        ax = axes[0]
-        plot_result(scenario, result, ax=ax)
-        for i, (r, p) in enumerate(zip(scenario.robots, plans)):
-            col = f"C{i % 10}"
-            seed_pts = p.info.get("seed_points")
-            if seed_pts is not None:
-                ax.plot(*np.asarray(seed_pts).T, ":", color="0.3", linewidth=1.0, zorder=6,
-                        label=f"{r.name}: RFD seed, length {path_length(seed_pts):.4g}")
-            src = p.info.get("rfd_points")
-            if src is not None:
-                ax.plot(*np.asarray(src).T, "-", color="tab:cyan", linewidth=0.9, zorder=6,
-                        alpha=0.8, label=f"{r.name}: RFD path, length {path_length(src):.4g}")
-            if p.found:
-                ax.plot(*p.points.T, "--", color=col, marker=".", markersize=5, linewidth=1.2,
-                        zorder=9, label=f"{r.name}: planned, length {p.length:.4g} "
-                                        f"({p.time:.2g} s)")
-        ax.legend(loc="upper left", fontsize=7)
-        ax.set_title(f"{scenario.name}: {self.name}, planned (dashed) and travelled paths")
-        if opts:
-            bx = axes[1]
-            for i, (r, p) in enumerate(zip(scenario.robots, plans)):
-                opt = p.info.get("opt")
-                if opt is not None:
-                    bx.plot(np.arange(len(opt.history.best)), opt.history.best,
-                            color=f"C{i % 10}", label=r.name)
-            bx.set_xlabel("iteration")
-            bx.set_ylabel("best cost (length + penalties)")
-            best = np.concatenate([p.info["opt"].history.best for p in plans
-                                   if p.info.get("opt") is not None])
-            if best.max() > 10 * best.min() > 0:     # penalties dominate the start
-                bx.set_yscale("log")
-            bx.legend(fontsize=8)
-            bx.set_title("swarm best cost")
-        return {"planned_paths.png": fig}
+        fig = plot_planned(scenario, result)
+        return {} if fig is None else {"planned_paths.png": fig}
 
 
 def _grid_endpoints(grid: OccupancyGrid, robot) -> tuple | PlannedPath:
@@ -536,3 +504,24 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
 
     def plan(self, ctx, robot, rngs):
         return PSOPathPlanner.plan(self, ctx, robot, rngs)
+
+
+def _plan_extras(scenario, plans: list[PlannedPath]) -> dict[str, Any]:
+    """The planned paths as result extras: ``planned_<robot>`` (``x, y``; empty when none was
+    found), the RFD path and seed of hybrids (``rfd_path_<robot>``, ``rfd_seed_<robot>``) and the
+    swarm's best cost per iteration (``swarm_best_<robot>``)."""
+    def xy(points) -> dict[str, np.ndarray]:
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        return {"x": pts[:, 0], "y": pts[:, 1]}
+
+    out: dict[str, Any] = {}
+    for r, p in zip(scenario.robots, plans):
+        out[f"planned_{r.name}"] = xy(p.points if p.found else np.zeros((0, 2)))
+        for key, name in (("rfd_points", "rfd_path"), ("seed_points", "rfd_seed")):
+            if p.info.get(key) is not None:
+                out[f"{name}_{r.name}"] = xy(p.info[key])
+        opt = p.info.get("opt")
+        if opt is not None:
+            best = np.asarray(opt.history.best, dtype=float)
+            out[f"swarm_best_{r.name}"] = {"iteration": np.arange(len(best)), "best": best}
+    return out

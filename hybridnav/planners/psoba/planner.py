@@ -117,9 +117,7 @@ the fitness and tuned ``(alpha, gamma)`` of every search) and ``path_points_<rob
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 import math
 import time
 from dataclasses import dataclass, field
@@ -135,7 +133,9 @@ from hybridnav.planners.psoba.fitness import disk_candidates, psoba_fitness
 from hybridnav.planners.psoba.sensors import (
     WALL_NORMALS,
     Scene,
+    escape_step,
     feasible,
+    followed_wall,
     gap_index,
     gap_vector,
     local_search,
@@ -283,8 +283,8 @@ class PSOBAPlanner(Planner):
         dt = scenario.dt
         groups = model_groups(models)
         dynamic = bool(moving_world.obstacles) or n > 1
-        self._ctx = {"static": static, "moving": moving_world, "friends": friends, "R": R,
-                     "workspace": world.workspace}
+        ctx = {"static": static, "moving": moving_world, "friends": friends, "R": R,
+               "workspace": world.workspace}    # the run's context: sim.notes["ctx"]
 
         def controller(sim: Simulation) -> np.ndarray:
             P = sim.positions
@@ -320,35 +320,35 @@ class PSOBAPlanner(Planner):
 
         results, _ = simulate(sim_scenario, models, controller,
                               stuck_window=v["stuck_window"],
-                              stuck_radius=v["stuck_radius"] * R)
+                              stuck_radius=v["stuck_radius"] * R, notes={"ctx": ctx})
         for r, st in zip(results, states):
             r.metrics.update(st.counts)
             r.metrics["planning_time"] = st.planning_time
-        self.last_traces = {r.name: list(st.trace) for r, st in zip(robots, states)}
-        self.last_states = states
+        extras = {f"path_points_{r.name}": _points_table(st.trace)
+                  for r, st in zip(robots, states)}
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
-                      seed=seed, robots=results)
+                      seed=seed, robots=results, extras=extras)
 
     # ---- scenes -------------------------------------------------------------------------------
 
     def _discs(self, sim: Simulation, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Other robots as disks at their current positions (not the followed/following ones)."""
-        others = [j for j in range(sim.n) if j != i and j not in self._ctx["friends"][i]]
+        others = [j for j in range(sim.n) if j != i and j not in sim.notes["ctx"]["friends"][i]]
         if not others:
             return np.zeros((0, 2)), np.zeros(0)
         P = sim.positions
-        return P[others], self._ctx["R"][others]
+        return P[others], sim.notes["ctx"]["R"][others]
 
     def _scene(self, sim: Simulation, i: int, walls: bool) -> Scene:
         """The planning scene of robot ``i``: moving circles swept over ``step / speed``."""
         v = self.values
         horizon = v["step"] / v["speed"]
-        return Scene.build(self._ctx["static"], self._ctx["moving"], t=sim.t, horizon=horizon,
+        return Scene.build(sim.notes["ctx"]["static"], sim.notes["ctx"]["moving"], t=sim.t, horizon=horizon,
                            discs=self._discs(sim, i), walls=walls)
 
     def _sensor_scene(self, sim: Simulation, i: int) -> Scene:
         """What the range sensors see: everything where it is now."""
-        return Scene.build(self._ctx["static"], self._ctx["moving"], t=sim.t,
+        return Scene.build(sim.notes["ctx"]["static"], sim.notes["ctx"]["moving"], t=sim.t,
                            discs=self._discs(sim, i))
 
     # ---- planning -----------------------------------------------------------------------------
@@ -387,7 +387,7 @@ class PSOBAPlanner(Planner):
         R = st.R
         step = v["step"] * R
         r_safe = R * (1.0 + v["margin"])
-        xmin, xmax, ymin, ymax = self._ctx["workspace"]
+        xmin, xmax, ymin, ymax = sim.notes["ctx"]["workspace"]
         lower = np.maximum(p - step, [xmin + r_safe, ymin + r_safe])
         upper = np.minimum(p + step, [xmax - r_safe, ymax - r_safe])
         upper = np.maximum(upper, lower + 1e-9 * max(1.0, step))
@@ -425,7 +425,7 @@ class PSOBAPlanner(Planner):
 
     def _gaps(self, sim, i, p) -> tuple[np.ndarray, np.ndarray]:
         v = self.values
-        R = self._ctx["R"][i]
+        R = sim.notes["ctx"]["R"][i]
         readings = sector_ranges(self._sensor_scene(sim, i), p, v["sensors"])[0]
         vs = sensing_vector(readings, v["sr"] * R)
         return vs, gap_vector(vs)
@@ -503,7 +503,7 @@ class PSOBAPlanner(Planner):
         t = sim.t
         if v["memory"] > 0:
             st.memory.append((t, float(p[0]), float(p[1])))
-        dist, q, k_obs = self._followed(scene.without_walls(), st, p, ds)
+        dist, q, k_obs = followed_wall(scene.without_walls(), st.heading, st.side, p, ds)
         here = float(scene.clearance(p)[0])
         tol = 1e-9 * max(1.0, abs(here))
         r_safe = R * (1.0 + v["margin"])
@@ -536,7 +536,7 @@ class PSOBAPlanner(Planner):
             heading_in = False
             if point is not None:
                 u = (point - p) / max(float(np.hypot(*(point - p))), 1e-300)
-                near = near_room_walls(p, self._ctx["workspace"], sr)[0]
+                near = near_room_walls(p, sim.notes["ctx"]["workspace"], sr)[0]
                 heading_in = bool(np.any(near & (WALL_NORMALS @ u > 0.5)))
             if (point is None or heading_in) and not st.reversed:
                 st.side = -st.side
@@ -545,52 +545,11 @@ class PSOBAPlanner(Planner):
                 continue
             break
         if point is None and np.isfinite(dist) and here < r_safe:
-            point = self._escape(scene, k_obs, p, step, ds, r_safe)
+            point = escape_step(scene, k_obs, p, step, ds, r_safe)
         if point is None:
             self._hold(sim, i, st)
             return
         self._set_wp(sim, st, p, point, WALL)
-
-    @staticmethod
-    def _escape(scene: Scene, k: int, p, step: float, ds: float, r_safe: float):
-        """Away from the axis of obstacle ``k`` (the robot is in the region a moving obstacle
-        will sweep, or closer than its safety radius): a step, repaired against the others."""
-        _, _, axis = scene.surface_points(p)
-        away = p - axis[k]
-        n = float(np.hypot(*away))
-        if n == 0:
-            vel = scene.vel[k]
-            away = np.array([-vel[1], vel[0]]) if np.any(vel != 0) else np.array([1.0, 0.0])
-            n = float(np.hypot(*away))
-        others = np.ones(len(scene.r), dtype=bool)
-        others[k] = False
-        point, _ = local_search(scene.subset(others), p, p + step * away / n, ds, r_safe)
-        return point if np.hypot(*(point - p)) > 0 else None
-
-    @staticmethod
-    def _followed(scene: Scene, st: _Robot, p: np.ndarray,
-                  ds: float) -> tuple[float, np.ndarray, int]:
-        """The wall to follow: the nearest obstacle on the robot's following side.
-
-        Left following keeps the obstacle on the robot's right: among the obstacles within
-        ``2 ds`` that lie to the right of the last heading (or ahead, up to 30 degrees to the
-        left), the nearest; the nearest of all when there is none (e.g. at the first step).
-        Between two close obstacles this keeps the followed one instead of switching to the one
-        on the other side. Returns its distance, nearest surface point and capsule index.
-        """
-        d, Q, _ = scene.surface_points(p)
-        if not len(d):
-            return math.inf, np.full(2, np.nan), -1
-        best = int(np.argmin(d))
-        if st.heading is not None:
-            U = Q - p
-            n = np.hypot(U[:, 0], U[:, 1])
-            U = U / np.where(n > 0, n, 1.0)[:, None]
-            cross = st.heading[0] * U[:, 1] - st.heading[1] * U[:, 0]
-            side_ok = (st.side * cross <= 0.5) & (d <= 2.0 * ds)
-            if side_ok.any():
-                best = int(np.flatnonzero(side_ok)[np.argmin(d[side_ok])])
-        return float(d[best]), Q[best], best
 
     def _hold(self, sim, i, st: _Robot) -> None:
         st.wp = None
@@ -603,57 +562,18 @@ class PSOBAPlanner(Planner):
 
     # ---- outputs ------------------------------------------------------------------------------
 
-    def path_points_csv(self, name: str) -> str:
-        """The planned path points of robot ``name`` in the last run, as CSV text."""
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(["t", "x", "y", "mode", "fitness", "alpha", "gamma"])
-        for t, x, y, mode, f, a, g in self.last_traces[name]:
-            w.writerow([repr(float(t)), repr(x), repr(y), mode, repr(f), repr(a), repr(g)])
-        return buf.getvalue()
-
     def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
-        """``pso_ba.png`` and ``path_points_<robot>.csv`` of the last run."""
-        traces = getattr(self, "last_traces", None)
-        if not traces:
-            return {}
-        from matplotlib.figure import Figure
+        """``pso_ba.png``: the path points by how each was found, their fitness and the
+        PSO-tuned bat parameters (the ``path_points_<robot>`` tables are the result's extras)."""
+        from hybridnav.plotting import plot_pso_ba
 
-        from hybridnav.plotting import plot_result
+        fig = plot_pso_ba(scenario, result)
+        return {} if fig is None else {"pso_ba.png": fig}
 
-        files: dict[str, Any] = {f"path_points_{name}.csv": self.path_points_csv(name)
-                                 for name in traces}
-        fig = Figure(figsize=(12.0, 6.4), layout="constrained")
-        ax, right = fig.subfigures(1, 2, width_ratios=(1.3, 1.0))
-        ax = ax.add_subplot()
-        plot_result(scenario, result, ax=ax)
-        marks = {GOAL: ("o", "PSO-BA"), REPAIRED: ("x", "local search"),
-                 WALL: ("^", "wall following"), TRACK: ("*", "goal")}
-        for i, (name, tr) in enumerate(traces.items()):
-            col = f"C{i % 10}"
-            for mode, (mk, label) in marks.items():
-                pts = np.array([(x, y) for _, x, y, m, *_ in tr if m == mode]).reshape(-1, 2)
-                if len(pts):
-                    ax.plot(pts[:, 0], pts[:, 1], mk, color=col, markersize=4, zorder=9,
-                            markerfacecolor="none", label=f"{name}: {label} ({len(pts)})")
-        ax.legend(loc="upper left", fontsize=7)
-        axes = right.subplots(2, 1, sharex=True)
-        for i, (name, tr) in enumerate(traces.items()):
-            rows = [(t, f, a, g) for t, _, _, m, f, a, g in tr if m in (GOAL, REPAIRED)]
-            if not rows:
-                continue
-            arr = np.array(rows)
-            col = f"C{i % 10}"
-            axes[0].plot(arr[:, 0], arr[:, 1], ".-", color=col, linewidth=0.8, label=name)
-            axes[1].plot(arr[:, 0], arr[:, 2], "o", color=col, markersize=3,
-                         label=f"{name}: alpha")
-            axes[1].plot(arr[:, 0], arr[:, 3], "s", color=col, markersize=3,
-                         markerfacecolor="none", label=f"{name}: gamma")
-        axes[0].set_ylabel("fitness of the path point (eq. 6)")
-        axes[0].legend(fontsize=7)
-        axes[1].set_ylabel("PSO-tuned bat parameters")
-        axes[1].set_xlabel("t [s]")
-        axes[1].legend(fontsize=7)
-        axes[0].set_title("PSO-BA searches")
-        files["pso_ba.png"] = fig
-        return files
+
+def _points_table(trace) -> dict[str, np.ndarray]:
+    """A robot's planned path points: ``t, x, y, mode, fitness, alpha, gamma`` per point."""
+    cols = ("t", "x", "y", "mode", "fitness", "alpha", "gamma")
+    rows = list(trace)
+    return {c: np.array([row[j] for row in rows], dtype=str if c == "mode" else float)
+            for j, c in enumerate(cols)}

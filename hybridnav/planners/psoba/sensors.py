@@ -55,7 +55,9 @@ from hybridnav.world import MovingCircle, World
 __all__ = [
     "WALL_NORMALS",
     "Scene",
+    "escape_step",
     "feasible",
+    "followed_wall",
     "gap_index",
     "gap_vector",
     "local_search",
@@ -534,3 +536,46 @@ def local_search(scene: Scene, p: ArrayLike, c: ArrayLike, ds: float,
         return p.copy(), True
     lam = float(ray_entry(scene, p, u[None], keep)[0, 0])
     return p + min(lam, L) * u, True
+
+
+def escape_step(scene: Scene, k: int, p, step: float, ds: float, r_safe: float):
+    """A step of length ``step`` away from the axis of obstacle ``k`` (the robot is in the
+    region a moving obstacle will sweep, or closer than its safety radius), repaired against the
+    others with :func:`local_search`; None when it cannot move."""
+    _, _, axis = scene.surface_points(p)
+    away = p - axis[k]
+    n = float(np.hypot(*away))
+    if n == 0:
+        vel = scene.vel[k]
+        away = np.array([-vel[1], vel[0]]) if np.any(vel != 0) else np.array([1.0, 0.0])
+        n = float(np.hypot(*away))
+    others = np.ones(len(scene.r), dtype=bool)
+    others[k] = False
+    point, _ = local_search(scene.subset(others), p, p + step * away / n, ds, r_safe)
+    return point if np.hypot(*(point - p)) > 0 else None
+
+
+def followed_wall(scene: Scene, heading: FloatArray | None, side: float, p: FloatArray,
+                  ds: float) -> tuple[float, FloatArray, int]:
+    """The wall to follow: the nearest obstacle on the robot's following side (``side``: +1
+    left following, -1 right; ``heading``: the last unit heading, None at the first step).
+
+    Left following keeps the obstacle on the robot's right: among the obstacles within
+    ``2 ds`` that lie to the right of the last heading (or ahead, up to 30 degrees to the
+    left), the nearest; the nearest of all when there is none (e.g. at the first step).
+    Between two close obstacles this keeps the followed one instead of switching to the one
+    on the other side. Returns its distance, nearest surface point and capsule index.
+    """
+    d, Q, _ = scene.surface_points(p)
+    if not len(d):
+        return math.inf, np.full(2, np.nan), -1
+    best = int(np.argmin(d))
+    if heading is not None:
+        U = Q - p
+        n = np.hypot(U[:, 0], U[:, 1])
+        U = U / np.where(n > 0, n, 1.0)[:, None]
+        cross = heading[0] * U[:, 1] - heading[1] * U[:, 0]
+        side_ok = (side * cross <= 0.5) & (d <= 2.0 * ds)
+        if side_ok.any():
+            best = int(np.flatnonzero(side_ok)[np.argmin(d[side_ok])])
+    return float(d[best]), Q[best], best

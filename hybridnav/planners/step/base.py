@@ -50,8 +50,6 @@ time: the papers' "convergence of the controllers") and ``waypoints.png``.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import time
 from abc import abstractmethod
@@ -154,7 +152,7 @@ class StepPlanner(Planner):
         checked_at = np.full(n, -np.inf)
         retry_at = np.zeros(n)
         fail_since = np.full(n, np.nan)
-        self.waypoints: dict[str, list[tuple[float, float, float, float]]] = {
+        waypoints: dict[str, list[tuple[float, float, float, float]]] = {
             r.name: [] for r in robots}
         trace: dict[str, list] = {"t": [], "active": [], "target": [], "cost": [], "mode": []}
         best_dist = np.full(n, np.inf)
@@ -250,7 +248,7 @@ class StepPlanner(Planner):
                 cost[i] = res.fun
                 checked_at[i] = sim.t
                 fail_since[i] = np.nan
-                self.waypoints[robots[i].name].append((sim.t, float(res.x[0]), float(res.x[1]),
+                waypoints[robots[i].name].append((sim.t, float(res.x[0]), float(res.x[1]),
                                                        float(res.fun)))
                 return
             planned[i] = False
@@ -303,13 +301,18 @@ class StepPlanner(Planner):
                                     stuck_window=v["stuck_window"],
                                     stuck_radius=v["stuck_radius"] * goal_r)
         for i, r in enumerate(robot_results):
-            r.metrics["steps_planned"] = len(self.waypoints[r.name])
+            r.metrics["steps_planned"] = len(waypoints[r.name])
             r.metrics["planning_calls"] = int(plans[i])
             r.metrics["planning_time"] = float(plan_time[i])
-        self._last = (scenario, sim_models, robot_results, {k: np.array(x) for k, x in
-                                                            trace.items()})
+        tables = _step_tables(sim_models, robot_results, {k: np.array(x) for k, x in
+                                                          trace.items()})
+        extras: dict[str, Any] = {}
+        for r in robot_results:
+            extras[f"steps_{r.name}"] = tables[r.name]
+            W = np.array(waypoints[r.name], dtype=float).reshape(-1, 4)
+            extras[f"waypoints_{r.name}"] = dict(zip(("t", "x", "y", "cost"), W.T))
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
-                      seed=seed, robots=robot_results)
+                      seed=seed, robots=robot_results, extras=extras)
 
     @staticmethod
     def _near(sim: Simulation, idx: np.ndarray, P: np.ndarray, R: np.ndarray, eps: np.ndarray,
@@ -334,69 +337,36 @@ class StepPlanner(Planner):
 
     # ---- outputs ------------------------------------------------------------------------------
 
-    def step_tables(self) -> dict[str, dict[str, np.ndarray]]:
-        """Per robot, per control cycle of the last run: ``t``, target, cost, mode, xdot, ydot."""
-        scenario, sim_models, robot_results, trace = self._last
-        out = {}
-        for i, (r, m) in enumerate(zip(robot_results, sim_models)):
-            rows = np.flatnonzero(trace["active"][:, i])
-            k = min(len(rows), len(r.states) - 1)   # the last controller call may not have moved
-            rows = rows[:k]
-            X = r.states[:k]
-            T = trace["target"][rows, i]
-            if k:
-                fn = m.function("closed_loop").map(k)
-                xdot = np.asarray(fn(X.T, T.T, cs.repmat(cs.DM(m.p_value()), 1, k)))
-            else:
-                xdot = np.zeros((m.nx, 0))
-            out[r.name] = {"t": trace["t"][rows], "target_x": T[:, 0], "target_y": T[:, 1],
-                           "cost": trace["cost"][rows, i], "mode": trace["mode"][rows, i],
-                           "xdot": xdot[0], "ydot": xdot[1]}
-        return out
 
     def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
-        """``signals.png``, ``waypoints.png`` and the per-robot ``steps_`` / ``waypoints_`` CSVs."""
-        from matplotlib.figure import Figure
+        """``signals.png`` (step cost, controller velocity) and ``waypoints.png``; the per-robot
+        ``steps_<robot>`` and ``waypoints_<robot>`` tables are the result's extras."""
+        from hybridnav.plotting import plot_steps, plot_waypoints
 
-        from hybridnav.plotting import plot_result
+        fig = plot_steps(result)
+        if fig is None:
+            return {}
+        return {"signals.png": fig, "waypoints.png": plot_waypoints(scenario, result)}
 
-        tables = self.step_tables()
-        files: dict[str, Any] = {}
-        for name, tab in tables.items():
-            buf = io.StringIO()
-            w = csv.writer(buf, lineterminator="\n")
-            w.writerow(["t", "target_x", "target_y", "cost", "mode", "xdot", "ydot"])
-            for row in zip(tab["t"], tab["target_x"], tab["target_y"], tab["cost"], tab["mode"],
-                           tab["xdot"], tab["ydot"]):
-                w.writerow([repr(float(row[0])), repr(float(row[1])), repr(float(row[2])),
-                            repr(float(row[3])), MODE_NAMES[int(row[4])], repr(float(row[5])),
-                            repr(float(row[6]))])
-            files[f"steps_{name}.csv"] = buf.getvalue()
-            buf = io.StringIO()
-            w = csv.writer(buf, lineterminator="\n")
-            w.writerow(["t", "x", "y", "cost"])
-            for row in self.waypoints[name]:
-                w.writerow([repr(float(x)) for x in row])
-            files[f"waypoints_{name}.csv"] = buf.getvalue()
-        fig = Figure(figsize=(7.0, 6.8), layout="constrained")
-        axes = fig.subplots(3, 1, sharex=True)
-        for name, tab in tables.items():
-            axes[0].plot(tab["t"], tab["cost"], linewidth=1.0, label=name)
-            axes[1].plot(tab["t"], tab["xdot"], linewidth=1.0, label=name)
-            axes[2].plot(tab["t"], tab["ydot"], linewidth=1.0, label=name)
-        axes[0].set_ylabel("step cost f")
-        axes[1].set_ylabel("xdot")
-        axes[2].set_ylabel("ydot")
-        axes[2].set_xlabel("t [s]")
-        axes[0].legend(fontsize=8)
-        axes[0].set_title(f"{self.name}: cost of the current step and controller signals")
-        files["signals.png"] = fig
-        fig = plot_result(scenario, result)
-        ax = fig.axes[0]
-        for name, pts in self.waypoints.items():
-            if pts:
-                arr = np.array(pts)
-                ax.plot(arr[:, 1], arr[:, 2], "x", markersize=6, label=f"{name} steps")
-        ax.legend(fontsize=7, loc="best")
-        files["waypoints.png"] = fig
-        return files
+
+def _step_tables(sim_models, robot_results, trace) -> dict[str, dict[str, np.ndarray]]:
+    """Per robot, per control cycle: ``t``, target, cost, mode (``hold``, ``goal``, ``step``),
+    and the commanded ``xdot``, ``ydot``."""
+    out = {}
+    for i, (r, m) in enumerate(zip(robot_results, sim_models)):
+        rows = np.flatnonzero(trace["active"][:, i])
+        k = min(len(rows), len(r.states) - 1)   # the last controller call may not have moved
+        rows = rows[:k]
+        X = r.states[:k]
+        T = trace["target"][rows, i]
+        if k:
+            fn = m.function("closed_loop").map(k)
+            xdot = np.asarray(fn(X.T, T.T, cs.repmat(cs.DM(m.p_value()), 1, k)))
+        else:
+            xdot = np.zeros((m.nx, 0))
+        out[r.name] = {"t": trace["t"][rows], "target_x": T[:, 0], "target_y": T[:, 1],
+                       "cost": trace["cost"][rows, i],
+                       "mode": np.array([MODE_NAMES[int(c)] for c in trace["mode"][rows, i]],
+                                        dtype=str),
+                       "xdot": xdot[0], "ydot": xdot[1]}
+    return out

@@ -19,7 +19,7 @@ from matplotlib.patches import Rectangle as RectanglePatch
 from hybridnav.fileio import atomic_path
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
-__all__ = ["draw_scenario", "save_scenario_png"]
+__all__ = ["draw_scenario", "plot_result", "save_figure", "save_scenario_png"]
 
 log = logging.getLogger(__name__)
 
@@ -121,7 +121,16 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 120,
                 bbox_inches: str | None = "tight") -> Path:
-    """Write a figure to ``path`` atomically (format from the suffix); returns the path."""
+    """Write a figure to ``path`` atomically (format from the suffix); returns the path.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : str or path-like
+    dpi : int
+    bbox_inches : str or None
+        As for :meth:`matplotlib.figure.Figure.savefig`.
+    """
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, bbox_inches=bbox_inches)
@@ -165,6 +174,13 @@ def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
     """The scenario with every robot's path, its final footprint and outcome marker.
 
     Moving obstacles are drawn where they are at the end of the longest run.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    result : Result
+    ax : matplotlib.axes.Axes, optional
+        Draw into it (default: a new figure).
     """
     t_end = max((float(r.t[-1]) for r in result.robots), default=0.0)
     if ax is None:

@@ -1,0 +1,26 @@
+"""Figures: scenarios and runs (:mod:`~hybridnav.plotting.scenes`) and the planners' diagnostics
+(:mod:`~hybridnav.plotting.diagnostics`), headless-safe (no pyplot, no backend switching).
+
+The analysis figures (trajectories in state space, Lyapunov level sets, basins) are in
+:mod:`hybridnav.analysis.plots`.
+"""
+
+from hybridnav.plotting.diagnostics import (
+    plot_gain_search,
+    plot_planned,
+    plot_potential,
+    plot_pso_ba,
+    plot_signals,
+    plot_steps,
+    plot_waypoints,
+)
+from hybridnav.plotting.scenes import (
+    draw_scenario,
+    plot_result,
+    save_figure,
+    save_scenario_png,
+)
+
+__all__ = ["draw_scenario", "plot_gain_search", "plot_planned", "plot_potential", "plot_pso_ba",
+           "plot_result", "plot_signals", "plot_steps", "plot_waypoints", "save_figure",
+           "save_scenario_png"]
