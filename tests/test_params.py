@@ -222,3 +222,24 @@ def test_a_planner_written_with_the_old_name_still_works():
     assert Old(k="2").values == {"k": 2.0}
     with pytest.raises(HybridnavError, match=r"^planner old: k: expected a positive number"):
         Old(k=0)
+
+
+def test_the_job_schema_is_the_readme_job_file_and_its_defaults():
+    import tomllib
+    from pathlib import Path
+
+    from hybridnav.tuner.job import DEFAULT_JOB, SCHEMA
+
+    text = (Path(__file__).parent.parent / "README.md").read_text(encoding="utf-8")
+    start = text.index("A complete job file")
+    begin = text.index("```toml\n", start) + 8
+    block = text[begin:text.index("\n```", begin)]
+    readme = tomllib.loads(block)
+    readme["free"].setdefault("bounds", {})          # only a commented example there
+    assert readme == DEFAULT_JOB
+    for section, keys in SCHEMA.items():
+        for key, p in keys.items():
+            assert p.doc, f"{section}.{key}"
+            if key != "heldout":
+                assert p.check(f"{section}.{key}", DEFAULT_JOB[section][key]) == \
+                    DEFAULT_JOB[section][key]

@@ -28,9 +28,110 @@ import numpy as np
 
 from hybridnav import models
 from hybridnav.errors import HybridnavError
-from hybridnav.params import check_value
+from hybridnav.params import Param, check_value
 
-__all__ = ["DEFAULT_JOB", "Job", "load_job", "quick"]
+__all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "quick"]
+
+_POS = {"lo": 0.0}                  # a non-negative number
+_UNIT = {"lo": 0.0, "hi": 1.0}       # a fraction
+
+#: Every key of a job file, declared once: default, what it does, type and bounds. The built-in
+#: job (:data:`DEFAULT_JOB`) is their defaults; ``validate_job`` checks a file against them.
+SCHEMA: dict[str, dict[str, Param]] = {
+    "ga": {
+        "population": Param(100, "individuals per generation", lo=2, hi=100_000),
+        "generations": Param(25, "generations after the initial one", lo=0, hi=100_000),
+        "tournament": Param(3, "tournament size", lo=1),
+        "elite": Param(2, "hall-of-fame members copied into every new generation", lo=0),
+        "crossover": Param("sbx", "sbx (bounded simulated binary) or blend",
+                           choices=("sbx", "blend")),
+        "crossover_prob": Param(0.9, "probability that a pair is crossed", **_UNIT),
+        "sbx_eta": Param(15.0, "SBX distribution index", **_POS),
+        "blend_alpha": Param(0.3, "blend crossover alpha", **_POS),
+        "mutation": Param("polynomial", "polynomial (bounded) or gaussian",
+                          choices=("polynomial", "gaussian")),
+        "mutation_prob": Param(0.3, "probability that an individual mutates", **_UNIT),
+        "gene_prob": Param(0.2, "probability that a gene of a mutant mutates", **_UNIT),
+        "polynomial_eta": Param(20.0, "polynomial mutation distribution index", **_POS),
+        "gaussian_sigma": Param(0.1, "Gaussian mutation std, fraction of each gene's range",
+                                **_POS),
+        "init_local": Param(0.5, "generation 0: fraction drawn around the starting system",
+                            **_UNIT),
+        "init_sigma": Param(0.1, "their Gaussian spread, fraction of each gene's range",
+                            **_POS),
+    },
+    "system": {"start": Param("effc-5rule", "the starting system: a built-in name or a "
+                                            "hybridnav-fis/1 file (relative to the job file)")},
+    "free": {
+        "mf": Param(["dtheta", "alpha", "w"], "variables whose membership functions are tuned"),
+        "rule_switches": Param(True, "learn which rules stay on"),
+        "rule_weights": Param(False, "learn the rule weights"),
+        "rule_consequents": Param(False, "learn the rules' output terms"),
+        "bounds": Param({}, "optional [lo, hi] per variable (replaces range and margin)"),
+        "margin": Param(0.25, "term positions may pass the range ends by this times its width",
+                        **_UNIT),
+    },
+    "scenarios": {
+        "train": Param(["effc-train-1", "effc-train-2", {"generate": 30, "seed": 1}],
+                       "the training worlds: names, files or generated sets"),
+        "validation": Param([{"generate": 24, "seed": 2}], "the worlds that choose the "
+                                                           "returned system"),
+        "test": Param(["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3}],
+                      "the worlds only reported"),
+        "heldout": Param([], "the old name of test"),
+    },
+    "reward": {
+        "kind": Param("deploy", "deploy, length or paper", choices=("deploy", "length", "paper")),
+        "sense": Param("minimize", "minimize (maximize: kind = paper only)",
+                       choices=("minimize", "maximize")),
+        "penalty": Param(100.0, "kind = length / paper: a failed run's cost", **_POS),
+        "collision": Param(20.0, "a collision or leaving the workspace", **_POS),
+        "failure": Param(10.0, "stuck or timeout ...", **_POS),
+        "progress": Param(5.0, "... plus this times distance left / start distance", **_POS),
+        "length": Param(1.0, "times path length / start-goal distance, when reached", **_POS),
+        "time": Param(0.0, "times time x speed / start-goal distance, when reached", **_POS),
+        "clearance": Param(2.0, "times the shortfall of the minimum clearance below "
+                                "safety_distance", **_POS),
+        "safety_distance": Param(1.0, "in robot radii", **_POS),
+        "repeats": Param(1, "noisy simulations per world, averaged (> 1 needs noise)",
+                         lo=1, hi=1000),
+        "heading_noise": Param(0.0, "std of the noise on the commanded heading (rad)", **_POS),
+        "dtheta_noise": Param(0.0, "std of the noise added to dtheta (rad)", **_POS),
+        "alpha_noise": Param(0.0, "std of the relative noise on alpha", **_POS),
+    },
+    "coverage": {
+        "grid": Param(41, "points per input axis", lo=2, hi=1001),
+        "max_uncovered": Param(0.0, "largest allowed fraction where no rule fires", **_UNIT),
+        "penalty": Param(100.0, "cost per uncovered fraction beyond it", **_POS),
+    },
+    "validation": {
+        "top": Param(3, "candidates scored on validation per generation", lo=1, hi=1000),
+        "patience": Param(10, "generations without improvement before stopping (0: never)",
+                          lo=0),
+        "tolerance": Param(0.0, "an improvement must exceed this", **_POS),
+        "kfold": Param(0, "k >= 2: k-fold over the training worlds", lo=0, hi=100),
+    },
+    "falsify": {
+        "budget": Param(600, "candidate worlds searched after tuning (0: off)", lo=0,
+                        hi=100_000),
+        "population": Param(30, "worlds per swarm iteration", lo=2, hi=1000),
+        "obstacles": Param(6, "circles per candidate world", lo=1, hi=50),
+        "keep": Param(5, "worst failure worlds written", lo=1, hi=100),
+        "optimizer": Param("pso", "pso, bat or firefly", choices=("pso", "bat", "firefly")),
+    },
+    "planner": {
+        "speed": Param(0.1, "robot speed (m/s)", lo=0.0, lo_open=True),
+        "max_turn": Param(math.pi / 4, "largest heading change per control cycle (rad)",
+                          lo=0.0, lo_open=True, hi=math.pi),
+        "stuck_window": Param(10.0, "seconds without progress that count as stuck", **_POS),
+        "stuck_radius": Param(2.0, "the no-progress disk, in goal radii", **_POS),
+    },
+    "backend": {
+        "workers": Param(1, "local worker processes", lo=1),
+        "dask": Param("", "a Dask scheduler address or 'local'"),
+        "chunk": Param(50, "individuals per unit of parallel work", lo=1),
+    },
+}
 
 #: The built-in job: the EFFC paper's GA (population 100, 25 generations) starting from its
 #: 5-rule system and learning its membership functions and which rules matter, trained on the
@@ -38,81 +139,12 @@ __all__ = ["DEFAULT_JOB", "Job", "load_job", "quick"]
 #: separate generated validation set, and reported on the paper's comparison environments and
 #: a generated test set.
 DEFAULT_JOB: dict[str, Any] = {
-    "name": "effc",
-    "seed": 0,
-    "ga": {
-        "population": 100, "generations": 25, "tournament": 3, "elite": 2,
-        "crossover": "sbx", "crossover_prob": 0.9, "sbx_eta": 15.0, "blend_alpha": 0.3,
-        "mutation": "polynomial", "mutation_prob": 0.3, "gene_prob": 0.2,
-        "polynomial_eta": 20.0, "gaussian_sigma": 0.1, "init_local": 0.5, "init_sigma": 0.1,
-    },
-    "system": {"start": "effc-5rule"},
-    "free": {"mf": ["dtheta", "alpha", "w"], "rule_switches": True, "rule_weights": False,
-             "rule_consequents": False, "bounds": {}, "margin": 0.25},
-    "scenarios": {
-        "train": ["effc-train-1", "effc-train-2", {"generate": 30, "seed": 1}],
-        "validation": [{"generate": 24, "seed": 2}],
-        "test": ["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3}],
-    },
-    "reward": {"kind": "deploy", "sense": "minimize", "penalty": 100.0,
-               "collision": 20.0, "failure": 10.0, "progress": 5.0, "length": 1.0,
-               "time": 0.0, "clearance": 2.0, "safety_distance": 1.0,
-               "repeats": 1, "heading_noise": 0.0, "dtheta_noise": 0.0, "alpha_noise": 0.0},
-    "coverage": {"grid": 41, "max_uncovered": 0.0, "penalty": 100.0},
-    "validation": {"top": 3, "patience": 10, "tolerance": 0.0, "kfold": 0},
-    "falsify": {"budget": 600, "population": 30, "obstacles": 6, "keep": 5,
-                "optimizer": "pso"},
-    "planner": {"speed": 0.1, "max_turn": math.pi / 4, "stuck_window": 10.0,
-                "stuck_radius": 2.0},
-    "backend": {"workers": 1, "dask": "", "chunk": 50},
+    "name": "effc", "seed": 0,
+    **{section: {k: copy.deepcopy(p.default) for k, p in keys.items() if k != "heldout"}
+       for section, keys in SCHEMA.items()},
 }
 
 _QUICK = {"population": 12, "generations": 3}
-
-_SCHEMA: dict[str, dict[str, tuple]] = {
-    # section: key -> (type, lo, hi, choices)
-    "ga": {
-        "population": (int, 2, 100_000, None), "generations": (int, 0, 100_000, None),
-        "tournament": (int, 1, None, None), "elite": (int, 0, None, None),
-        "crossover": (str, None, None, ("sbx", "blend")),
-        "crossover_prob": (float, 0.0, 1.0, None), "sbx_eta": (float, 0.0, None, None),
-        "blend_alpha": (float, 0.0, None, None),
-        "mutation": (str, None, None, ("polynomial", "gaussian")),
-        "mutation_prob": (float, 0.0, 1.0, None), "gene_prob": (float, 0.0, 1.0, None),
-        "polynomial_eta": (float, 0.0, None, None), "gaussian_sigma": (float, 0.0, None, None),
-        "init_local": (float, 0.0, 1.0, None), "init_sigma": (float, 0.0, None, None),
-    },
-    "system": {"start": (str, None, None, None)},
-    "free": {"mf": (list, None, None, None), "rule_switches": (bool, None, None, None),
-             "rule_weights": (bool, None, None, None),
-             "rule_consequents": (bool, None, None, None), "bounds": (dict, None, None, None),
-             "margin": (float, 0.0, 1.0, None)},
-    "scenarios": {"train": (list, None, None, None), "validation": (list, None, None, None),
-                  "test": (list, None, None, None), "heldout": (list, None, None, None)},
-    "reward": {"kind": (str, None, None, ("deploy", "length", "paper")),
-               "sense": (str, None, None, ("minimize", "maximize")),
-               "penalty": (float, 0.0, None, None),
-               "collision": (float, 0.0, None, None), "failure": (float, 0.0, None, None),
-               "progress": (float, 0.0, None, None), "length": (float, 0.0, None, None),
-               "time": (float, 0.0, None, None), "clearance": (float, 0.0, None, None),
-               "safety_distance": (float, 0.0, None, None),
-               "repeats": (int, 1, 1000, None),
-               "heading_noise": (float, 0.0, None, None),
-               "dtheta_noise": (float, 0.0, None, None),
-               "alpha_noise": (float, 0.0, None, None)},
-    "coverage": {"grid": (int, 2, 1001, None), "max_uncovered": (float, 0.0, 1.0, None),
-                 "penalty": (float, 0.0, None, None)},
-    "validation": {"top": (int, 1, 1000, None), "patience": (int, 0, None, None),
-                   "tolerance": (float, 0.0, None, None), "kfold": (int, 0, 100, None)},
-    "falsify": {"budget": (int, 0, 100_000, None), "population": (int, 2, 1000, None),
-                "obstacles": (int, 1, 50, None), "keep": (int, 1, 100, None),
-                "optimizer": (str, None, None, ("pso", "bat", "firefly"))},
-    "planner": {"speed": (float, 1e-9, None, None), "max_turn": (float, 1e-6, math.pi, None),
-                "stuck_window": (float, 0.0, None, None),
-                "stuck_radius": (float, 0.0, None, None)},
-    "backend": {"workers": (int, 1, None, None), "dask": (str, None, None, None),
-                "chunk": (int, 1, None, None)},
-}
 
 #: the scenario sets of a job; ``heldout`` is the old name of ``test``
 SETS = ("train", "validation", "test")
@@ -246,7 +278,7 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             data[key] = raw[key]
     if "seed" in raw:
         data["seed"] = check_value(where, "seed", raw["seed"], int, 0)
-    for section, schema in _SCHEMA.items():
+    for section, schema in SCHEMA.items():
         if section not in raw:
             continue
         table = raw[section]
@@ -257,7 +289,7 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             raise fail(f"{section}.{bad[0]}", "unknown key; expected one of: "
                        + ", ".join(sorted(schema)))
         for key, value in table.items():
-            data[section][key] = check_value(where, f"{section}.{key}", value, *schema[key])
+            data[section][key] = schema[key].check(f"{section}.{key}", value, where)
     ga = data["ga"]
     if ga["elite"] >= ga["population"]:
         raise fail("ga.elite", f"expected fewer elites than the population "
