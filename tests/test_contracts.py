@@ -1,4 +1,4 @@
-"""Contracts every registered planner and model keeps (parametrized over the registries, so a new
+"""Contracts every registered planner, model and optimizer keeps (parametrized over the registries, so a new
 one is checked without writing a test for it)."""
 
 from __future__ import annotations
@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, models, planners
+from hybridnav.planners.swarm import OPTIMIZERS
 from hybridnav.results import OUTCOMES, read_result
 from hybridnav.world import MODEL_NAMES, scenario_from_dict
 
@@ -101,3 +102,19 @@ def test_model_refuses_unknown_parameters_and_declares_what_others_ask(name):
         from hybridnav.world import load_scenario
 
         load_scenario(cls.analysis_scenario)             # the scenario analyze uses exists
+
+
+@pytest.mark.parametrize("name", sorted(OPTIMIZERS))
+def test_optimizer_refuses_an_unknown_parameter_and_reproduces_its_seed(name):
+    from hybridnav.planners import swarm
+
+    def f(X):
+        return np.sum((np.asarray(X) - 0.25) ** 2, axis=1)
+
+    box = ([0.0, 0.0], [1.0, 1.0])
+    with pytest.raises(HybridnavError, match=rf"^no_such_parameter: unknown parameter of {name}"):
+        swarm.minimize(name, f, box, no_such_parameter=1)
+    a = swarm.minimize(name, f, box, iterations=5, seed=3)
+    b = swarm.minimize(name, f, box, iterations=5, seed=3)
+    np.testing.assert_array_equal(a.population, b.population)
+    assert a.fun == b.fun and np.all((a.population >= 0) & (a.population <= 1))
