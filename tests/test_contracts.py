@@ -1,5 +1,5 @@
-"""Contracts every registered planner, model and optimizer keeps (parametrized over the registries, so a new
-one is checked without writing a test for it)."""
+"""Contracts every registered planner, model and optimizer keeps (parametrized over the
+registries, so a new one is checked without writing a test for it)."""
 
 from __future__ import annotations
 
