@@ -43,8 +43,10 @@ def test_lbcs_refuses_what_it_cannot_model():
                          "goal": [45.0, 5.0]}
     with pytest.raises(HybridnavError) as err:
         planners.get("lbcs").run(scenario_from_dict(data))
+    driven = planners.PLANNERS["lbcs"].models          # from the registry: a new model joins
+    assert {"point_mass", "tractor_trailer"} <= set(driven) and "unicycle" not in driven
     assert str(err.value) == ("tractor-trailer-1: robots[0].model: planner lbcs drives "
-                              "point_mass, tractor_trailer, got 'unicycle'")
+                              f"{', '.join(driven)}, got 'unicycle'")
 
 
 def _lyapunov_along(lb, states, goal):

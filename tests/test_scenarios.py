@@ -346,10 +346,12 @@ def test_map_grid_checks_start_cell(tmp_path):
 
 
 def test_model_names_constant():
-    assert MODEL_NAMES == ("point_mass", "tractor_trailer", "unicycle")
     from hybridnav.models import MODELS
 
-    assert set(MODEL_NAMES) <= set(MODELS)   # every robot model is a registered model
+    # the schema's names are the registered models that can be a scenario's robot
+    assert MODEL_NAMES == tuple(n for n, c in MODELS.items() if "robot" in c.capabilities)
+    assert {"point_mass", "tractor_trailer", "unicycle"} <= set(MODEL_NAMES)
+    assert "lbcs" not in MODEL_NAMES
 
 
 # ---------------------------------------------------------------------------------------------
