@@ -349,7 +349,7 @@ def test_model_names_constant():
     from hybridnav.models import MODELS
 
     # the schema's names are the registered models that can be a scenario's robot
-    assert MODEL_NAMES == tuple(n for n, c in MODELS.items() if "robot" in c.capabilities)
+    assert MODEL_NAMES == tuple(sorted(n for n, c in MODELS.items() if "robot" in c.capabilities))
     assert {"point_mass", "tractor_trailer", "unicycle"} <= set(MODEL_NAMES)
     assert "lbcs" not in MODEL_NAMES
 
