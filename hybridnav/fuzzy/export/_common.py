@@ -29,7 +29,7 @@ from hybridnav.fuzzy.spec import (
 from hybridnav.fuzzy.system import FuzzySystem
 
 __all__ = [
-    "DEFAULT_POINTS", "MAX_POINTS", "IDENT", "fnum", "check_names", "normalize_antecedent",
+    "DEFAULT_POINTS", "MAX_POINTS", "IDENT", "fnum", "check_names", "comment_text", "normalize_antecedent",
     "flatten_antecedent", "normalize", "LineError", "build_system", "metadata_json",
     "parse_metadata", "version", "sampled_polyline",
 ]
@@ -75,9 +75,13 @@ def check_names(system: FuzzySystem, fmt: str) -> None:
 
     Variable and term names must be identifiers (``[A-Za-z_][A-Za-z0-9_]*``) that fuzzylite's
     rule parser does not read as a keyword or hedge (``if is then and or with not any very
-    somewhat extremely seldom``); for ``fcl`` also not an FCL keyword (any case).
+    somewhat extremely seldom``); for ``fcl`` also not an FCL keyword (any case); for ``c``
+    identifiers of any spelling.
     """
-    words = _FUZZYLITE_WORDS | (_FCL_WORDS if fmt == "fcl" else frozenset())
+    # C only needs identifiers (names reach its comments and macros); the others are read by
+    # fuzzylite, whose rule parser would take a keyword for a keyword
+    words = frozenset() if fmt == "c" else \
+        _FUZZYLITE_WORDS | (_FCL_WORDS if fmt == "fcl" else frozenset())
     src = f"{system.source}: " if system.source else ""
 
     def check(name: str, key: str) -> None:
@@ -103,6 +107,17 @@ def check_names(system: FuzzySystem, fmt: str) -> None:
 def one_line(text: str) -> str:
     """``text`` on one line without ``#`` (safe after an FLL ``description:`` key)."""
     return " ".join(text.replace("#", " ").split())
+
+
+_COMMENT_SAFE = re.compile(r"[^A-Za-z0-9 _.,:;+=()\[\]{}<>!@$&|~^-]")
+
+
+def comment_text(text: str) -> str:
+    """Free text (a system's name) made safe inside any format's comment or quoted name: one
+    line of printable ASCII without the characters that open or close a comment or a string in
+    C, FCL, FLL or .fis (``/ * ? \\ # % ' "``, which also rules out C trigraphs and line
+    splices); each other character becomes ``_``. The exact text travels in the metadata."""
+    return _COMMENT_SAFE.sub("_", " ".join(text.split()))
 
 
 # ------------------------------------------------------------------------------ rule normal forms

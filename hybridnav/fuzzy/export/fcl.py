@@ -35,7 +35,10 @@ from collections.abc import Callable
 import numpy as np
 
 from hybridnav.fuzzy.export._common import (
+    _FCL_WORDS,
+    _FUZZYLITE_WORDS,
     check_names,
+    comment_text,
     fnum,
     normalize,
     sampled_polyline,
@@ -177,8 +180,10 @@ def _real(x: float) -> str:
 
 
 def _ident(name: str) -> str:
+    """The function block's name: an identifier that is no FCL or fuzzylite keyword."""
     s = re.sub(r"[^A-Za-z0-9_]", "_", name)
-    return s if s and not s[0].isdigit() else f"fb_{s}"
+    bad = not s or s[0].isdigit() or s.lower() in _FCL_WORDS or s in _FUZZYLITE_WORDS
+    return f"fb_{s}" if bad else s
 
 
 def _terms(v: Variable, sampled: bool) -> list[str]:
@@ -218,7 +223,7 @@ def to_fcl(system: FuzzySystem, *, sampled: bool = False) -> str:
                      if t.mf not in ("trimf", "trapmf")})
     o = system.output
     lines = [
-        f"// hybridnav-fis/1 system '{' '.join(system.name.split())}' exported by hybridnav "
+        f"// hybridnav-fis/1 system '{comment_text(system.name)}' exported by hybridnav "
         f"{version()} as IEC 61131-7 FCL.",
         "// Terms are point lists over each RANGE (an input outside the range counts as its "
         "nearest end).",

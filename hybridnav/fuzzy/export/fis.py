@@ -48,6 +48,7 @@ from hybridnav.fuzzy.export._common import (
     LineError,
     build_system,
     check_names,
+    comment_text,
     check_points,
     check_range,
     check_term,
@@ -168,7 +169,7 @@ def to_fis(system: FuzzySystem) -> str:
         ps = " ".join(fnum(t.params[i]) for i in _TO_MATLAB[t.mf])
         return f"MF{j}='{t.name}':'{t.mf}',[{ps}]"
 
-    name = system.name.replace("'", "").replace("\n", " ").replace("\r", " ")
+    name = comment_text(system.name)      # the exact name travels in the metadata
     lines = [
         f"% hybridnav-fis/1 system exported by hybridnav {version()} as a MATLAB .fis file.",
         f"% When no rule fires hybridnav returns the default {fnum(o.default)}; MATLAB returns the "

@@ -47,6 +47,7 @@ from hybridnav.fuzzy.export._common import (
     LineError,
     build_system,
     check_names,
+    comment_text,
     check_points,
     check_range,
     check_term,
@@ -160,8 +161,8 @@ def to_fll(system: FuzzySystem, *, sampled: bool = False) -> str:
         "fires.",
         "# The next line is hybridnav metadata (universe points, descriptions); fuzzylite ignores "
         "it.",
-        f"{_META} {metadata_json(system, name=one_line(system.name) != system.name, mfs=sampled)}",
-        f"Engine: {one_line(system.name) or 'unnamed'}",
+        f"{_META} {metadata_json(system, name=comment_text(system.name) != system.name, mfs=sampled)}",
+        f"Engine: {comment_text(system.name) or 'unnamed'}",
     ]
     if system.description is not None and one_line(system.description):
         lines.append(f"  description: {one_line(system.description)}")
