@@ -1,4 +1,5 @@
-"""File writing: atomic (a temporary file in the target's folder, then ``os.replace``), and JSON."""
+"""Files: atomic writing (a temporary file in the target's folder, then ``os.replace``), JSON, and
+reading user files as text and TOML with every failure a :class:`HybridnavError` naming the file."""
 
 from __future__ import annotations
 
@@ -13,7 +14,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text", "dumps_json", "json_ready"]
+from hybridnav.errors import HybridnavError
+
+__all__ = ["MAX_FILE_BYTES", "atomic_path", "atomic_write_bytes", "atomic_write_text",
+           "decode_text", "dumps_json", "json_ready", "parse_toml", "read_text_file"]
 
 
 @contextlib.contextmanager
@@ -82,3 +86,66 @@ def json_ready(obj: Any) -> Any:
 def dumps_json(obj: Any) -> str:
     """``json.dumps`` of :func:`json_ready` (indented, strict: no NaN), with a final newline."""
     return json.dumps(json_ready(obj), indent=2, allow_nan=False) + "\n"
+
+
+#: Largest input file read (scenarios, jobs, fuzzy systems, maps): 64 MiB.
+MAX_FILE_BYTES = 64 * 2**20
+
+
+def read_text_file(path: str | os.PathLike, what: str) -> str:
+    """The UTF-8 text of a file, or a :class:`HybridnavError` naming it.
+
+    Parameters
+    ----------
+    path : str or path-like
+    what : str
+        What the file is, for the message (e.g. ``"scenario file"``).
+
+    Raises
+    ------
+    HybridnavError
+        The file cannot be read, is larger than :data:`MAX_FILE_BYTES`, or is not UTF-8 text
+        (binary, UTF-16, ...: the message gives the offset of the first bad byte).
+    """
+    p = Path(path)
+    try:
+        with open(p, "rb") as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise HybridnavError(f"{p}: cannot read {what} ({exc.strerror or exc})") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise HybridnavError(f"{p}: {what} larger than {MAX_FILE_BYTES // 2**20} MiB; expected a "
+                             "text file")
+    return decode_text(data, str(p), what)
+
+
+def decode_text(data: bytes, source: str, what: str) -> str:
+    """``data`` as UTF-8 text (an initial byte-order mark dropped), or a :class:`HybridnavError`
+    naming ``source``."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        hint = " (it looks like UTF-16)" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else ""
+        raise HybridnavError(f"{source}: {what} is not UTF-8 text: byte {exc.start} "
+                             f"(0x{data[exc.start]:02x}) cannot be decoded{hint}") from None
+    if "\0" in text:
+        raise HybridnavError(f"{source}: {what} is not text: it contains a NUL byte at "
+                             f"character {text.index(chr(0))}")
+    return text.removeprefix("\ufeff")
+
+
+def parse_toml(text: str, source: str, what: str = "file") -> dict[str, Any]:
+    """Parse TOML text, or raise a :class:`HybridnavError` naming ``source``: syntax errors (with
+    the line), nesting too deep for the parser, integers with more digits than Python converts."""
+    import tomllib
+
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise HybridnavError(f"{source}: {what} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise HybridnavError(f"{source}: {what} nests arrays or tables too deeply to read "
+                             "(expected at most a few levels)") from None
+    except ValueError as exc:             # e.g. Python's 4300-digit limit for int("...")
+        raise HybridnavError(f"{source}: {what} has a number that cannot be read: "
+                             f"{str(exc).split(';')[0]}") from None

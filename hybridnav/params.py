@@ -26,7 +26,8 @@ from typing import Any
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["Param", "check_int", "check_range", "check_real", "check_value", "describe_params"]
+__all__ = ["Param", "check_int", "check_range", "check_real", "check_value", "describe_params",
+           "short_repr"]
 
 _KIND_WORDS = {str: "a string", list: "a list", dict: "a table", tuple: "a sequence"}
 
@@ -133,7 +134,7 @@ class Param:
 
         def fail(what: str | None = None) -> HybridnavError:
             return HybridnavError(f"{where}{key}: expected {what or self.describe()}, "
-                                  f"got {given!r}")
+                                  f"got {short_repr(given)}")
 
         if parse and isinstance(value, str) and kind is not str:
             value = given = self._parse(value, fail)
@@ -149,7 +150,10 @@ class Param:
         elif kind is float:
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise fail("a number")
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:                 # an int beyond the largest float
+                raise fail("a finite number") from None
             if math.isnan(value) or (math.isinf(value) and not self.allow_inf):
                 raise fail("a number" if self.allow_inf else "a finite number")
         elif kind is not object and not isinstance(value, kind):
@@ -180,6 +184,18 @@ class Param:
             except ValueError:
                 raise fail("an integer" if kind is int else "a number") from None
         return text
+
+
+def short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)``, cut to about ``limit`` characters (a 400-digit number in a message helps
+    no one)."""
+    try:
+        text = repr(value)
+    except ValueError:                        # an int beyond Python's 4300-digit str limit
+        return f"an integer of about {value.bit_length() * 0.30103:.0f} digits"
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit // 2]}...{text[-10:]} ({len(text)} characters)"
 
 
 def check_value(where: str, key: str, value: Any, kind: type, lo: float | None = None,

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_write_text
+from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.fuzzy.engine import CompiledSystem, universe
 from hybridnav.fuzzy.spec import (
     FORMAT,
@@ -368,11 +368,7 @@ def load(name_or_path: str | os.PathLike[str]) -> FuzzySystem:
     """
     s = os.fspath(name_or_path)
     if isinstance(name_or_path, os.PathLike) or s.endswith(".json") or "/" in s or os.sep in s:
-        try:
-            text = Path(s).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-            raise HybridnavError(f"{s}: cannot read fuzzy system file ({why})") from None
+        text = read_text_file(s, "fuzzy system file")
         log.debug("loading fuzzy system from %s", s)
         return loads(text, s)
     return builtin(s)

@@ -19,7 +19,6 @@ import hashlib
 import json
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ import numpy as np
 
 from hybridnav import models
 from hybridnav.errors import HybridnavError
+from hybridnav.fileio import parse_toml, read_text_file
 from hybridnav.params import Param, check_value
 
 __all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "quick"]
@@ -249,14 +249,7 @@ def load_job(path: str | os.PathLike | None = None) -> Job:
     if path is None:
         return validate_job(copy.deepcopy(DEFAULT_JOB), None, Path.cwd())
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise HybridnavError(f"{p}: cannot read the job file ({exc.strerror or exc})") from None
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise HybridnavError(f"{p}: not valid TOML: {exc}") from None
+    raw = parse_toml(read_text_file(p, "job file"), str(p), "job file")
     return validate_job(raw, str(p), p.parent)
 
 

@@ -36,6 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError, where
+from hybridnav.fileio import decode_text, read_text_file
+from hybridnav.limits import MAX_GRID_CELLS, grid_cells
 from hybridnav.world.builtin import builtin_data_path
 from hybridnav.world.obstacles import MovingCircle, Segment
 from hybridnav.world.scenario import Scenario
@@ -292,6 +294,12 @@ def rasterize(
     if not (inflate >= 0 and math.isfinite(inflate)):
         raise HybridnavError(f"inflate: expected a non-negative number, got {inflate!r}")
     xmin, xmax, ymin, ymax = world.workspace
+    cells = grid_cells(xmax - xmin, ymax - ymin, res)
+    if cells > MAX_GRID_CELLS:
+        raise HybridnavError(f"resolution: expected a grid of at most {MAX_GRID_CELLS} cells "
+                             f"(hybridnav.limits.MAX_GRID_CELLS), got {cells:.4g} cells of "
+                             f"{res:g} over the workspace {list(world.workspace)}; choose a "
+                             "coarser grid.resolution")
     W = max(1, int(math.ceil((xmax - xmin) / res - 1e-9)))
     H = max(1, int(math.ceil((ymax - ymin) / res - 1e-9)))
     cols, rows = np.meshgrid(np.arange(W), np.arange(H))
@@ -354,12 +362,12 @@ class MovingAIQuery:
 def _read_text(path: Any) -> tuple[str, str]:
     """Read a path or importlib Traversable; return (text, name for messages)."""
     name = str(path)
-    try:
-        if hasattr(path, "read_text") and not isinstance(path, (str, os.PathLike)):
-            return path.read_text(encoding="utf-8"), name
-        return Path(path).read_text(encoding="utf-8"), name
-    except OSError as exc:
-        raise HybridnavError(f"{name}: cannot read file ({exc.strerror or exc})") from None
+    if hasattr(path, "read_bytes") and not isinstance(path, (str, os.PathLike)):
+        try:                                   # a packaged file (importlib Traversable)
+            return decode_text(path.read_bytes(), name, "file"), name
+        except OSError as exc:
+            raise HybridnavError(f"{name}: cannot read file ({exc.strerror or exc})") from None
+    return read_text_file(path, "file"), name
 
 
 def parse_movingai_map(text: str, source: str = "<string>") -> OccupancyGrid:

@@ -14,6 +14,16 @@ import numpy as np
 
 from hybridnav import models
 from hybridnav.errors import HybridnavError, where
+from hybridnav.fileio import parse_toml, read_text_file
+from hybridnav.limits import (
+    MAX_COORDINATE,
+    MAX_GRID_CELLS,
+    MAX_OBSTACLES,
+    MAX_ROBOTS,
+    MAX_STEPS,
+    MAX_VERTICES,
+    grid_cells,
+)
 from hybridnav.params import Param
 from hybridnav.world.builtin import _builtin_dir
 from hybridnav.world.grid import build_grid
@@ -86,8 +96,13 @@ class _Check:
             if k not in d:
                 raise self.fail(_join(key, k), "missing required key")
 
-    def number(self, v: Any, key: str, *, lo: float | None = None, lo_open: bool = False) -> float:
-        return Param(0.0, lo=lo, lo_open=lo_open).check(key, v, _prefix(self.source))
+    def number(self, v: Any, key: str, *, lo: float | None = None, lo_open: bool = False,
+               hi: float | None = None) -> float:
+        return Param(0.0, lo=lo, lo_open=lo_open, hi=hi).check(key, v, _prefix(self.source))
+
+    def length(self, v: Any, key: str, *, lo_open: bool = True) -> float:
+        """A size in the workspace: positive (or non-negative) and at most MAX_COORDINATE."""
+        return self.number(v, key, lo=0.0, lo_open=lo_open, hi=MAX_COORDINATE)
 
     def string(self, v: Any, key: str, *, nonempty: bool = False) -> str:
         if not isinstance(v, str):
@@ -99,7 +114,8 @@ class _Check:
     def point(self, v: Any, key: str) -> tuple[float, float]:
         if not isinstance(v, (list, tuple)) or len(v) != 2:
             raise self.fail(key, f"expected a point [x, y], got {_tname(v)}")
-        return (self.number(v[0], f"{key}[0]"), self.number(v[1], f"{key}[1]"))
+        return (self.number(v[0], f"{key}[0]", lo=-MAX_COORDINATE, hi=MAX_COORDINATE),
+                self.number(v[1], f"{key}[1]", lo=-MAX_COORDINATE, hi=MAX_COORDINATE))
 
     def numbers_table(self, v: Any, key: str) -> dict[str, float]:
         d = self.table(v, key)
@@ -126,12 +142,12 @@ def _parse_obstacle(chk: _Check, raw: Any, key: str) -> Obstacle:
     chk.keys(d, key, ("type",) + fields_, fields_)
     if kind == "circle":
         c = chk.point(d["center"], f"{key}.center")
-        r = chk.number(d["radius"], f"{key}.radius", lo=0.0, lo_open=True)
+        r = chk.length(d["radius"], f"{key}.radius")
         return Circle(c, r)
     if kind == "moving_circle":
         c = chk.point(d["center"], f"{key}.center")
-        r = chk.number(d["radius"], f"{key}.radius", lo=0.0, lo_open=True)
-        v = chk.number(d["velocity"], f"{key}.velocity", lo=0.0)
+        r = chk.length(d["radius"], f"{key}.radius")
+        v = chk.length(d["velocity"], f"{key}.velocity", lo_open=False)
         h = chk.number(d["heading"], f"{key}.heading")
         return MovingCircle(c, r, v, h)
     if kind == "segment":
@@ -150,6 +166,9 @@ def _parse_obstacle(chk: _Check, raw: Any, key: str) -> Obstacle:
     pts_raw = d["points"]
     if not isinstance(pts_raw, list):
         raise chk.fail(f"{key}.points", f"expected an array of points [[x, y], ...], got {_tname(pts_raw)}")
+    if len(pts_raw) > MAX_VERTICES:
+        raise chk.fail(f"{key}.points", f"expected at most {MAX_VERTICES} points "
+                                        f"(hybridnav.limits.MAX_VERTICES), got {len(pts_raw)}")
     pts = tuple(chk.point(p, f"{key}.points[{i}]") for i, p in enumerate(pts_raw))
     if len(pts) < 3:
         raise chk.fail(f"{key}.points", f"expected at least 3 points, got {len(pts)}")
@@ -194,10 +213,16 @@ def scenario_from_dict(data: Mapping[str, Any], source: str | os.PathLike[str] |
     max_time = chk.number(d["max_time"], "max_time", lo=0.0, lo_open=True)
     if max_time < dt:
         raise chk.fail("max_time", f"expected max_time >= dt ({dt:g}), got {max_time:g}")
+    steps = math.ceil(max_time / dt - 1e-9)
+    if steps > MAX_STEPS:
+        raise chk.fail("max_time", f"expected at most {MAX_STEPS} control cycles (max_time / dt, "
+                                   f"hybridnav.limits.MAX_STEPS), got {steps:.4g} "
+                                   f"(max_time {max_time:g}, dt {dt:g})")
 
     ws_raw = chk.table(d["workspace"], "workspace")
     chk.keys(ws_raw, "workspace", _WS_KEYS, _WS_KEYS)
-    ws = tuple(chk.number(ws_raw[k], f"workspace.{k}") for k in _WS_KEYS)
+    ws = tuple(chk.number(ws_raw[k], f"workspace.{k}", lo=-MAX_COORDINATE, hi=MAX_COORDINATE)
+               for k in _WS_KEYS)
     if not ws[0] < ws[1]:
         raise chk.fail("workspace.xmax", f"expected xmax > xmin ({ws[0]:g}), got {ws[1]:g} (empty workspace)")
     if not ws[2] < ws[3]:
@@ -206,6 +231,9 @@ def scenario_from_dict(data: Mapping[str, Any], source: str | os.PathLike[str] |
     obs_raw = d.get("obstacles", [])
     if not isinstance(obs_raw, list):
         raise chk.fail("obstacles", f"expected an array of tables ([[obstacles]]), got {_tname(obs_raw)}")
+    if len(obs_raw) > MAX_OBSTACLES:
+        raise chk.fail("obstacles", f"expected at most {MAX_OBSTACLES} obstacles "
+                                    f"(hybridnav.limits.MAX_OBSTACLES), got {len(obs_raw)}")
     obstacles = tuple(_parse_obstacle(chk, o, f"obstacles[{i}]") for i, o in enumerate(obs_raw))
     world = World(ws, obstacles)  # type: ignore[arg-type]
 
@@ -217,6 +245,11 @@ def scenario_from_dict(data: Mapping[str, Any], source: str | os.PathLike[str] |
         if "map" in g:
             gmap = chk.string(g["map"], "grid.map", nonempty=True)
         res = chk.number(g.get("resolution", 1.0), "grid.resolution", lo=0.0, lo_open=True)
+        cells = grid_cells(ws[1] - ws[0], ws[3] - ws[2], res)
+        if gmap is None and cells > MAX_GRID_CELLS:
+            raise chk.fail("grid.resolution", f"expected a grid of at most {MAX_GRID_CELLS} cells "
+                                              f"(hybridnav.limits.MAX_GRID_CELLS), got {cells:.4g} "
+                                              f"at resolution {res:g}")
         grid = GridSpec(gmap, res)
 
     robots = _parse_robots(chk, d["robots"], world, dt)
@@ -253,6 +286,9 @@ def _parse_robots(chk: _Check, raw: Any, world: World, dt: float) -> list[Robot]
         raise chk.fail("robots", f"expected an array of tables ([[robots]]), got {_tname(raw)}")
     if not raw:
         raise chk.fail("robots", "expected at least one robot")
+    if len(raw) > MAX_ROBOTS:
+        raise chk.fail("robots", f"expected at most {MAX_ROBOTS} robots "
+                                 f"(hybridnav.limits.MAX_ROBOTS), got {len(raw)}")
     static = world.static()
     robots: list[Robot] = []
     for i, rr in enumerate(raw):
@@ -272,8 +308,8 @@ def _parse_robots(chk: _Check, raw: Any, world: World, dt: float) -> list[Robot]
             raise chk.fail(f"{key}.goal", f"expected exactly one of goal = [x, y] or goal_follow = \"robot\", got {what}")
         goal = chk.point(r["goal"], f"{key}.goal") if has_goal else None
         follow = chk.string(r["goal_follow"], f"{key}.goal_follow", nonempty=True) if has_follow else None
-        goal_radius = chk.number(r.get("goal_radius", 0.5), f"{key}.goal_radius", lo=0.0, lo_open=True)
-        radius = chk.number(r.get("radius", 0.5), f"{key}.radius", lo=0.0)
+        goal_radius = chk.length(r.get("goal_radius", 0.5), f"{key}.goal_radius")
+        radius = chk.length(r.get("radius", 0.5), f"{key}.radius", lo_open=False)
         initial = chk.numbers_table(r.get("initial", {}), f"{key}.initial")
         params = chk.numbers_table(r.get("params", {}), f"{key}.params")
         radius = _check_model(chk, key, model, dt, radius, "radius" in r, start, goal, initial,
@@ -349,10 +385,7 @@ def list_scenarios() -> list[tuple[str, str]]:
 
 
 def _parse_toml(text: str, source: str) -> dict[str, Any]:
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise HybridnavError(f"{source}: invalid TOML: {exc}") from None
+    return parse_toml(text, source, "scenario file")
 
 
 def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
@@ -378,10 +411,7 @@ def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
     is_path = isinstance(name_or_path, os.PathLike) or s.endswith(".toml") or "/" in s or os.sep in s
     if is_path:
         path = Path(s)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise HybridnavError(f"{s}: cannot read scenario file ({exc.strerror or exc})") from None
+        text = read_text_file(path, "scenario file")
         source = str(path)
     else:
         entry = _builtin_dir().joinpath(f"{s}.toml")

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_write_text
+from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.fuzzy.export._common import DEFAULT_POINTS, MAX_POINTS, normalize
 from hybridnav.fuzzy.export.c import CCode, c_identifier, to_c
 from hybridnav.fuzzy.export.fcl import to_fcl
@@ -263,13 +263,6 @@ def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POIN
             raise HybridnavError(f"{s}: unknown fuzzy system file type {suffix or '(none)'!r} "
                                  "(expected .json, .fll or .fis)")
         return builtin(s)
-    try:
-        data = Path(s).read_bytes()
-    except OSError as exc:
-        raise HybridnavError(f"{s}: cannot read fuzzy system file ({exc.strerror or exc})") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise HybridnavError(f"{s}: not UTF-8 text (byte {exc.start})") from None
+    text = read_text_file(s, "fuzzy system file")
     log.debug("loading fuzzy system from %s (%s)", s, fmt)
     return read_text(text, fmt, s, points=points)
