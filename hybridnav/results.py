@@ -36,7 +36,10 @@ from hybridnav.fileio import (
     atomic_write_text,
     dumps_json,
     json_ready,
+    read_text_file,
 )
+from hybridnav.limits import MAX_GRID_CELLS
+from hybridnav.params import short_repr
 
 __all__ = [
     "OUTCOMES",
@@ -54,6 +57,9 @@ __all__ = [
 OUTCOMES = ("reached", "collided", "out_of_bounds", "stuck", "timeout")
 
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
+
+#: Longest text value of an extra table's text column.
+MAX_TEXT = 1000
 
 
 def path_length(xy: np.ndarray) -> float:
@@ -225,6 +231,15 @@ class Result:
         return {k: f"{k}.npy" if isinstance(v, np.ndarray) else f"{k}.csv"
                 for k, v in self.extras.items()}
 
+    def _extras_entry(self) -> dict[str, Any]:
+        """``result.json``'s ``extras``: name -> ``{"file": ..., "text": [text columns]}``."""
+        out: dict[str, Any] = {}
+        for k, file in self.extra_files().items():
+            v = self.extras[k]
+            out[k] = {"file": file} if isinstance(v, np.ndarray) else \
+                {"file": file, "text": [c for c, a in v.items() if a.dtype.kind == "U"]}
+        return out
+
     def to_dict(self) -> dict[str, Any]:
         """The content of ``result.json``."""
         return {
@@ -234,7 +249,7 @@ class Result:
             "seed": self.seed,
             "version": self.version,
             "robots": [r.summary() for r in self.robots],
-            "extras": self.extra_files(),
+            "extras": self._extras_entry(),
         }
 
     def write(self, folder: str | Path) -> Path:
@@ -272,40 +287,73 @@ def write_result(result: Result, folder: str | Path) -> Path:
 
 
 def read_result(folder: str | Path) -> Result:
-    """Read a folder written by :func:`write_result` back into a :class:`Result`."""
+    """Read a folder written by :func:`write_result` back into a :class:`Result`.
+
+    Raises
+    ------
+    HybridnavError
+        Naming the file and the key, for anything that is not a result folder as
+        :func:`write_result` writes it (missing or unreadable files, wrong types, rows of the
+        wrong length, extras that name files outside the folder or arrays beyond the limits).
+    """
     folder = Path(folder)
     path = folder / "result.json"
+    if not path.is_file():
+        raise HybridnavError(f"{path}: no such file (expected a hybridnav result folder)")
+    text = read_text_file(path, "result file")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HybridnavError(f"{path}: no such file (expected a hybridnav result folder)") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
         raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
+    except RecursionError:
+        raise HybridnavError(f"{path}: not a result: nested too deeply") from None
     if not isinstance(data, dict):
         raise HybridnavError(f"{path}: expected a JSON object at the top level")
     for key in ("scenario", "planner", "params", "seed", "version", "robots"):
         if key not in data:
             raise HybridnavError(f"{path}: {key}: missing (expected a hybridnav result.json)")
+    for key, kind, what in (("scenario", str, "a string"), ("planner", str, "a string"),
+                            ("version", str, "a string"), ("params", dict, "an object"),
+                            ("robots", list, "an array")):
+        if not isinstance(data[key], kind):
+            raise HybridnavError(f"{path}: {key}: expected {what}, got "
+                                 f"{type(data[key]).__name__}")
+    if data["seed"] is not None and (isinstance(data["seed"], bool)
+                                     or not isinstance(data["seed"], int)):
+        raise HybridnavError(f"{path}: seed: expected an integer or null, got {data['seed']!r}")
     robots = []
     standard = {"name", "outcome", "path_length", "smoothness", "time_to_goal", "min_clearance",
                 "compute_time"}
     for i, entry in enumerate(data["robots"]):
-        if not isinstance(entry, dict) or "name" not in entry or "outcome" not in entry:
-            raise HybridnavError(f"{path}: robots[{i}]: expected an object with name and outcome")
-        csv_path = folder / f"trajectory_{entry['name']}.csv"
-        t, states, names = _read_trajectory(csv_path)
-        robots.append(RobotResult(
-            name=entry["name"], outcome=entry["outcome"], t=t, states=states, state_names=names,
-            time_to_goal=entry.get("time_to_goal"), min_clearance=entry.get("min_clearance"),
-            compute_time=entry.get("compute_time", 0.0),
-            metrics={k: v for k, v in entry.items() if k not in standard},
-        ))
-    extras = data.get("extras", {})          # results written before extras have none
-    if not isinstance(extras, dict) or not all(isinstance(v, str) for v in extras.values()):
-        raise HybridnavError(f"{path}: extras: expected an object of name -> file name")
-    return Result(scenario=data["scenario"], planner=data["planner"], params=data["params"],
-                  seed=data["seed"], robots=robots, version=data["version"],
-                  extras={k: _read_extra(folder, k, f) for k, f in extras.items()})
+        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str) \
+                or not _SAFE_NAME.match(entry["name"]) or "outcome" not in entry:
+            raise HybridnavError(f"{path}: robots[{i}]: expected an object with a name (letters, "
+                                 "digits, '_', '-', '.') and an outcome")
+        for key in ("time_to_goal", "min_clearance", "compute_time"):
+            v = entry.get(key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise HybridnavError(f"{path}: robots[{i}].{key}: expected a number or null, "
+                                     f"got {short_repr(v)}")
+        t, states, names = _read_trajectory(folder / f"trajectory_{entry['name']}.csv")
+        try:
+            robots.append(RobotResult(
+                name=entry["name"], outcome=entry["outcome"], t=t, states=states,
+                state_names=names, time_to_goal=entry.get("time_to_goal"),
+                min_clearance=entry.get("min_clearance"),
+                compute_time=entry.get("compute_time") or 0.0,
+                metrics={k: v for k, v in entry.items() if k not in standard},
+            ))
+        except HybridnavError as exc:
+            raise HybridnavError(f"{path}: robots[{i}]: {exc}") from None
+    listed = data.get("extras", {})          # results written before extras have none
+    if not isinstance(listed, dict):
+        raise HybridnavError(f"{path}: extras: expected an object of name -> file")
+    extras = {name: _read_extra(folder, path, name, entry) for name, entry in listed.items()}
+    try:
+        return Result(scenario=data["scenario"], planner=data["planner"], params=data["params"],
+                      seed=data["seed"], robots=robots, version=data["version"], extras=extras)
+    except HybridnavError as exc:
+        raise HybridnavError(f"{path}: {exc}") from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -313,23 +361,29 @@ def read_result(folder: str | Path) -> Result:
 
 
 def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
-    """Validate and normalize the extras of a result (tables become dicts of 1-D arrays).
+    """Validate and normalize the extras of a result (tables become dicts of 1-D arrays: numbers
+    and booleans as ``float64``, text as ``str``).
 
     Raises
     ------
     HybridnavError
-        A name that is not a safe file name or collides with the result's own files, or a table
-        whose columns are not 1-D of one length.
+        A name that is not a safe file name or collides with the result's own files; a table
+        whose columns are not named, 1-D and of one length, or hold text that is not one line of
+        at most :data:`MAX_TEXT` printable characters; an array that is not numbers or has more
+        than :data:`hybridnav.limits.MAX_GRID_CELLS` entries.
     """
     if not isinstance(extras, Mapping):
         raise HybridnavError(f"result: extras: expected a mapping, got {type(extras).__name__}")
     out: dict[str, Any] = {}
     for name, value in extras.items():
-        if (not isinstance(name, str) or not _SAFE_NAME.match(name) or name == "result"
-                or name.startswith("trajectory_")):
+        if not _extra_name_ok(name):
             raise HybridnavError(f"result: extras: expected names of letters, digits, '_', '-' "
                                  f"or '.' other than result and trajectory_*, got {name!r}")
         if isinstance(value, np.ndarray):
+            if value.dtype.kind not in "biuf" or value.size > MAX_GRID_CELLS:
+                raise HybridnavError(f"result: extras.{name}: expected an array of numbers with "
+                                     f"at most {MAX_GRID_CELLS} entries, got {value.dtype} "
+                                     f"{value.shape}")
             out[name] = value
             continue
         if not isinstance(value, Mapping) or not value:
@@ -337,19 +391,36 @@ def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
                                  f" or a numpy array, got {type(value).__name__}")
         table = {}
         for col, v in value.items():
+            if not isinstance(col, str) or not _SAFE_NAME.match(col):
+                raise HybridnavError(f"result: extras.{name}: expected column names of letters, "
+                                     f"digits, '_', '-' or '.', got {col!r}")
             arr = np.asarray(v)
-            if arr.dtype.kind not in "fiub":
-                arr = arr.astype(str)
-            elif arr.dtype.kind != "f":
-                arr = arr.astype(float)
-            if arr.ndim != 1 or not isinstance(col, str) or not col or "," in col:
+            if arr.ndim != 1:
                 raise HybridnavError(f"result: extras.{name}.{col}: expected a named 1-D column")
+            if arr.dtype.kind in "biuf":
+                arr = arr.astype(float)
+            elif arr.dtype.kind in "US" or (arr.dtype.kind == "O" and all(
+                    isinstance(x, str) for x in arr)):
+                arr = arr.astype(str)
+                bad = [x for x in arr if len(x) > MAX_TEXT or not x.isprintable()]
+                if bad:
+                    raise HybridnavError(f"result: extras.{name}.{col}: expected one-line "
+                                         f"printable text of at most {MAX_TEXT} characters, got "
+                                         f"{short_repr(bad[0])}")
+            else:
+                raise HybridnavError(f"result: extras.{name}.{col}: expected numbers or text, "
+                                     f"got {arr.dtype}")
             table[col] = arr
         if len({len(a) for a in table.values()}) != 1:
             raise HybridnavError(f"result: extras.{name}: expected columns of one length, got "
                                  f"{ {k: len(a) for k, a in table.items()} }")
         out[name] = table
     return out
+
+
+def _extra_name_ok(name: Any) -> bool:
+    return (isinstance(name, str) and bool(_SAFE_NAME.match(name)) and name != "result"
+            and not name.startswith("trajectory_") and name not in (".", ".."))
 
 
 def _table_csv(table: Mapping[str, np.ndarray]) -> str:
@@ -362,43 +433,92 @@ def _table_csv(table: Mapping[str, np.ndarray]) -> str:
     return buf.getvalue()
 
 
-def _read_extra(folder: Path, name: str, file: str) -> Any:
-    path = folder / file
-    if file != f"{name}.npy" and file != f"{name}.csv":
-        raise HybridnavError(f"{folder / 'result.json'}: extras.{name}: expected {name}.csv or "
-                             f"{name}.npy, got {file!r}")
-    try:
-        if file.endswith(".npy"):
-            return np.load(path, allow_pickle=False)
-        rows = list(csv.reader(path.read_text(encoding="utf-8").splitlines()))
-    except FileNotFoundError:
-        raise HybridnavError(f"{path}: no such file (listed in result.json extras)") from None
-    except (ValueError, OSError, UnicodeDecodeError) as exc:
-        raise HybridnavError(f"{path}: cannot read the extra {name!r}: {exc}") from None
-    if not rows or any(len(r) != len(rows[0]) for r in rows):
-        raise HybridnavError(f"{path}: expected a header and rows of {len(rows[0]) if rows else 0}"
-                             " fields")
+def _read_extra(folder: Path, listing: Path, name: Any, entry: Any) -> Any:
+    if not _extra_name_ok(name):                       # before any file is opened
+        raise HybridnavError(f"{listing}: extras: expected names of letters, digits, '_', '-' "
+                             f"or '.', got {short_repr(name)}")
+    if isinstance(entry, str):                          # the first form of the listing
+        entry = {"file": entry, "text": None}
+    if not isinstance(entry, dict) or entry.get("file") not in (f"{name}.csv", f"{name}.npy"):
+        raise HybridnavError(f"{listing}: extras.{name}: expected {{\"file\": \"{name}.csv\" or "
+                             f"\"{name}.npy\"}}, got {short_repr(entry)}")
+    path = folder / entry["file"]
+    if not path.is_file():
+        raise HybridnavError(f"{path}: no such file (listed in result.json extras)")
+    if entry["file"].endswith(".npy"):
+        return _read_npy(path)
+    text_cols = entry.get("text")
+    if text_cols is not None and (not isinstance(text_cols, list)
+                                  or not all(isinstance(c, str) for c in text_cols)):
+        raise HybridnavError(f"{listing}: extras.{name}.text: expected a list of column names")
+    rows = _csv_rows(path, "extra table")
+    header = rows[0]
+    if len(set(header)) != len(header) or not all(_SAFE_NAME.match(c) for c in header):
+        raise HybridnavError(f"{path}: line 1: expected distinct column names")
     table = {}
-    for j, col in enumerate(rows[0]):
+    for j, col in enumerate(header):
         values = [r[j] for r in rows[1:]]
-        try:
-            table[col] = np.array([float(v) for v in values], dtype=float)
-        except ValueError:
+        if text_cols is None and values:                 # old listing: guess
+            try:
+                table[col] = np.array([float(v) for v in values], dtype=float)
+            except ValueError:
+                table[col] = np.array(values, dtype=str)
+        elif text_cols is not None and col in text_cols:
             table[col] = np.array(values, dtype=str)
+        else:
+            try:
+                table[col] = np.array([float(v) for v in values], dtype=float)
+            except ValueError as exc:
+                raise HybridnavError(f"{path}: column {col}: expected numbers: {exc}") from None
     return table
 
 
-def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+def _read_npy(path: Path) -> np.ndarray:
+    """A ``.npy`` array of numbers, its header checked before any data is read."""
     try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise HybridnavError(f"{path}: no such file (every robot has a trajectory CSV)") from None
-    rows = list(csv.reader(lines))
-    if not rows or rows[0][:3] != ["t", "x", "y"]:
+        with open(path, "rb") as fh:
+            version = np.lib.format.read_magic(fh)
+            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+                np.lib.format.read_array_header_2_0
+            shape, _, dtype = read(fh)
+            count = int(np.prod(shape, dtype=object))
+            if dtype.kind not in "biuf" or count > MAX_GRID_CELLS:
+                raise HybridnavError(f"{path}: expected an array of numbers with at most "
+                                     f"{MAX_GRID_CELLS} entries, got {dtype} {shape}")
+            fh.seek(0)
+            return np.load(fh, allow_pickle=False)
+    except HybridnavError:
+        raise
+    except (OSError, ValueError, EOFError) as exc:
+        raise HybridnavError(f"{path}: not a numpy .npy array of numbers: {exc}") from None
+
+
+def _csv_rows(path: Path, what: str) -> list[list[str]]:
+    """The rows of a CSV file with a header, all as long as the header."""
+    text = read_text_file(path, what)
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise HybridnavError(f"{path}: not a CSV file: {exc}") from None
+    if not rows or not rows[0]:
+        raise HybridnavError(f"{path}: line 1: expected a header row")
+    for k, r in enumerate(rows[1:], start=2):
+        if len(r) != len(rows[0]):
+            raise HybridnavError(f"{path}: line {k}: expected {len(rows[0])} fields (as the "
+                                 f"header), got {len(r)}")
+    return rows
+
+
+def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    if not path.is_file():
+        raise HybridnavError(f"{path}: no such file (every robot has a trajectory CSV)")
+    rows = _csv_rows(path, "trajectory")
+    if rows[0][:3] != ["t", "x", "y"]:
         raise HybridnavError(f"{path}: line 1: expected the header t,x,y,...")
+    if len(rows) < 2:
+        raise HybridnavError(f"{path}: expected at least one sample after the header")
     try:
         data = np.array([[float(v) for v in r] for r in rows[1:]], dtype=float)
     except ValueError as exc:
         raise HybridnavError(f"{path}: expected numbers in every data row: {exc}") from None
-    data = data.reshape(len(rows) - 1, len(rows[0]))
     return data[:, 0], data[:, 1:], tuple(rows[0][1:])

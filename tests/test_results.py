@@ -164,8 +164,10 @@ def test_extras_are_written_as_documented_files_and_read_back(tmp_path):
     })
     res.write(tmp_path)
     data = json.loads((tmp_path / "result.json").read_text())
-    assert data["extras"] == {"signals_R1": "signals_R1.csv", "path_points_R1": "path_points_R1.csv",
-                              "potential": "potential.npy", "empty": "empty.csv"}
+    assert data["extras"] == {
+        "signals_R1": {"file": "signals_R1.csv", "text": []},
+        "path_points_R1": {"file": "path_points_R1.csv", "text": ["mode"]},
+        "potential": {"file": "potential.npy"}, "empty": {"file": "empty.csv", "text": []}}
     assert (tmp_path / "signals_R1.csv").read_text().splitlines() == [
         "t,w", "0.0,0.5", "0.1,0.25", "0.2,1e-300"]
     assert (tmp_path / "path_points_R1.csv").read_text().splitlines()[2] == "1.0,wall,nan"
@@ -189,8 +191,28 @@ def test_old_result_folders_without_extras_still_read(tmp_path):
     assert read_result(tmp_path).extras == {}
 
 
+def test_text_that_looks_like_numbers_stays_text(tmp_path):
+    import dataclasses
+
+    cols = {"a": ["1", "2"], "b": [" 1", "2 "], "c": ["nan", "inf"], "d": ["1_000", "x"]}
+    dataclasses.replace(make_result(), extras={"s": cols, "e": {"t": np.zeros(0),
+                                                               "m": np.array([], str)}}
+                        ).write(tmp_path)
+    back = read_result(tmp_path).extras
+    for k, v in cols.items():
+        assert back["s"][k].dtype.kind == "U" and list(back["s"][k]) == v
+    assert back["e"]["m"].dtype.kind == "U" and back["e"]["t"].dtype.kind == "f"
+
+
 @pytest.mark.parametrize("extras, message", [
     ({"trajectory_R1": {"t": [0.0]}}, r"result: extras: expected names .* got 'trajectory_R1'"),
+    ({"s": {"m": ["a\rb"]}}, r"result: extras.s.m: expected one-line printable text"),
+    ({"s": {"m": ["a\nb"]}}, r"result: extras.s.m: expected one-line printable text"),
+    ({"s": {"m": ["x" * 1001]}}, r"result: extras.s.m: expected one-line printable text"),
+    ({"s": {"a,b": [1.0]}}, r"result: extras.s: expected column names"),
+    ({"s": {"a\nb": [1.0]}}, r"result: extras.s: expected column names"),
+    ({"s": np.array([1, None], dtype=object)}, r"result: extras.s: expected an array of numbers"),
+    ({"s": {"o": np.array([1, None], dtype=object)}}, r"result: extras.s.o: expected numbers or"),
     ({"result": {"t": [0.0]}}, r"result: extras: expected names .* got 'result'"),
     ({"../up": {"t": [0.0]}}, r"result: extras: expected names .* got '../up'"),
     ({"s": {"t": [0.0, 1.0], "w": [1.0]}}, r"result: extras.s: expected columns of one length"),
@@ -210,3 +232,69 @@ def test_a_listed_extra_that_is_missing_names_the_file(tmp_path):
     (tmp_path / "s.csv").unlink()
     with pytest.raises(HybridnavError, match=r"s\.csv: no such file \(listed in result.json"):
         read_result(tmp_path)
+
+
+def _folder(tmp_path):
+    import dataclasses
+
+    dataclasses.replace(make_result(), extras={"s": {"t": [0.0, 1.0], "m": ["a", "b"]},
+                                               "p": np.eye(2)}).write(tmp_path)
+    return tmp_path
+
+
+def _edit(path, fn):
+    data = json.loads(path.read_text())
+    fn(data)
+    path.write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda f: _edit(f / "result.json", lambda d: d.update(robots=5)),
+     r"result.json: robots: expected an array, got int"),
+    (lambda f: _edit(f / "result.json", lambda d: d.update(robots=None)),
+     r"result.json: robots: expected an array, got NoneType"),
+    (lambda f: _edit(f / "result.json", lambda d: d.update(seed="x")),
+     r"result.json: seed: expected an integer or null"),
+    (lambda f: _edit(f / "result.json", lambda d: d["robots"][0].update(name="../R1")),
+     r"result.json: robots\[0\]: expected an object with a name"),
+    (lambda f: _edit(f / "result.json", lambda d: d["robots"][0].update(outcome="won")),
+     r"result.json: robots\[0\]: robot R1: outcome: expected one of"),
+    (lambda f: (f / "trajectory_R1.csv").write_text("t,x,y\n"),
+     r"trajectory_R1.csv: expected at least one sample"),
+    (lambda f: (f / "trajectory_R1.csv").write_text("t,x,y\n0,1\n"),
+     r"trajectory_R1.csv: line 2: expected 3 fields"),
+    (lambda f: (f / "trajectory_R1.csv").write_bytes(b"t,x,y\n\xff\xfe,1,2\n"),
+     r"trajectory_R1.csv: trajectory is not UTF-8 text"),
+    (lambda f: ((f / "trajectory_R1.csv").unlink(), (f / "trajectory_R1.csv").mkdir()),
+     r"trajectory_R1.csv: no such file"),
+    (lambda f: (f / "s.csv").write_text("t,m\n" + "x" * 200_000 + ",a\n"),
+     r"s.csv: not a CSV file"),
+    (lambda f: _edit(f / "result.json", lambda d: d["extras"].update({"../up": "../up.csv"})),
+     r"result.json: extras: expected names .* got '../up'"),
+    (lambda f: _edit(f / "result.json", lambda d: d["extras"].update(s={"file": "/etc/passwd"})),
+     r"result.json: extras.s: expected"),
+    (lambda f: (f / "p.npy").write_bytes(b"PK\x03\x04 not an array"),
+     r"p.npy: not a numpy .npy array of numbers"),
+    (lambda f: _huge_npy(f / "p.npy"),
+     r"p.npy: expected an array of numbers with at most 20000000 entries"),
+    (lambda f: (f / "p.npy").write_bytes(open(_object_npy(f), "rb").read()),
+     r"p.npy: expected an array of numbers"),
+])
+def test_an_edited_result_folder_fails_with_the_file_and_key(tmp_path, change, message):
+    folder = _folder(tmp_path)
+    change(folder)
+    with pytest.raises(HybridnavError, match=message):
+        read_result(folder)
+
+
+def _object_npy(folder):
+    path = folder / "object.npy"
+    np.save(path, np.array([1, None], dtype=object), allow_pickle=True)
+    return path
+
+
+def _huge_npy(path):
+    """A .npy header claiming 10**11 doubles (800 GB), followed by no data."""
+    with open(path, "wb") as fh:
+        np.lib.format.write_array_header_1_0(
+            fh, {"descr": "<f8", "fortran_order": False, "shape": (10**11,)})
