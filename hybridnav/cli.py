@@ -122,16 +122,34 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    import numpy as np
+
     from hybridnav import planners
     from hybridnav.plotting import plot_result, save_figure
     from hybridnav.results import read_result
     from hybridnav.world import load_scenario
 
     result = read_result(args.result)
-    scenario = load_scenario(args.scenario or result.scenario)
+    if args.scenario is None:
+        try:
+            scenario = load_scenario(result.scenario)
+        except HybridnavError as exc:
+            raise HybridnavError(f"{exc}; the result in {args.result} is of scenario "
+                                 f"{result.scenario!r}: pass its file with --scenario") from None
+    else:
+        scenario = load_scenario(args.scenario)
+    where = f"--scenario {args.scenario}" if args.scenario else f"scenario {result.scenario!r}"
     if scenario.name != result.scenario:
-        raise HybridnavError(f"--scenario {args.scenario}: the result in {args.result} is of "
-                             f"scenario {result.scenario!r}, not {scenario.name!r}")
+        raise HybridnavError(f"{where}: the result in {args.result} is of scenario "
+                             f"{result.scenario!r}, not {scenario.name!r}")
+    # a file scenario may share a built-in's name: the robots must be the result's
+    names = [r.name for r in scenario.robots]
+    if names != [r.name for r in result.robots] or any(
+            not np.allclose(rr.states[0, :2], r.start) for rr, r in zip(result.robots,
+                                                                         scenario.robots)):
+        raise HybridnavError(f"{where}: its robots {names} do not start where the result's "
+                             f"{[r.name for r in result.robots]} do; pass the scenario the result "
+                             "was run on with --scenario")
     if result.planner not in planners.PLANNERS:
         raise HybridnavError(f"{Path(args.result) / 'result.json'}: planner: expected one of "
                              f"{', '.join(sorted(planners.PLANNERS))}, got {result.planner!r}")
@@ -142,7 +160,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     figures = planners.get(result.planner).diagnostics(scenario, result)
     for name, fig in figures.items():
         save_figure(fig, out / name)
-    print(f"wrote {out}/: {', '.join(['path.png', *figures])}")
+    note = "" if figures else f" (the result has no extras {result.planner} draws from)"
+    print(f"wrote {out}/: {', '.join(['path.png', *figures])}{note}")
     return 0
 
 

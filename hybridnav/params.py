@@ -21,8 +21,10 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from typing import Any
+
+import numpy as np
 
 from hybridnav.errors import HybridnavError
 
@@ -58,6 +60,7 @@ class Param:
 
     default: Any
     doc: str = ""
+    _: KW_ONLY                                  # the rest by keyword only
     lo: float | None = None
     hi: float | None = None
     lo_open: bool = False
@@ -86,10 +89,10 @@ class Param:
         if kind is bool:
             return "true or false"
         if kind is int:
-            lo = None if self.lo is None else math.floor(self.lo) + 1 if self.lo_open \
-                else math.ceil(self.lo)
-            hi = None if self.hi is None else math.ceil(self.hi) - 1 if self.hi_open \
-                else math.floor(self.hi)
+            lo = None if self.lo is None or not math.isfinite(self.lo) else \
+                math.floor(self.lo) + 1 if self.lo_open else math.ceil(self.lo)
+            hi = None if self.hi is None or not math.isfinite(self.hi) else \
+                math.ceil(self.hi) - 1 if self.hi_open else math.floor(self.hi)
             if lo is not None and hi is not None:
                 return f"an integer in [{lo}, {hi}]"
             if lo is not None:
@@ -102,11 +105,12 @@ class Param:
                 return "a positive number" if self.lo_open else "a non-negative number"
             if self.lo is None and self.hi is None:
                 return "a number" if self.allow_inf else "a finite number"
-            inf_close = "]" if self.allow_inf else ")"
-            left = "(" if self.lo_open or self.lo is None else "["
-            right = (")" if self.hi_open else "]") if self.hi is not None else inf_close
-            lo = "-inf" if self.lo is None else f"{self.lo:g}"
-            hi = "inf" if self.hi is None else f"{self.hi:g}"
+            left = ("[" if self.allow_inf else "(") if self.lo is None else \
+                "(" if self.lo_open else "["
+            right = ("]" if self.allow_inf else ")") if self.hi is None else \
+                ")" if self.hi_open else "]"
+            lo = "-inf" if self.lo is None else _num(self.lo)
+            hi = "inf" if self.hi is None else _num(self.hi)
             return f"a number in {left}{lo}, {hi}{right}"
         return _KIND_WORDS.get(kind, kind.__name__)
 
@@ -139,6 +143,8 @@ class Param:
         if parse and isinstance(value, str) and kind is not str:
             value = given = self._parse(value, fail)
         if kind is bool:
+            if isinstance(value, np.bool_):
+                value = bool(value)
             if not isinstance(value, bool):
                 raise fail("true or false")
         elif kind is int:
@@ -178,12 +184,30 @@ class Param:
             if low in ("false", "no", "0", "off"):
                 return False
             raise fail("true or false")
-        if kind in (int, float):
+        if kind is float:
             try:
-                return int(s) if kind is int else float(s)
+                return float(s)
             except ValueError:
-                raise fail("an integer" if kind is int else "a number") from None
+                raise fail("a number") from None
+        if kind is int:
+            try:
+                return int(s)
+            except ValueError:
+                pass
+            try:                               # "1e3", "3.0": the integer they write
+                x = float(s)
+            except ValueError:
+                raise fail("an integer") from None
+            if not (math.isfinite(x) and x == int(x)):
+                raise fail("an integer")
+            return int(x)
         return text
+
+
+def _num(x: float) -> str:
+    """A bound as short as ``:g`` writes it, unless that changes its value."""
+    text = f"{x:g}"
+    return text if float(text) == x else repr(float(x))
 
 
 def short_repr(value: Any, limit: int = 80) -> str:

@@ -74,11 +74,15 @@ def test_planner_outcome_seed_and_result_round_trip(name, small, tmp_path):
 def test_planner_is_stateless_and_diagnoses_a_result_read_from_disk(name, small, tmp_path):
     from matplotlib.figure import Figure
 
+    import pickle
+
     planner = planners.get(name)
     before = dict(vars(planner))
+    frozen = pickle.dumps(before)
     first = planner.run(small, seed=3)
     assert vars(planner).keys() == before.keys()            # a run leaves nothing on the object
     assert all(vars(planner)[k] is v for k, v in before.items())
+    assert pickle.dumps(dict(vars(planner))) == frozen      # and changes nothing inside it
     second = planner.run(small, seed=3)                     # so one instance runs again alike
     for a, b in zip(first.robots, second.robots):
         np.testing.assert_array_equal(a.states, b.states)

@@ -243,3 +243,75 @@ def test_the_job_schema_is_the_readme_job_file_and_its_defaults():
             if key != "heldout":
                 assert p.check(f"{section}.{key}", DEFAULT_JOB[section][key]) == \
                     DEFAULT_JOB[section][key]
+
+
+# ---- found in review ---------------------------------------------------------------------------
+
+def test_command_line_integers_may_be_written_as_numbers():
+    assert Param(3, lo=1).check("n", "1e3", parse=True) == 1000
+    assert Param(3, lo=1).check("n", "3.0", parse=True) == 3
+    with pytest.raises(HybridnavError, match=r"^n: expected an integer, got '2.5'$"):
+        Param(3, lo=1).check("n", "2.5", parse=True)
+    with pytest.raises(HybridnavError, match=r"^n: expected an integer, got 'inf'$"):
+        Param(3, lo=1).check("n", "inf", parse=True)
+
+
+def test_numpy_bools_huge_ints_and_exact_bounds():
+    assert Param(True).check("k", np.True_) is True
+    with pytest.raises(HybridnavError, match=r"^x: expected a finite number, got 1000"):
+        check_real("x", 10**400)
+    assert Param(3, lo=0, hi=math.inf).describe() == "an integer >= 0"
+    p = Param(0.1, hi=0.1234567)
+    assert p.describe() == "a number in (-inf, 0.1234567]"
+    with pytest.raises(HybridnavError, match=r"\(-inf, 0\.1234567\], got 0\.1234569$"):
+        p.check("k", 0.1234569)
+    assert Param(1.0, hi=5.0, allow_inf=True).describe() == "a number in [-inf, 5]"
+
+
+def test_bounds_and_choices_are_keyword_only():
+    with pytest.raises(TypeError):
+        Param("a", "doc", None, None, ("a", "b"))           # the old positional order
+
+
+def test_a_model_that_overrides_some_old_dicts_keeps_its_parents_bounds():
+    from hybridnav.models import PointMass, Unicycle
+
+    class Heading(Unicycle):
+        name = "heading_unicycle"
+        option_defaults = {"controller": "heading"}
+
+    with pytest.raises(HybridnavError, match=r"^model heading_unicycle: k_rho: expected a positive"):
+        Heading(k_rho=-5.0)
+    assert Heading().options == {"controller": "heading"}
+
+    class Faster(Unicycle):
+        name = "faster"
+        defaults = {**Unicycle.defaults, "speed": 0.2}
+
+    assert Faster().values["speed"] == 0.2
+    with pytest.raises(HybridnavError, match=r"L: expected a positive number"):
+        Faster(L=0.0)
+
+    class IntGain(PointMass):                # an integer default is still a numeric parameter
+        name = "int_gain"
+        parameters = {**PointMass.parameters, "alpha1": Param(1, "gain")}
+
+    m = IntGain()
+    assert m.values["alpha1"] == 1.0 and list(m.p_value()) == [1.0, 0.1]
+
+
+def test_model_copies_and_the_old_name():
+    from hybridnav.models import LbCS, Unicycle
+
+    u = Unicycle()
+    v = u.with_params(dt=0.05, k_rho=0.3, radius=0.2)
+    assert (v.dt, v.values["k_rho"], v.radius) == (0.05, 0.3, 0.2)
+    u.params = {**u.values, "k_rho": 0.4}                       # the alias can be assigned
+    assert u.values["k_rho"] == 0.4
+    lb = LbCS(obstacles=[(1.0, 1.0, 1.0)]).with_params(rp=0.7)
+    assert lb.values["rp"] == 0.7 and lb.radius == 0.7
+    for kwargs, message in [(dict(obstacles=5), "obstacles: expected a sequence"),
+                            (dict(obstacles=None), "obstacles: expected a sequence"),
+                            (dict(radius=0.3, rp=0.5), "radius: the same as rp")]:
+        with pytest.raises(HybridnavError, match=message):
+            LbCS(**kwargs)

@@ -384,8 +384,10 @@ def test_draw_scenario_artists():
 @pytest.mark.parametrize(
     "robot_patch, key, text",
     [
-        ({"params": {"alpah1": 0.1}}, "robots[0].params", "unknown parameter 'alpah1'"),
-        ({"params": {"alpha1": -0.0, "L": 1.0}}, "robots[0].params", "unknown parameter 'L'"),
+        ({"params": {"alpah1": 0.1}}, "robots[0].params.alpah1", "unknown parameter 'alpah1'"),
+        ({"params": {"alpha1": -0.0, "L": 1.0}}, "robots[0].params.L", "unknown parameter 'L'"),
+        ({"model": "unicycle", "params": {"k_rho": 0.0}}, "robots[0].params.k_rho",
+         "expected a positive number, got 0.0"),
         ({"initial": {"theta": 0.3}}, "robots[0].initial", "initial.theta: unknown state"),
         ({"model": "tractor_trailer", "radius": 1.0}, "robots[0].radius",
          "footprint follows from its params L and b"),

@@ -22,6 +22,7 @@ C-contiguous NumPy ``(N, nx)`` array, so batches cross the boundary without tran
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
@@ -129,13 +130,26 @@ class Model(ABC):
         super().__init_subclass__(**kwargs)
         if "parameters" not in cls.__dict__ and any(
                 k in cls.__dict__ for k in ("defaults", "option_defaults")):
-            # a model written against the five parallel dicts: one declaration from them
-            cls.parameters = {
-                **{k: Param(float(v), cls.param_docs.get(k, ""), allow_inf=k in cls.infinite_ok)
-                   for k, v in cls.defaults.items()},
-                **{k: Param(v, "", choices=cls.option_choices.get(k),
-                            kind=None if isinstance(v, str) else object)
-                   for k, v in cls.option_defaults.items()}}
+            # a model written against the five parallel dicts: one declaration from them, the
+            # parent's declaration (bounds, docs) kept for every key it had
+            inherited = cls.parameters
+            docs = cls.__dict__.get("param_docs", {})
+
+            def old(k, v, numeric):
+                p = inherited.get(k)
+                if p is not None:
+                    return dataclasses.replace(p, default=float(v) if numeric else v,
+                                               doc=docs.get(k, p.doc))
+                if numeric:
+                    return Param(float(v), docs.get(k, ""), allow_inf=k in cls.infinite_ok)
+                return Param(v, "", choices=cls.option_choices.get(k),
+                             kind=None if isinstance(v, str) else object)
+
+            cls.parameters = {**{k: old(k, v, True) for k, v in cls.defaults.items()},
+                              **{k: old(k, v, False) for k, v in cls.option_defaults.items()}}
+        # an integer-valued numeric parameter is a real one (the vector p is real)
+        cls.parameters = {k: dataclasses.replace(p, default=float(p.default), kind=float)
+                          if p.kind is int else p for k, p in cls.parameters.items()}
         decl = cls.parameters
         cls.defaults = {k: p.default for k, p in decl.items() if p.kind is float}
         cls.param_docs = {k: p.doc for k, p in decl.items()}
@@ -199,6 +213,10 @@ class Model(ABC):
         """Old name of :attr:`values` (the numeric parameter values), kept for one version."""
         return self.values
 
+    @params.setter
+    def params(self, values: dict[str, float]) -> None:
+        self.values = values
+
     # ---- symbolic views ------------------------------------------------------------------------
 
     def p_dict(self, p) -> dict[str, Any]:
@@ -220,9 +238,13 @@ class Model(ABC):
         return cs.vertcat(plant, self.controller_dynamics(x, target, p))
 
     def with_params(self, **overrides: Any) -> Model:
-        """A copy of this model with some parameters or options changed."""
-        return type(self)(dt=self.dt, jit=self.jit, radius=self._radius,
-                          **{**self.values, **self.options, **overrides})
+        """A copy of this model with some parameters or options (or ``dt``, ``jit``,
+        ``radius``) changed."""
+        base = {"dt": self.dt, "jit": self.jit, "radius": self._radius}
+        for key in base:
+            if key in overrides:
+                base[key] = overrides.pop(key)
+        return type(self)(**base, **{**self.values, **self.options, **overrides})
 
     def lyapunov_candidate(self, x=None, target=None) -> cs.SX:
         """The default Lyapunov candidate ``V = 1/2 ((x1 - x)^2 + (y1 - y)^2)``."""

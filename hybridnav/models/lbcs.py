@@ -70,11 +70,19 @@ class LbCS(Model):
     def __init__(self, dt: float = 0.1, jit: bool | None = None, radius: float | None = None,
                  **params: Any) -> None:
         obstacles = _obstacle_tuple(params.pop("obstacles", ()))
+        if radius is not None and "rp" in params and params["rp"] != radius:
+            raise HybridnavError(f"model lbcs: radius: the same as rp, but radius = {radius!r} and "
+                                 f"rp = {params['rp']!r}; give one")
         if radius is not None and "rp" not in params:
             params["rp"] = radius
         super().__init__(dt, jit, self.defaults["rp"] if radius is None else radius,
                          obstacles=obstacles, **params)
         self._radius = self.values["rp"]
+
+    def with_params(self, **overrides: Any) -> LbCS:
+        """A copy with some parameters changed (``radius`` follows a changed ``rp``)."""
+        overrides.setdefault("radius", overrides.get("rp", self.values["rp"]))
+        return super().with_params(**overrides)
 
     @classmethod
     def from_scenario(cls, scenario, robot: str | None = None, **params: Any) -> LbCS:
@@ -151,6 +159,9 @@ class LbCS(Model):
 
 
 def _obstacle_tuple(obstacles: Iterable[Sequence[float]]) -> tuple[tuple[float, float, float], ...]:
+    if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, Iterable):
+        raise HybridnavError(f"model lbcs: obstacles: expected a sequence of (cx, cy, r), got "
+                             f"{obstacles!r}")
     out = []
     for i, ob in enumerate(obstacles):
         try:

@@ -260,6 +260,24 @@ def scenario_from_dict(data: Mapping[str, Any], source: str | os.PathLike[str] |
     return scen
 
 
+def _robot_params(chk: _Check, raw: Any, key: str, model: str) -> dict[str, float]:
+    """A robot's ``params`` table, each value checked against the model's declaration."""
+    d = chk.table(raw, key)
+    decl = models.MODELS[model].parameters
+    numeric = sorted(k for k, p in decl.items() if p.kind is float)
+    out = {}
+    for k, v in d.items():
+        p = decl.get(k)
+        if p is None:
+            raise chk.fail(_join(key, k), f"unknown parameter {k!r} of model {model}; expected "
+                                          f"one of: {', '.join(numeric)}")
+        if p.kind is not float:
+            raise chk.fail(_join(key, k), f"{k} is an option of model {model} that planners "
+                                          "choose, not a scenario parameter")
+        out[str(k)] = p.check(_join(key, k), v, _prefix(chk.source))
+    return out
+
+
 def _check_model(chk: _Check, key: str, model: str, dt: float, radius: float, has_radius: bool,
                  start, goal, initial: dict[str, float], params: dict[str, float]) -> float:
     """Build the robot's model to validate its params and initial states; return its radius.
@@ -311,7 +329,7 @@ def _parse_robots(chk: _Check, raw: Any, world: World, dt: float) -> list[Robot]
         goal_radius = chk.length(r.get("goal_radius", 0.5), f"{key}.goal_radius")
         radius = chk.length(r.get("radius", 0.5), f"{key}.radius", lo_open=False)
         initial = chk.numbers_table(r.get("initial", {}), f"{key}.initial")
-        params = chk.numbers_table(r.get("params", {}), f"{key}.params")
+        params = _robot_params(chk, r.get("params", {}), f"{key}.params", model)
         radius = _check_model(chk, key, model, dt, radius, "radius" in r, start, goal, initial,
                               params)
 
