@@ -126,10 +126,10 @@ def decode_text(data: bytes, source: str, what: str) -> str:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         hint = " (it looks like UTF-16)" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else ""
-        raise HybridnavError(f"{source}: {what} is not UTF-8 text: byte {exc.start} "
-                             f"(0x{data[exc.start]:02x}) cannot be decoded{hint}") from None
+        raise HybridnavError(f"{source}: not UTF-8 text: byte {exc.start} (0x{data[exc.start]:02x}) "
+                             f"of the {what} cannot be decoded{hint}") from None
     if "\0" in text:
-        raise HybridnavError(f"{source}: {what} is not text: it contains a NUL byte at "
+        raise HybridnavError(f"{source}: not text: the {what} contains a NUL byte at "
                              f"character {text.index(chr(0))}")
     return text.removeprefix("\ufeff")
 

@@ -212,7 +212,14 @@ def _num(x: float) -> str:
 
 def short_repr(value: Any, limit: int = 80) -> str:
     """``repr(value)``, cut to about ``limit`` characters (a 400-digit number in a message helps
-    no one)."""
+    no one).
+
+    Parameters
+    ----------
+    value : any
+    limit : int
+        Longest text returned whole.
+    """
     try:
         text = repr(value)
     except ValueError:                        # an int beyond Python's 4300-digit str limit

@@ -126,6 +126,8 @@ def _kwargs_calls():
         "hybridnav.models.get": lambda: models.get("point_mass", bogus=1.0),
         "hybridnav.models.base.Model.with_params":
             lambda: models.get("unicycle").with_params(bogus=1.0),
+        "hybridnav.models.lbcs.LbCS.with_params":
+            lambda: LbCS(obstacles=[(1.0, 1.0, 1.0)]).with_params(bogus=1.0),
         "hybridnav.models.lbcs.LbCS.from_scenario":
             lambda: LbCS.from_scenario(load_scenario("aco-local-minimum"), bogus=1.0),
         "hybridnav.world.scenario.Scenario.model":

@@ -264,7 +264,7 @@ def _edit(path, fn):
     (lambda f: (f / "trajectory_R1.csv").write_text("t,x,y\n0,1\n"),
      r"trajectory_R1.csv: line 2: expected 3 fields"),
     (lambda f: (f / "trajectory_R1.csv").write_bytes(b"t,x,y\n\xff\xfe,1,2\n"),
-     r"trajectory_R1.csv: trajectory is not UTF-8 text"),
+     r"trajectory_R1.csv: not UTF-8 text"),
     (lambda f: ((f / "trajectory_R1.csv").unlink(), (f / "trajectory_R1.csv").mkdir()),
      r"trajectory_R1.csv: no such file"),
     (lambda f: (f / "s.csv").write_text("t,m\n" + "x" * 200_000 + ",a\n"),
