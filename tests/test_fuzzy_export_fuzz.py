@@ -40,8 +40,9 @@ _NUM = re.compile(r"-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?")
 
 
 @st.composite
-def mutated(draw, fmt: str) -> str:
-    text = draw(st.sampled_from(SOURCES[fmt]))
+def mutated(draw, fmt: str | list[str]) -> str:
+    """A valid text of ``fmt`` (a key of SOURCES, or a list of texts) damaged 1-4 times."""
+    text = draw(st.sampled_from(SOURCES[fmt] if isinstance(fmt, str) else fmt))
     for _ in range(draw(st.integers(1, 4))):
         kind = draw(st.sampled_from(["truncate", "insert", "replace_number", "swap_tokens",
                                      "swap_lines", "delete_line", "duplicate_line", "replace_char"]))
