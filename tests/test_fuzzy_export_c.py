@@ -1,5 +1,5 @@
 """The generated C99 code against FuzzySystem.evaluate: compiled with gcc -std=c99 -Wall -Wextra
--Werror -pedantic, run through a small driver on random inputs (inside and outside the ranges,
+-Wconversion -Wdouble-promotion -Werror -pedantic (double and float builds), run through a small driver on random inputs (inside and outside the ranges,
 on universe samples, NaN), equal within 1e-9 in double (hypothesis systems: every membership
 function, nested and/or/not rules, weights, 2-201 points); float builds within 1e-4 of the range.
 """
@@ -23,7 +23,8 @@ from hybridnav.fuzzy.export import c_identifier, export, to_c
 
 CC = shutil.which("gcc") or shutil.which("cc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH")
-CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2"]
+CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Wconversion", "-Wdouble-promotion", "-Werror",
+          "-pedantic", "-O2"]
 
 DRIVER = r"""
 #include <stdio.h>
@@ -178,7 +179,8 @@ def test_code_is_standalone(tmp_path):
     fs = fuzzy.builtin("effc-5rule")
     code = to_c(fs)
     assert code.basename == "effc_5rule"
-    assert re.findall(r"#include\s+(\S+)", code.source) == ['"effc_5rule.h"']
+    # its own header and the freestanding <stdint.h> only (no libc, no libm)
+    assert re.findall(r"#include\s+(\S+)", code.source) == ["<stdint.h>", '"effc_5rule.h"']
     assert re.findall(r"#include\s+(\S+)", code.header) == []
     for word in ("malloc", "calloc", "realloc", "free(", "static double", "math.h"):
         assert word not in code.source
@@ -218,3 +220,19 @@ def test_crossing_buffer_bound(f):
 
     f = np.array(f)
     assert max_crossings(f) == _crossing_table(f)[1].shape[1]
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_nan_in_nan_out_survives_fast_math(tmp_path, real):
+    """The NaN policy: a NaN input returns NaN; the check tests the bits, so -ffast-math (which
+    lets gcc drop ``v != v``) keeps it."""
+    fs = fuzzy.builtin("effc-tuned")
+    exe = build(tmp_path, fs, defines=("-ffast-math",), real=real)
+    X = random_inputs(fs, 200, np.random.default_rng(5))
+    X[[3, 7], 0] = np.nan
+    X[[11], 1] = np.nan
+    got = run(exe, X)
+    assert np.isnan(got[[3, 7, 11]]).all()
+    ok = ~np.isnan(X).any(axis=1)
+    tol = 1e-9 if real == "double" else 1e-4
+    np.testing.assert_allclose(got[ok], evaluate(fs, X[ok]), rtol=0, atol=tol)
