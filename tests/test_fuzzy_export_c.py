@@ -236,3 +236,22 @@ def test_nan_in_nan_out_survives_fast_math(tmp_path, real):
     ok = ~np.isnan(X).any(axis=1)
     tol = 1e-9 if real == "double" else 1e-4
     np.testing.assert_allclose(got[ok], evaluate(fs, X[ok]), rtol=0, atol=tol)
+
+
+def test_the_readme_main_c_compiles_against_the_tuners_export(tmp_path):
+    """The README's main.c, as it is written there, against the C files ``hybridnav tune`` writes
+    (the same stem) and against ``hybridnav export ... -o build/effc``."""
+    from hybridnav.tuner.run import C_BASENAME
+
+    readme = (Path(__file__).parent.parent / "README.md").read_text(encoding="utf-8")
+    main_c = re.search(r"```c\n(.*?)```", readme, re.S).group(1)
+    assert C_BASENAME == "effc" and '#include "effc.h"' in main_c
+    (tmp_path / "main.c").write_text(main_c)
+    export(fuzzy.builtin("effc-tuned"), "c", tmp_path / C_BASENAME)
+    exe = tmp_path / "main"
+    res = subprocess.run([CC, *CFLAGS, "-o", str(exe), str(tmp_path / "main.c"),
+                          str(tmp_path / "effc.c")], capture_output=True, text=True, check=False)
+    assert res.returncode == 0 and res.stderr == "", res.stderr
+    out = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout
+    want = float(fuzzy.builtin("effc-tuned").evaluate(dtheta=0.3, alpha=0.15))
+    assert out.startswith("w = ") and abs(float(out.split("=")[1]) - want) < 1e-6

@@ -8,7 +8,8 @@ training environment), ``validation.csv`` (every validated candidate per validat
 ``heldout_summary.csv``, ``convergence.png`` (training and validation curves), ``mfs.png``
 (start and tuned), ``surface.png``, ``coverage.png`` (where no rule fires), ``paths.png``,
 ``report.md`` with the verdict, and the deployment exports: ``fis.fll`` (fuzzylite),
-``fis.fis`` (MATLAB), ``fis.fcl`` (IEC 61131-7) and ``effc_fis.h``/``effc_fis.c`` (standalone C).
+``fis.fis`` (MATLAB), ``fis.fcl`` (IEC 61131-7) and ``effc.h``/``effc.c`` (standalone C, the names
+the README's ``main.c`` includes and calls: ``effc_evaluate``, ``EFFC_IN_DTHETA``, ...).
 """
 
 from __future__ import annotations
@@ -35,6 +36,9 @@ from hybridnav.tuner.job import Job
 log = logging.getLogger(__name__)
 
 __all__ = ["run_job", "write_outputs"]
+
+#: File name stem of the C export a tuning job writes (effc.h, effc.c; functions effc_*)
+C_BASENAME = "effc"
 
 
 def run_job(job: Job, out: str | Path, *, resume: bool = False,
@@ -194,7 +198,7 @@ def _exports(system, out: Path) -> list[str]:
     # FLL and FCL carry the sampled terms: exactly the membership the GA tuned, whatever the
     # universe resolution (formula terms can differ where a narrow term spans few samples)
     for fmt, target, opts in (("fll", "fis.fll", {"sampled": True}), ("fis", "fis.fis", {}),
-                              ("fcl", "fis.fcl", {"sampled": True}), ("c", "effc_fis", {})):
+                              ("fcl", "fis.fcl", {"sampled": True}), ("c", C_BASENAME, {})):
         try:
             written = export_to_file(system, fmt, out / target, **opts)
         except HybridnavError as exc:       # e.g. a rule MATLAB's .fis cannot express
