@@ -307,14 +307,50 @@ def _print_verdict(job, out) -> None:
 def _cmd_export(args: argparse.Namespace) -> int:
     from hybridnav import fuzzy
 
+    from hybridnav.fuzzy.export.fidelity import (
+        FORMULA_TOLERANCE,
+        formula_difference,
+        uncovered_fraction,
+    )
+
     system = fuzzy.load_any(args.fis, points=args.points)
+    if args.sampled and args.formula:
+        raise HybridnavError("--sampled and --formula: expected one of them")
     opts: dict[str, object] = {}
+    notes = []
+    if args.format in ("fll", "fcl", "fis") and not args.sampled:
+        worst, at = formula_difference(system)
+        where = ", ".join(f"{k} = {v:.4g}" for k, v in at.items())
+        if worst > FORMULA_TOLERANCE and args.format != "fis" and not args.formula:
+            opts["sampled"] = True
+            notes.append(f"the formula form would differ from hybridnav's evaluate by up to "
+                         f"{worst:.3g} of the output range (at {where}; tolerance "
+                         f"{FORMULA_TOLERANCE:g}): wrote the sampled terms instead (--formula "
+                         "writes the formulas)")
+        elif worst > FORMULA_TOLERANCE:
+            notes.append(f"engines that evaluate the formulas differ from hybridnav's evaluate "
+                         f"by up to {worst:.3g} of the output range (at {where})"
+                         + ("; --sampled (FLL, FCL) writes the exact terms" if args.format != "fis"
+                            else "; the FLL and FCL exports can carry the exact sampled terms"))
+        else:
+            notes.append(f"the formula form agrees with hybridnav's evaluate within {worst:.2g} of "
+                         "the output range")
+    if args.format == "fis":
+        frac = uncovered_fraction(system)
+        if frac > 0:
+            o = system.output
+            notes.append(f"no rule fires on {frac:.1%} of the input ranges: there hybridnav "
+                         f"returns the default {o.default:g}, MATLAB the middle of the output "
+                         f"range ({(o.range[0] + o.range[1]) / 2:g}) and fuzzylite NaN; the FLL "
+                         "and FCL exports carry the default, or add a rule that fires there")
     if args.sampled:
         opts["sampled"] = True
     if args.float:
         opts["real"] = "float"
     for path in fuzzy.export_to_file(system, args.format, args.out, **opts):
         print(path)
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
     return 0
 
 
@@ -424,7 +460,10 @@ def build_parser() -> argparse.ArgumentParser:
                                                        "PATH.c); default <name>.<ext>")
     p.add_argument("--sampled", action="store_true", help="fll/fcl: terms as their sampled "
                                                           "polylines (exactly hybridnav's "
-                                                          "membership)")
+                                                          "membership; the default when the "
+                                                          "formulas would differ by > 1e-3)")
+    p.add_argument("--formula", action="store_true", help="fll/fcl: the membership formulas "
+                                                          "even where they differ")
     p.add_argument("--float", action="store_true", help="c: single precision by default")
     p.add_argument("--points", type=int, default=101, help="universe points for .fll/.fis files "
                                                            "without hybridnav metadata")

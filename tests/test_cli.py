@@ -121,3 +121,28 @@ def test_plot_redraws_the_diagnostics_from_a_result_folder(tmp_path, capsys):
     assert "is of scenario 'effc-train-1', not 'effc-train-2'" in capsys.readouterr().err
     assert main(["plot", str(tmp_path / "nothing")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_export_measures_the_formula_form_and_says_what_it_wrote(tmp_path, capsys):
+    """effc-5rule's narrow Z/S split is not resolved by its 101 samples: the formula form would
+    differ by 0.15 of the output range, so FLL gets the sampled terms unless --formula; .fis has
+    no sampled form and leaves 11.2 % of the inputs to the engine's own default."""
+    from hybridnav import fuzzy
+    from hybridnav.fuzzy.export.fidelity import formula_difference, uncovered_fraction
+
+    fs = fuzzy.builtin("effc-5rule")
+    worst, _ = formula_difference(fs)
+    assert worst > 0.1 and uncovered_fraction(fs) > 0.1
+    assert main(["export", "effc-5rule", "--format", "fll", "-o", str(tmp_path / "a.fll")]) == 0
+    err = capsys.readouterr().err
+    assert "wrote the sampled terms instead" in err and "0.15 of the output range" in err
+    assert "Discrete" in (tmp_path / "a.fll").read_text()
+    assert main(["export", "effc-5rule", "--format", "fll", "--formula",
+                 "-o", str(tmp_path / "b.fll")]) == 0
+    assert "--sampled (FLL, FCL) writes the exact terms" in capsys.readouterr().err
+    assert "Discrete" not in (tmp_path / "b.fll").read_text()
+    assert main(["export", "effc-5rule", "--format", "fis", "-o", str(tmp_path / "c.fis")]) == 0
+    assert "no rule fires on 11.2% of the input ranges" in capsys.readouterr().err
+    assert main(["export", "effc-tuned", "--format", "fll", "-o", str(tmp_path / "d.fll")]) == 0
+    assert "agrees with hybridnav's evaluate within" in capsys.readouterr().err
+    assert main(["export", "effc-5rule", "--format", "fll", "--formula", "--sampled"]) == 2
