@@ -165,6 +165,33 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from hybridnav import fuzzy
+    from hybridnav.fuzzy.export.sil import CompiledFIS, verify
+    from hybridnav.world import load_scenario
+
+    system = fuzzy.load_any(args.fis)
+    compiled = CompiledFIS(args.c_file)
+    if set(compiled.input_names) != set(system.input_names):
+        raise HybridnavError(f"{args.c_file}: its inputs {', '.join(compiled.input_names)} are "
+                             f"not those of {args.fis} ({', '.join(system.input_names)})")
+    names = [s.strip() for s in args.scenarios.split(",") if s.strip()]
+    rows = verify(system, compiled, [load_scenario(n) for n in names], seed=args.seed)
+    print(f"{args.c_file} (compiled) against {args.fis} (Python), planner effc, seed {args.seed}:")
+    print(f"  {'scenario':<16} {'robot':<8} {'outcome':<14} {'samples':>7} {'max |dx|':>10} "
+          f"{'max |dw|':>10}")
+    ok = True
+    for r in rows:
+        good = r["same_outcome"] and r["max_state_diff"] <= args.tolerance \
+            and r["max_w_diff"] <= args.tolerance
+        ok &= good
+        print(f"  {r['scenario']:<16} {r['robot']:<8} {r['outcome']:<14} {r['samples']:>7} "
+              f"{r['max_state_diff']:>10.2e} {r['max_w_diff']:>10.2e}{'' if good else '  DIFFERS'}")
+    print(f"{'verified' if ok else 'NOT verified'}: every trajectory and w signal "
+          f"{'within' if ok else 'must be within'} {args.tolerance:g}")
+    return 0 if ok else 1
+
+
 def _cmd_compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -404,6 +431,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("verify", help="software in the loop: the exported C controller, "
+                                      "compiled, against the Python evaluator in closed loop")
+    p.add_argument("fis", help="the system the C was exported from (built-in name, .json, .fll, "
+                               ".fis)")
+    p.add_argument("c_file", metavar="C_FILE", help="the exported .c file (its .h beside it)")
+    p.add_argument("--scenarios", default="effc-train-1,effc-train-2,effc-env-a,effc-env-b",
+                   help="comma-separated scenarios (default: the EFFC paper's four)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tolerance", type=float, default=1e-9,
+                   help="largest allowed difference of states and w (default 1e-9)")
+    p.set_defaults(func=_cmd_verify)
 
     p = sub.add_parser("plot", help="redraw path.png and the planner's diagnostics from a result "
                                     "folder written by 'run'")

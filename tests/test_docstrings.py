@@ -8,7 +8,10 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
+import shutil
+import tempfile
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -113,6 +116,20 @@ def _quad(X):
     return np.sum(np.asarray(X) ** 2, axis=1)
 
 
+_CC = shutil.which("gcc") or shutil.which("cc")
+
+
+def _compiled():
+    """The C export of effc-2rule, compiled (for the calls below)."""
+    from hybridnav import fuzzy
+    from hybridnav.fuzzy.export import export
+    from hybridnav.fuzzy.export.sil import CompiledFIS
+
+    folder = Path(tempfile.mkdtemp(prefix="hybridnav-doc-"))
+    export(fuzzy.builtin("effc-2rule"), "c", folder / "effc")
+    return CompiledFIS(folder / "effc.c")
+
+
 def _kwargs_calls():
     """How to call each public function that takes ``**kwargs`` with one unknown keyword."""
     from hybridnav import fuzzy, models, planners
@@ -142,6 +159,13 @@ def _kwargs_calls():
         "hybridnav.fuzzy.export.export_to_file":
             lambda: export_to_file(fuzzy.builtin("effc-5rule"), "fll", None, bogus=True),
     }
+    if _CC:
+        calls["hybridnav.fuzzy.export.sil.CompiledFIS.evaluate"] = \
+            lambda: _compiled().evaluate(dtheta=0.1, alpha=0.5, bogus=1.0)
+        from hybridnav.fuzzy.export.sil import verify
+
+        calls["hybridnav.fuzzy.export.sil.verify"] = lambda: verify(
+            fuzzy.builtin("effc-2rule"), _compiled(), [load_scenario("effc-env-a")], bogus=1.0)
     for name, cls in models.MODELS.items():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
     for name, cls in planners.PLANNERS.items():
@@ -156,6 +180,9 @@ EXEMPT = {
     "hybridnav.models.base.Model": "abstract; every registered model is called above",
     "hybridnav.planners.base.Planner": "abstract; every registered planner is called above",
 }
+if not _CC:
+    EXEMPT.update(dict.fromkeys(("hybridnav.fuzzy.export.sil.CompiledFIS.evaluate",
+                                 "hybridnav.fuzzy.export.sil.verify"), "needs a C compiler"))
 
 
 def _kwargs_functions():

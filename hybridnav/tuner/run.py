@@ -144,9 +144,10 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
         save_figure(fig, out / "paths.png")
         files.append("paths.png")
     files += _exports(result.system, out)
+    sil = _sil_lines(job, result.system, out) if f"{C_BASENAME}.c" in files else []
     radius = job.scenarios("train")[0].robots[0].radius
     atomic_write_text(out / "report.md", _report(job, result, summary, unc, radius, files,
-                                                 falsified))
+                                                 falsified, sil))
     files.append("report.md")
     return files
 
@@ -257,8 +258,36 @@ def _fmt(v: float, spec: str = ".3f") -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
 
 
+def _sil_lines(job: Job, system, out: Path) -> list[str]:
+    """The report's software-in-the-loop check of the C export: the compiled C controller against
+    the Python evaluator in closed loop on the first training and (up to) two test worlds."""
+    from hybridnav.fuzzy.export.sil import CompiledFIS, verify
+
+    head = ["", "## Software in the loop: the exported C controller", ""]
+    try:
+        compiled = CompiledFIS(out / f"{C_BASENAME}.c")
+    except HybridnavError as exc:
+        return head + [f"Not checked: {exc}"]
+    worlds = job.scenarios("train")[:1] + job.scenarios("test")[:2]
+    rows = verify(system, compiled, worlds, **job["planner"])
+    worst = max(max(r["max_state_diff"], r["max_w_diff"]) for r in rows)
+    same = all(r["same_outcome"] for r in rows)
+    lines = head + [f"`{C_BASENAME}.c`, compiled with the system C compiler and called through "
+                    "ctypes, drove the same EFFC closed loop as the Python evaluator: "
+                    f"{'the same outcomes, ' if same else 'DIFFERENT OUTCOMES, '}largest "
+                    f"difference of states and w {worst:.2e} "
+                    f"({'within' if worst <= 1e-9 and same else 'NOT within'} 1e-9). Check "
+                    f"again: `hybridnav verify fis.json {C_BASENAME}.c`.", "",
+                    "| world | outcome | samples | max abs state diff | max abs w diff |",
+                    "|---|---|---|---|---|"]
+    lines += [f"| {r['scenario']} | {r['outcome']} | {r['samples']} | {r['max_state_diff']:.2e} "
+              f"| {r['max_w_diff']:.2e} |" for r in rows]
+    return lines
+
+
 def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray,
-            radius: float, files: list[str], falsified: dict[str, Any] | None = None) -> str:
+            radius: float, files: list[str], falsified: dict[str, Any] | None = None,
+            sil: list[str] | None = None) -> str:
     rw, ga = job["reward"], job["ga"]
     sense = rw["sense"]
     n = {k: len(job.scenarios(k)) for k in ("train", "validation", "test")}
@@ -356,6 +385,7 @@ def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray
                           "--out DIR`."]
         else:
             lines += ["", "No failure found within the budget."]
+    lines += sil or []
     last = result.logbook[-1]
     lines += ["", f"Wall time {last['wall_time']:.1f} s for "
                   f"{sum(r['evals'] for r in result.logbook)} evaluations (tuning only).", "",

@@ -84,18 +84,28 @@ class EFFC(FieldPlanner):
     name = "effc"
     description = "evolutionary fuzzy force control: fuzzy-weighted blend of unit APF forces"
     parameters: ClassVar[dict[str, Param]] = {
-        "fis": Param("effc-2rule", "fuzzy system: a built-in name or a .json, .fll or .fis file"),
+        "fis": Param("effc-2rule", "fuzzy system: a built-in name, a .json, .fll or .fis file, "
+                                   "or an exported .c file (compiled and called: software in "
+                                   "the loop)"),
         **COMMON,
     }
 
     def __init__(self, **params: Any) -> None:
         from hybridnav import fuzzy
 
+        from hybridnav.fuzzy.export.sil import CompiledFIS
+
         system = params.get("fis")
         if isinstance(system, fuzzy.FuzzySystem):
             params["fis"] = system.name
+        elif isinstance(system, CompiledFIS):
+            params["fis"] = system.source
         super().__init__(**params)
-        if not isinstance(system, fuzzy.FuzzySystem):
+        if isinstance(system, (fuzzy.FuzzySystem, CompiledFIS)):
+            pass
+        elif str(self.values["fis"]).endswith(".c"):
+            system = CompiledFIS(self.values["fis"])
+        else:
             system = fuzzy.load_any(self.values["fis"])
         missing = {"dtheta", "alpha"} - set(system.input_names)
         if missing or len(system.input_names) != 2:

@@ -1,0 +1,82 @@
+"""Software in the loop (issue 15): the exported C controller, compiled into a shared library and
+called through ctypes, drives the EFFC closed loop exactly as the Python evaluator does."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from hybridnav import HybridnavError, fuzzy, planners
+from hybridnav.cli import main
+from hybridnav.fuzzy.export import export
+from hybridnav.fuzzy.export.sil import CompiledFIS, verify
+from hybridnav.world import load_scenario
+
+pytestmark = pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc") is None,
+                                reason="no C compiler")
+WORLDS = ["effc-train-1", "effc-train-2", "effc-env-a", "effc-env-b"]
+
+
+@pytest.mark.parametrize("name", ["effc-2rule", "effc-5rule", "effc-tuned"])
+def test_compiled_c_trajectories_equal_python_to_1e9(tmp_path, name):
+    fs = fuzzy.builtin(name)
+    export(fs, "c", tmp_path / "effc")
+    compiled = CompiledFIS(tmp_path / "effc.c")
+    assert compiled.input_names == fs.input_names
+    rows = verify(fs, compiled, [load_scenario(w) for w in WORLDS])
+    assert len(rows) == 4
+    for r in rows:
+        assert r["same_outcome"] and r["samples"] > 50
+        assert r["max_state_diff"] <= 1e-9 and r["max_w_diff"] <= 1e-9, r
+
+
+def test_the_compiled_evaluator_equals_evaluate_on_a_grid(tmp_path):
+    fs = fuzzy.builtin("effc-5rule")
+    export(fs, "c", tmp_path / "fis")
+    compiled = CompiledFIS(tmp_path / "fis.c")
+    d, a = np.meshgrid(np.linspace(-0.5, 3.5, 41), np.linspace(-0.2, 2.0, 37))
+    np.testing.assert_allclose(compiled.evaluate(dtheta=d, alpha=a),
+                               fs.evaluate(dtheta=d, alpha=a), rtol=0, atol=1e-12)
+    assert np.isnan(compiled.evaluate(dtheta=np.nan, alpha=0.3))
+    with pytest.raises(TypeError, match="takes the inputs dtheta, alpha"):
+        compiled.evaluate(dtheta=0.1)
+
+
+def test_run_with_the_c_file_and_verify_from_the_cli(tmp_path, capsys):
+    fs = fuzzy.builtin("effc-tuned")
+    export(fs, "c", tmp_path / "effc")
+    c = str(tmp_path / "effc.c")
+    assert main(["run", "effc-env-b", "--planner", "effc", "--fis", c,
+                 "--out", str(tmp_path / "run")]) == 0
+    py = planners.get("effc", fis=fs).run(load_scenario("effc-env-b"))
+    from hybridnav.results import read_result
+
+    back = read_result(tmp_path / "run")
+    np.testing.assert_allclose(back.robots[0].states, py.robots[0].states, rtol=0, atol=1e-9)
+    assert back.params["fis"] == c
+    capsys.readouterr()
+    assert main(["verify", "effc-tuned", c, "--scenarios", "effc-env-a,effc-env-b"]) == 0
+    assert "verified: every trajectory and w signal within 1e-09" in capsys.readouterr().out
+    # a float build is the deployment artifact too, and it is not the same system to 1e-9
+    export(fs, "c", tmp_path / "single", real="float")
+    assert main(["verify", "effc-tuned", str(tmp_path / "single.c"), "--scenarios",
+                 "effc-env-b"]) == 1
+    assert "NOT verified" in capsys.readouterr().out
+
+
+def test_bad_c_files_are_refused_with_the_file(tmp_path, monkeypatch):
+    with pytest.raises(HybridnavError, match=r"nope\.c: no such file"):
+        CompiledFIS(tmp_path / "nope.c")
+    (tmp_path / "x.c").write_text("int x;\n")
+    (tmp_path / "x.h").write_text("/* nothing */\n")
+    with pytest.raises(HybridnavError, match=r"x\.h: not a hybridnav C export"):
+        CompiledFIS(tmp_path / "x.c")
+    export(fuzzy.builtin("effc-2rule"), "c", tmp_path / "e")
+    (tmp_path / "e.c").write_text((tmp_path / "e.c").read_text() + "\nthis is not C\n")
+    with pytest.raises(HybridnavError, match=r"e\.c: does not compile"):
+        CompiledFIS(tmp_path / "e.c")
+    monkeypatch.setenv("CC", "/no/such/compiler")
+    with pytest.raises(HybridnavError, match=r"no C compiler"):
+        CompiledFIS(tmp_path / "e.c")
