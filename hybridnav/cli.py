@@ -10,6 +10,7 @@ import argparse
 import logging
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from hybridnav import HybridnavError, __version__
 from hybridnav.params import describe_params
@@ -216,7 +217,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                                  workers=args.workers, dask=args.dask, progress=progress)
     finally:
         bar.close()
-    files = write_comparison(args.out, table, summary)
+    files = write_comparison(args.out, table, summary, settings={
+        "planners": plans, "scenarios": scens, "runs": args.runs, "seed": args.seed,
+        "set": params, "workers": args.workers, "dask": args.dask or ""})
     cols = ["planner", "scenario", "success_rate", "path_length_mean", "path_length_std",
             "time_to_goal_mean", "time_to_goal_std"]
     print(summary[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
@@ -238,8 +241,8 @@ def _cmd_fis(args: argparse.Namespace) -> int:
         print(f"  input {v.name} in {list(v.range)}: {terms}")
     terms = ", ".join(f"{t.name} {t.mf}{list(t.params)}" for t in system.output.terms)
     print(f"  output {system.output.name}: {terms}")
-    for i, r in enumerate(system.to_dict()["rules"], 1):
-        print(f"  rule {i}: if {r['if']} then {r['then']} (weight {r.get('weight', 1.0)})")
+    for i, r in enumerate(system.rules, 1):
+        print(f"  rule {i}: {r.sentence(system.output.name)}")
     if args.out:
         out = Path(args.out)
         plots.save_memberships_png(system, out / "mfs.png")
@@ -249,6 +252,8 @@ def _cmd_fis(args: argparse.Namespace) -> int:
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from tqdm import tqdm
 
     from hybridnav.tuner.job import load_job, quick
@@ -258,6 +263,10 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     if args.quick:
         job = quick(job)
     job = job.with_backend(workers=args.workers, dask=args.dask)
+    out = Path(args.out)
+    if not args.resume and not args.force and (out / "checkpoint.json").exists():
+        raise HybridnavError(f"{out}: holds a tuning run (checkpoint.json); --resume continues it, "
+                             "--force starts over and overwrites it, or choose another --out")
     total = job["ga"]["generations"] + 1
     bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
     evals = {"n": 0, "t": 0.0}
@@ -393,18 +402,25 @@ def build_parser() -> argparse.ArgumentParser:
                         help="log more (repeat for debug output)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    # -v also after the command (hybridnav tune -v): every command takes it
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                        help="log more (repeat for debug output)")
 
-    p = sub.add_parser("scenarios", help="list the built-in scenarios")
+    def add_command(name: str, **kwargs: Any) -> argparse.ArgumentParser:
+        return sub.add_parser(name, parents=[common], **kwargs)
+
+    p = add_command("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
 
-    p = sub.add_parser("show", help="draw a scenario (workspace, obstacles, robots) to a PNG")
+    p = add_command("show", help="draw a scenario (workspace, obstacles, robots) to a PNG")
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
     p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="picture to write")
     p.add_argument("--time", type=float, default=0.0, metavar="T",
                    help="draw moving obstacles at time T (seconds, default 0)")
     p.set_defaults(func=_cmd_show)
 
-    p = sub.add_parser("analyze", help="stability analysis of a model: Lyapunov, linearization, "
+    p = add_command("analyze", help="stability analysis of a model: Lyapunov, linearization, "
                                        "region of attraction, sweeps")
     from hybridnav import models
     from hybridnav.fuzzy.export import FORMATS
@@ -417,10 +433,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
     p.set_defaults(func=_cmd_analyze)
 
-    p = sub.add_parser("planners", help="list the planners and their parameters with defaults")
+    p = add_command("planners", help="list the planners and their parameters with defaults")
     p.set_defaults(func=_cmd_planners)
 
-    p = sub.add_parser("run", help="run a planner on a scenario and write the result files")
+    p = add_command("run", help="run a planner on a scenario and write the result files")
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
     p.add_argument("--planner", required=True, help="planner name (see 'hybridnav planners')")
     p.add_argument("--seed", type=int, default=0, help="seed of the planner's randomness")
@@ -432,7 +448,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
 
-    p = sub.add_parser("verify", help="software in the loop: the exported C controller, "
+    p = add_command("verify", help="software in the loop: the exported C controller, "
                                       "compiled, against the Python evaluator in closed loop")
     p.add_argument("fis", help="the system the C was exported from (built-in name, .json, .fll, "
                                ".fis)")
@@ -444,7 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="largest allowed difference of states and w (default 1e-9)")
     p.set_defaults(func=_cmd_verify)
 
-    p = sub.add_parser("plot", help="redraw path.png and the planner's diagnostics from a result "
+    p = add_command("plot", help="redraw path.png and the planner's diagnostics from a result "
                                     "folder written by 'run'")
     p.add_argument("result", metavar="DIR", help="a folder with result.json")
     p.add_argument("--scenario", help="the scenario the result is of, when it is not built in "
@@ -452,7 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="folder for the figures (default: DIR)")
     p.set_defaults(func=_cmd_plot)
 
-    p = sub.add_parser("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
+    p = add_command("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
                                        "plots")
     p.add_argument("--planners", required=True,
                    help="comma-separated planners: NAME, NAME@LABEL or NAME@LABEL:key=value"
@@ -469,14 +485,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the tables and plots")
     p.set_defaults(func=_cmd_compare)
 
-    p = sub.add_parser("fis", help="describe a fuzzy system; plot its membership functions and "
+    p = add_command("fis", help="describe a fuzzy system; plot its membership functions and "
                                    "control surface")
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned) or a "
                                   "hybridnav-fis/1 file")
     p.add_argument("--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 
-    p = sub.add_parser("tune", help="tune a fuzzy system with the GA (default: the built-in EFFC "
+    p = add_command("tune", help="tune a fuzzy system with the GA (default: the built-in EFFC "
                                     "job)")
     p.add_argument("job", nargs="?", help="job file (TOML); omitted: the built-in EFFC job")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the tuned system, "
@@ -489,9 +505,11 @@ def build_parser() -> argparse.ArgumentParser:
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address ('local': a "
                                                            "LocalCluster)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.json")
+    p.add_argument("--force", action="store_true", help="start over in a DIR that holds a "
+                                                        "tuning run (overwriting it)")
     p.set_defaults(func=_cmd_tune)
 
-    p = sub.add_parser("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
+    p = add_command("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
                                       "IEC 61131-7 FCL or standalone C")
     p.add_argument("fis", metavar="FIS", help="built-in name or a .json/.fll/.fis file")
     p.add_argument("--format", required=True, choices=list(FORMATS))
@@ -508,7 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                            "without hybridnav metadata")
     p.set_defaults(func=_cmd_export)
 
-    p = sub.add_parser("generate", help="write random solvable EFFC-scale worlds as scenario "
+    p = add_command("generate", help="write random solvable EFFC-scale worlds as scenario "
                                         "TOML files")
     p.add_argument("--count", type=int, default=10, help="number of worlds (default 10)")
     p.add_argument("--seed", type=int, default=0, help="seed of the set (default 0)")
@@ -518,7 +536,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the .toml files")
     p.set_defaults(func=_cmd_generate)
 
-    p = sub.add_parser("models", help="list the kinematic models and their parameters")
+    p = add_command("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)
     return parser
 
@@ -527,8 +545,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``hybridnav`` command; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=(logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)],
+    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
+    # -v / -vv are hybridnav's own log; other libraries (matplotlib's font search, Dask's
+    # cluster chatter in the progress bar) stay at warnings unless -vvv
+    logging.basicConfig(level=level if args.verbose >= 3 else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("hybridnav").setLevel(level)
+    if args.verbose < 3:
+        for name in ("distributed", "matplotlib", "PIL", "asyncio", "tornado", "bokeh"):
+            logging.getLogger(name).setLevel(logging.WARNING)
     try:
         return args.func(args)
     except HybridnavError as exc:

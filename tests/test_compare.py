@@ -171,9 +171,17 @@ def test_cli_compares_two_variants_of_effc(tmp_path):
     out = tmp_path / "cmp"
     proc = subprocess.run([sys.executable, "-m", "hybridnav.cli", "compare", "--planners",
                            "effc,effc@five:fis=effc-5rule", "--scenarios", "effc-train-1",
-                           "--runs", "1", "--out", str(out)],
+                           "--runs", "1", "--set", "five.speed=0.12", "--out", str(out)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
+    import json
+
+    from hybridnav import __version__
+
+    settings = json.loads((out / "comparison.json").read_text())   # what was compared
+    assert settings["version"] == __version__ and settings["runs"] == 1
+    assert settings["planners"] == ["effc", "effc@five:fis=effc-5rule"]
+    assert settings["set"] == {"five": {"speed": "0.12"}}
     runs = pd.read_csv(out / "runs.csv")
     assert list(runs.columns) == RUN_COLUMNS
     assert list(runs.planner) == ["effc", "five"] and list(runs.planner_name) == ["effc", "effc"]

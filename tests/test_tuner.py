@@ -399,6 +399,9 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
     import pandas as pd
 
     assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
+    # a second run into the same folder neither overwrites it nor starts silently
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 2
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "o"), "--force"]) == 0
     for name in ("fis.json", "start.json", "logbook.csv", "evaluations.csv", "validation.csv",
                  "heldout.csv", "heldout_summary.csv", "convergence.png", "mfs.png",
                  "surface.png", "coverage.png", "paths.png", "report.md", "checkpoint.json"):

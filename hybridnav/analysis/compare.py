@@ -351,8 +351,22 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFrame) -> list[str]:
-    """Write ``runs.csv``, ``summary.csv`` and the comparison plots; returns the file names."""
+def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFrame,
+                     settings: Mapping[str, Any] | None = None) -> list[str]:
+    """Write ``runs.csv``, ``summary.csv``, the comparison plots and, given ``settings`` (what was
+    compared: planners, scenarios, runs, seed, ``--set`` values), ``comparison.json`` with them
+    and the package version; returns the file names.
+
+    Parameters
+    ----------
+    folder : str or Path
+    table, summary : DataFrame
+        From :func:`compare`.
+    settings : dict, optional
+        What the comparison was run with (written as given, plus ``version``).
+    """
+    from hybridnav import __version__
+    from hybridnav.fileio import dumps_json
     from hybridnav.plotting import save_figure
 
     folder = Path(folder)
@@ -360,6 +374,10 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
     atomic_write_text(folder / "runs.csv", table.to_csv(index=False))
     atomic_write_text(folder / "summary.csv", summary.to_csv(index=False))
     names = ["runs.csv", "summary.csv"]
+    if settings is not None:
+        atomic_write_text(folder / "comparison.json",
+                          dumps_json({"version": __version__, **dict(settings)}))
+        names.append("comparison.json")
     for metric, label in (("path_length", "path length (reached)"),
                           ("time_to_goal", "time to goal [s] (reached)"),
                           ("success_rate", "success rate")):

@@ -17,7 +17,7 @@ from hybridnav.fuzzy.mf import MF_PARAMS, check_params
 
 __all__ = [
     "FORMAT", "Term", "Variable", "OutputVariable", "TermRef", "And", "Or", "Not", "Antecedent",
-    "Rule", "parse_system", "antecedent_to_json",
+    "Rule", "antecedent_sentence", "parse_system", "antecedent_to_json",
 ]
 
 #: The format string this module reads and writes.
@@ -99,6 +99,26 @@ class Rule:
     then: str
     weight: float = 1.0
     description: str | None = None
+
+    def sentence(self, output: str) -> str:
+        """The rule as people write it: ``IF alpha IS low AND dtheta IS high THEN w IS low``
+        (``WITH weight`` when it is not 1); ``output`` is the output variable's name."""
+        text = f"IF {antecedent_sentence(self.antecedent)} THEN {output} IS {self.then}"
+        return text if self.weight == 1.0 else f"{text} WITH {self.weight:g}"
+
+
+def antecedent_sentence(a: Antecedent, top: bool = True) -> str:
+    """``alpha IS low AND (dtheta IS NOT high OR ...)``: keywords in capitals, a negated term
+    as ``IS NOT``, other negations as ``NOT (...)``, inner and/or lists in parentheses."""
+    if isinstance(a, TermRef):
+        return f"{a.input} IS {a.term}"
+    if isinstance(a, Not):
+        if isinstance(a.item, TermRef):
+            return f"{a.item.input} IS NOT {a.item.term}"
+        return f"NOT ({antecedent_sentence(a.item, True)})"
+    op = " AND " if isinstance(a, And) else " OR "
+    body = op.join(antecedent_sentence(x, False) for x in a.items)
+    return body if top or len(a.items) == 1 else f"({body})"
 
 
 # --------------------------------------------------------------------------------------- reading

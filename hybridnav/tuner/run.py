@@ -352,7 +352,8 @@ def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray
     best = result.best.fitness.values[0]
     lines += ["", f"Training fitness: start {result.start_fitness:.4f}, returned {best:.4f}.",
               f"The tuned system keeps {len(result.system.rules)} of "
-              f"{len(job.start_system().rules)} rules.", "",
+              f"{len(job.start_system().rules)} rules:", "",
+              *(f"- {r.sentence(result.system.output.name)}" for r in result.system.rules), "",
               f"Coverage (grid {job['coverage']['grid']} x {job['coverage']['grid']} over the "
               f"input ranges): no rule fires on {100 * unc[0]:.1f} % for the start, "
               f"{100 * unc[1]:.1f} % for the tuned system (allowed: "
