@@ -415,7 +415,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("show", help="draw a scenario (workspace, obstacles, robots) to a PNG")
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
-    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="picture to write")
+    p.add_argument("-o", "--out", "--output", dest="output", required=True, metavar="FILE.png",
+                   help="picture to write")
     p.add_argument("--time", type=float, default=0.0, metavar="T",
                    help="draw moving obstacles at time T (seconds, default 0)")
     p.set_defaults(func=_cmd_show)
@@ -428,7 +429,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("model", choices=sorted(models.analyzable()))
     p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
                                       "one per model)")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder for analysis.json, "
+    p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for analysis.json, "
                                                               "report.md and plots")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
     p.set_defaults(func=_cmd_analyze)
@@ -444,7 +445,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="set a planner parameter (repeatable)")
     p.add_argument("--fis", metavar="FILE.json", help="effc: the fuzzy system (a built-in name or "
                                                       "a hybridnav-fis/1 file)")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder for result.json, "
+    p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
 
@@ -465,7 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("result", metavar="DIR", help="a folder with result.json")
     p.add_argument("--scenario", help="the scenario the result is of, when it is not built in "
                                       "(default: the result's scenario name)")
-    p.add_argument("--out", metavar="DIR", help="folder for the figures (default: DIR)")
+    p.add_argument("-o", "--out", metavar="DIR", help="folder for the figures (default: DIR)")
     p.set_defaults(func=_cmd_plot)
 
     p = add_command("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
@@ -482,20 +483,21 @@ def build_parser() -> argparse.ArgumentParser:
     backend = p.add_mutually_exclusive_group()
     backend.add_argument("--workers", type=int, default=1, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder for the tables and plots")
+    p.add_argument("-o", "--out", required=True, metavar="DIR",
+                   help="folder for the tables and plots")
     p.set_defaults(func=_cmd_compare)
 
     p = add_command("fis", help="describe a fuzzy system; plot its membership functions and "
                                    "control surface")
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned) or a "
                                   "hybridnav-fis/1 file")
-    p.add_argument("--out", metavar="DIR", help="folder for mfs.png and surface.png")
+    p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 
     p = add_command("tune", help="tune a fuzzy system with the GA (default: the built-in EFFC "
                                     "job)")
     p.add_argument("job", nargs="?", help="job file (TOML); omitted: the built-in EFFC job")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder for the tuned system, "
+    p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for the tuned system, "
                                                               "report, plots and checkpoint")
     p.add_argument("--seed", type=int, help="override the job's seed")
     p.add_argument("--quick", action="store_true", help="small smoke run (population 12, "
@@ -533,7 +535,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="generator setting, e.g. circles=[2,6], radius=[0.2,0.4], "
                         "layout=random (repeatable; see the README)")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder for the .toml files")
+    p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for the .toml files")
     p.set_defaults(func=_cmd_generate)
 
     p = add_command("models", help="list the kinematic models and their parameters")
