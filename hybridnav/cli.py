@@ -168,7 +168,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from hybridnav import fuzzy
-    from hybridnav.fuzzy.export.sil import CompiledFIS, verify
+    from hybridnav.analysis.sil import verify
+    from hybridnav.fuzzy.export.sil import CompiledFIS
     from hybridnav.world import load_scenario
 
     system = fuzzy.load_any(args.fis)
@@ -342,7 +343,6 @@ def _print_verdict(job, out) -> None:
 
 def _cmd_export(args: argparse.Namespace) -> int:
     from hybridnav import fuzzy
-
     from hybridnav.fuzzy.export.fidelity import (
         FORMULA_TOLERANCE,
         formula_difference,

@@ -162,9 +162,9 @@ def _kwargs_calls():
     if _CC:
         calls["hybridnav.fuzzy.export.sil.CompiledFIS.evaluate"] = \
             lambda: _compiled().evaluate(dtheta=0.1, alpha=0.5, bogus=1.0)
-        from hybridnav.fuzzy.export.sil import verify
+        from hybridnav.analysis.sil import verify
 
-        calls["hybridnav.fuzzy.export.sil.verify"] = lambda: verify(
+        calls["hybridnav.analysis.sil.verify"] = lambda: verify(
             fuzzy.builtin("effc-2rule"), _compiled(), [load_scenario("effc-env-a")], bogus=1.0)
     for name, cls in models.MODELS.items():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
@@ -182,7 +182,7 @@ EXEMPT = {
 }
 if not _CC:
     EXEMPT.update(dict.fromkeys(("hybridnav.fuzzy.export.sil.CompiledFIS.evaluate",
-                                 "hybridnav.fuzzy.export.sil.verify"), "needs a C compiler"))
+                                 "hybridnav.analysis.sil.verify"), "needs a C compiler"))
 
 
 def _kwargs_functions():

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, fuzzy, planners
+from hybridnav.analysis.sil import verify
 from hybridnav.cli import main
 from hybridnav.fuzzy.export import export
-from hybridnav.fuzzy.export.sil import CompiledFIS, verify
+from hybridnav.fuzzy.export.sil import CompiledFIS
 from hybridnav.world import load_scenario
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc") is None,

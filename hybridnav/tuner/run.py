@@ -261,7 +261,8 @@ def _fmt(v: float, spec: str = ".3f") -> str:
 def _sil_lines(job: Job, system, out: Path) -> list[str]:
     """The report's software-in-the-loop check of the C export: the compiled C controller against
     the Python evaluator in closed loop on the first training and (up to) two test worlds."""
-    from hybridnav.fuzzy.export.sil import CompiledFIS, verify
+    from hybridnav.analysis.sil import verify
+    from hybridnav.fuzzy.export.sil import CompiledFIS
 
     head = ["", "## Software in the loop: the exported C controller", ""]
     try:

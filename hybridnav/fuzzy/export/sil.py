@@ -4,8 +4,8 @@
 export --format c`` writes them) into a shared library with the system C compiler, loads it with
 :mod:`ctypes` (no new dependency) and offers the ``evaluate(**inputs)`` and ``input_names`` the
 EFFC planner calls. So ``hybridnav run SCENARIO --planner effc --fis build/effc.c`` drives the
-closed loop with the deployment artifact itself, and :func:`verify` compares that run with the
-Python evaluator's, trajectory and ``w`` signal, sample by sample.
+closed loop with the deployment artifact itself, and :func:`hybridnav.analysis.sil.verify`
+compares that run with the Python evaluator's, trajectory and ``w`` signal, sample by sample.
 """
 
 from __future__ import annotations
@@ -16,16 +16,14 @@ import re
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["CompiledFIS", "compile_c", "verify"]
+__all__ = ["CompiledFIS", "compile_c"]
 
 
 def compile_c(source: str | os.PathLike[str]) -> CompiledFIS:
@@ -117,45 +115,3 @@ def _build(src: Path) -> ctypes.CDLL:
         return ctypes.CDLL(str(lib))           # stays mapped after its file is removed (POSIX)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-
-
-def verify(system, compiled: CompiledFIS, scenarios: Sequence[Any], *,
-           seed: int = 0, **planner_params: Any) -> list[dict[str, Any]]:
-    """Run the EFFC planner with the Python evaluator and with the compiled C one on each
-    scenario; compare trajectories and ``w`` sample by sample.
-
-    Parameters
-    ----------
-    system : FuzzySystem
-        The system the C was exported from.
-    compiled : CompiledFIS
-    scenarios : sequence of Scenario
-    seed : int
-    **planner_params
-        EFFC parameters (``speed``, ``max_turn``, ...).
-
-    Returns
-    -------
-    list of dict
-        Per scenario and robot: ``scenario``, ``robot``, ``outcome`` (Python's), ``same_outcome``,
-        ``samples``, ``max_state_diff`` and ``max_w_diff`` (``inf`` when the runs have different
-        lengths).
-    """
-    from hybridnav.planners.field.effc import EFFC
-
-    rows = []
-    for scen in scenarios:
-        a = EFFC(fis=system, **planner_params).run(scen, seed=seed)
-        b = EFFC(fis=compiled, **planner_params).run(scen, seed=seed)
-        for ra, rb in zip(a.robots, b.robots):
-            same = ra.states.shape == rb.states.shape
-            ds = float(np.max(np.abs(ra.states - rb.states))) if same and ra.states.size else \
-                (0.0 if same else float("inf"))
-            wa = a.extras.get(f"signals_{ra.name}", {}).get("w", np.zeros(0))
-            wb = b.extras.get(f"signals_{rb.name}", {}).get("w", np.zeros(0))
-            dw = float(np.max(np.abs(wa - wb))) if wa.shape == wb.shape and wa.size else \
-                (0.0 if wa.shape == wb.shape else float("inf"))
-            rows.append({"scenario": scen.name, "robot": ra.name, "outcome": ra.outcome,
-                         "same_outcome": ra.outcome == rb.outcome, "samples": len(ra.t),
-                         "max_state_diff": ds, "max_w_diff": dw})
-    return rows
