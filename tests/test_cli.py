@@ -121,6 +121,15 @@ def test_plot_redraws_the_diagnostics_from_a_result_folder(tmp_path, capsys):
     assert "is of scenario 'effc-train-1', not 'effc-train-2'" in capsys.readouterr().err
     assert main(["plot", str(tmp_path / "nothing")]) == 2
     assert "no such file" in capsys.readouterr().err
+    # a file that shares the result's scenario name but not its robots' starts is refused
+    from hybridnav.world import load_scenario, save_scenario, scenario_from_dict, scenario_to_dict
+
+    d = scenario_to_dict(load_scenario("effc-train-1"))
+    d["robots"][0]["start"] = [d["robots"][0]["start"][0] + 0.1, d["robots"][0]["start"][1]]
+    other = tmp_path / "same-name.toml"
+    save_scenario(scenario_from_dict(d), other)
+    assert main(["plot", str(run), "--scenario", str(other)]) == 2
+    assert "do not start where the result's" in capsys.readouterr().err
 
 
 def test_export_measures_the_formula_form_and_says_what_it_wrote(tmp_path, capsys):
