@@ -8,6 +8,7 @@ import json
 import math
 import os
 import tempfile
+import tomllib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -137,8 +138,6 @@ def decode_text(data: bytes, source: str, what: str) -> str:
 def parse_toml(text: str, source: str, what: str = "file") -> dict[str, Any]:
     """Parse TOML text, or raise a :class:`HybridnavError` naming ``source``: syntax errors (with
     the line), nesting too deep for the parser, integers with more digits than Python converts."""
-    import tomllib
-
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -437,8 +437,6 @@ def _read_extra(folder: Path, listing: Path, name: Any, entry: Any) -> Any:
     if not _extra_name_ok(name):                       # before any file is opened
         raise HybridnavError(f"{listing}: extras: expected names of letters, digits, '_', '-' "
                              f"or '.', got {short_repr(name)}")
-    if isinstance(entry, str):                          # the first form of the listing
-        entry = {"file": entry, "text": None}
     if not isinstance(entry, dict) or entry.get("file") not in (f"{name}.csv", f"{name}.npy"):
         raise HybridnavError(f"{listing}: extras.{name}: expected {{\"file\": \"{name}.csv\" or "
                              f"\"{name}.npy\"}}, got {short_repr(entry)}")
@@ -447,9 +445,8 @@ def _read_extra(folder: Path, listing: Path, name: Any, entry: Any) -> Any:
         raise HybridnavError(f"{path}: no such file (listed in result.json extras)")
     if entry["file"].endswith(".npy"):
         return _read_npy(path)
-    text_cols = entry.get("text")
-    if text_cols is not None and (not isinstance(text_cols, list)
-                                  or not all(isinstance(c, str) for c in text_cols)):
+    text_cols = entry.get("text", [])
+    if not isinstance(text_cols, list) or not all(isinstance(c, str) for c in text_cols):
         raise HybridnavError(f"{listing}: extras.{name}.text: expected a list of column names")
     rows = _csv_rows(path, "extra table")
     header = rows[0]
@@ -458,12 +455,7 @@ def _read_extra(folder: Path, listing: Path, name: Any, entry: Any) -> Any:
     table = {}
     for j, col in enumerate(header):
         values = [r[j] for r in rows[1:]]
-        if text_cols is None and values:                 # old listing: guess
-            try:
-                table[col] = np.array([float(v) for v in values], dtype=float)
-            except ValueError:
-                table[col] = np.array(values, dtype=str)
-        elif text_cols is not None and col in text_cols:
+        if col in text_cols:
             table[col] = np.array(values, dtype=str)
         else:
             try:

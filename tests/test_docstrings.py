@@ -125,9 +125,9 @@ def _compiled():
     from hybridnav.fuzzy.export import export
     from hybridnav.fuzzy.export.sil import CompiledFIS
 
-    folder = Path(tempfile.mkdtemp(prefix="hybridnav-doc-"))
-    export(fuzzy.builtin("effc-2rule"), "c", folder / "effc")
-    return CompiledFIS(folder / "effc.c")
+    with tempfile.TemporaryDirectory(prefix="hybridnav-doc-") as folder:  # loaded, then gone
+        export(fuzzy.builtin("effc-2rule"), "c", Path(folder) / "effc")
+        return CompiledFIS(Path(folder) / "effc.c")
 
 
 def _kwargs_calls():

@@ -23,18 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["CompiledFIS", "compile_c"]
-
-
-def compile_c(source: str | os.PathLike[str]) -> CompiledFIS:
-    """Compile a C export and load it (see :class:`CompiledFIS`).
-
-    Parameters
-    ----------
-    source : str or path-like
-        The ``.c`` file (its header, same stem with ``.h``, beside it).
-    """
-    return CompiledFIS(source)
+__all__ = ["CompiledFIS"]
 
 
 class CompiledFIS:

@@ -92,7 +92,6 @@ class EFFC(FieldPlanner):
 
     def __init__(self, **params: Any) -> None:
         from hybridnav import fuzzy
-
         from hybridnav.fuzzy.export.sil import CompiledFIS
 
         system = params.get("fis")
@@ -101,12 +100,9 @@ class EFFC(FieldPlanner):
         elif isinstance(system, CompiledFIS):
             params["fis"] = system.source
         super().__init__(**params)
-        if isinstance(system, (fuzzy.FuzzySystem, CompiledFIS)):
-            pass
-        elif str(self.values["fis"]).endswith(".c"):
-            system = CompiledFIS(self.values["fis"])
-        else:
-            system = fuzzy.load_any(self.values["fis"])
+        if not isinstance(system, (fuzzy.FuzzySystem, CompiledFIS)):
+            spec = self.values["fis"]
+            system = CompiledFIS(spec) if spec.endswith(".c") else fuzzy.load_any(spec)
         missing = {"dtheta", "alpha"} - set(system.input_names)
         if missing or len(system.input_names) != 2:
             raise HybridnavError(
