@@ -98,7 +98,7 @@ class _Check:
 
     def number(self, v: Any, key: str, *, lo: float | None = None, lo_open: bool = False,
                hi: float | None = None) -> float:
-        return Param(0.0, lo=lo, lo_open=lo_open, hi=hi).check(key, v, _prefix(self.source))
+        return Param(0.0, lo=lo, lo_open=lo_open, hi=hi).check(key, v, where(self.source, ""))
 
     def length(self, v: Any, key: str, *, lo_open: bool = True) -> float:
         """A size in the workspace: positive (or non-negative) and at most MAX_COORDINATE."""
@@ -120,11 +120,6 @@ class _Check:
     def numbers_table(self, v: Any, key: str) -> dict[str, float]:
         d = self.table(v, key)
         return {str(k): self.number(x, _join(key, k)) for k, x in d.items()}
-
-
-def _prefix(source: str | None) -> str:
-    """The message prefix naming the file (``where(source, key)`` is ``prefix + key``)."""
-    return f"{source}: " if source else ""
 
 
 def _join(key: str, sub: str) -> str:
@@ -274,7 +269,7 @@ def _robot_params(chk: _Check, raw: Any, key: str, model: str) -> dict[str, floa
         if p.kind is not float:
             raise chk.fail(_join(key, k), f"{k} is an option of model {model} that planners "
                                           "choose, not a scenario parameter")
-        out[str(k)] = p.check(_join(key, k), v, _prefix(chk.source))
+        out[str(k)] = p.check(_join(key, k), v, where(chk.source, ""))
     return out
 
 
