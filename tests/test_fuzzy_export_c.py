@@ -222,6 +222,60 @@ def test_crossing_buffer_bound(f):
     assert max_crossings(f) == _crossing_table(f)[1].shape[1]
 
 
+@settings(deadline=None, max_examples=300)
+@given(f=st.lists(st.sampled_from([0.0, 0.25, 0.5, 1.0]) | st.floats(0.0, 1.0), min_size=2,
+                  max_size=60))
+def test_monotone_runs_bound_the_crossings(f):
+    """The table path looks for one crossing per monotone run of a term (binary search): the
+    runs partition the intervals, each is monotone (also rounded to float), and at every level
+    y > 0 each run holds at most one of the intervals scikit-fuzzy inserts a point in."""
+    from hybridnav.fuzzy.engine import _crossing_table
+    from hybridnav.fuzzy.export.c import monotone_runs
+
+    f = np.array(f)
+    runs = monotone_runs(f)
+    assert runs[0][0] == 0 and runs[-1][1] == len(f) - 1
+    assert all(b == c for (_, b), (c, _) in zip(runs, runs[1:]))
+    for g in (f, f.astype(np.float32).astype(float)):
+        for a, b in runs:
+            d = np.diff(g[a:b + 1])
+            assert a < b or len(f) == 1
+            assert np.all(d >= 0) or np.all(d <= 0)
+    levels, table = _crossing_table(f)
+    run_of = np.concatenate([[r] * (b - a) for r, (a, b) in enumerate(runs)])
+    for row in table[1:]:
+        hits = run_of[row[row >= 0]]
+        assert len(hits) == len(set(hits.tolist()))
+
+
+def test_plain_integral_paths(tmp_path):
+    """Up to three output terms the plain-universe integral comes from subset prefix-sum tables,
+    beyond that from the sample weights; both agree with evaluate (the builtins and ZOO above)."""
+    few, many = to_c(fuzzy.builtin("effc-tuned")).source, to_c(FuzzySystem.from_dict(ZOO)).source
+    assert "effc_tuned_sub2_pq" in few and "effc_tuned_w[" not in few
+    assert "zoo_w[" in many and "zoo_sub0_lv" not in many and "zoo_lower_bound" not in many
+
+
+@pytest.mark.parametrize("span", [(-1e300, 1e300), (0.0, 1e-300), (1.0, 1.0 + 1e-12)])
+def test_extreme_input_ranges_match_evaluate(tmp_path, span):
+    """An input's interval is guessed from the uniform grid and corrected against the samples;
+    where (M - 1) / (hi - lo) or the guess is not finite in double or float (the first two
+    spans), the code falls back to binary search. Both give numpy's interval."""
+    from hybridnav.fuzzy.engine import universe
+    from hybridnav.fuzzy.export.c import _uniform_inverse
+
+    d = fuzzy.builtin("effc-2rule").to_dict()
+    a, b = span
+    d["inputs"][1]["range"] = [a, b]
+    for term in d["inputs"][1]["terms"]:
+        term["params"] = [a + (b - a) * 0.1, a + (b - a) * 0.5]
+    fs = FuzzySystem.from_dict(d)
+    assert (_uniform_inverse(universe(fs.inputs[1])) > 0) == (span[0] == 1.0)
+    exe = build(tmp_path, fs)
+    X = random_inputs(fs, 1000, np.random.default_rng(7))
+    np.testing.assert_allclose(run(exe, X), evaluate(fs, X), rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("real", ["double", "float"])
 def test_nan_in_nan_out_survives_fast_math(tmp_path, real):
     """The NaN policy: a NaN input returns NaN; the check tests the bits, so -ffast-math (which

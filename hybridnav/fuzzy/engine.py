@@ -61,7 +61,8 @@ from hybridnav.fuzzy.spec import (
     Variable,
 )
 
-__all__ = ["CompiledSystem", "universe", "SUBSETS_MAX"]
+__all__ = ["CompiledSystem", "universe", "SUBSETS_MAX", "centroid_weights", "min_sum_table",
+           "interp_slopes", "TINY_AREA"]
 
 FloatArray = NDArray[np.float64]
 _EPS = float(np.finfo(float).eps)
@@ -70,6 +71,9 @@ _AND, _OR, _NOT = 0, 1, 2
 #: Up to this many output terms in rules, the plain-universe integral uses the max-min identity
 #: (2**T - 1 subset tables) instead of an (M, B) array.
 SUBSETS_MAX = 3
+#: Below this fraction of the output range the aggregated area is computed directly (see
+#: ``CompiledSystem._direct``).
+TINY_AREA = 1e-6
 
 
 def universe(v: Variable) -> FloatArray:
@@ -77,11 +81,21 @@ def universe(v: Variable) -> FloatArray:
     return np.linspace(v.range[0], v.range[1], v.points)
 
 
-def _interp_slopes(xs: FloatArray, F: FloatArray) -> FloatArray:
-    """Per-interval slopes exactly as ``np.interp`` computes them; ``F`` is ``(T, M)``.
+def interp_slopes(xs: FloatArray, F: FloatArray) -> FloatArray:
+    """Per-interval slopes exactly as ``np.interp`` computes them.
 
-    The result is ``(T, M)`` with a zero last column, so that ``S[t, j] * (x - xs[j]) + F[t, j]``
-    is ``np.interp(x, xs, F[t])`` bit for bit when ``xs[j] <= x < xs[j + 1]``.
+    Parameters
+    ----------
+    xs : ndarray
+        The universe (M,), ascending.
+    F : ndarray
+        Term samples (T, M).
+
+    Returns
+    -------
+    ndarray
+        ``(T, M)`` with a zero last column, so that ``S[t, j] * (x - xs[j]) + F[t, j]`` is
+        ``np.interp(x, xs, F[t])`` bit for bit when ``xs[j] <= x < xs[j + 1]``.
     """
     S = np.zeros_like(F)
     S[:, :-1] = (F[:, 1:] - F[:, :-1]) / (xs[1:] - xs[:-1])
@@ -118,12 +132,45 @@ def _crossing_table(f: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
     return levels, table
 
 
-def _min_sum_table(g: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def centroid_weights(xs: FloatArray) -> FloatArray:
+    """Weights ``W`` (2, M) with ``W @ y = (area, first moment)`` of the polyline ``(xs, y)``.
+
+    Parameters
+    ----------
+    xs : ndarray
+        The universe, ascending.
+
+    Returns
+    -------
+    ndarray
+        ``W[0]``: trapezoid weights; ``W[1]``: those of ``x * y``. These are the exact integrals
+        of a piecewise linear function, what ``defuzz.centroid`` sums segment by segment.
+    """
+    dx = np.diff(xs)
+    W = np.zeros((2, len(xs)))
+    W[0, :-1] += 0.5 * dx
+    W[0, 1:] += 0.5 * dx
+    W[1, :-1] += dx / 6.0 * (2.0 * xs[:-1] + xs[1:])
+    W[1, 1:] += dx / 6.0 * (xs[:-1] + 2.0 * xs[1:])
+    return W
+
+
+def min_sum_table(g: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Tables for ``sum_j W[:, j] * min(c, g[j]) = P[:, k] + c * Q[:, k]``, ``k = searchsorted``.
 
-    Returns ``levels`` (sorted distinct ``g``), ``P`` and ``Q`` of shape ``(2, len(levels) + 1)``:
-    ``P[:, k]`` sums ``W g`` over samples below ``levels[k]``, ``Q[:, k]`` sums ``W`` over the
-    others.
+    Parameters
+    ----------
+    g : ndarray
+        Samples (M,).
+    W : ndarray
+        Weights (2, M), e.g. :func:`centroid_weights`.
+
+    Returns
+    -------
+    levels, P, Q : ndarray
+        ``levels`` (sorted distinct ``g``), ``P`` and ``Q`` of shape ``(2, len(levels) + 1)``:
+        ``P[:, k]`` sums ``W g`` over samples below ``levels[k]``, ``Q[:, k]`` sums ``W`` over
+        the others.
     """
     levels, rank = np.unique(g, return_inverse=True)
     K = len(levels)
@@ -163,7 +210,7 @@ class CompiledSystem:
         for v in inputs:
             xs = universe(v)
             F = np.stack([sample(t.mf, t.params, xs) for t in v.terms])  # (T, M)
-            S = _interp_slopes(xs, F)
+            S = interp_slopes(xs, F)
             self._in.append((xs, F, K))
             self._in_py.append((float(xs[0]), float(xs[-1]), xs.tolist(),
                                 [tuple(r) for r in F.T.tolist()], [tuple(r) for r in S.T.tolist()]))
@@ -234,18 +281,13 @@ class CompiledSystem:
         self._cut_idx = np.array([b + [R] * (width - len(b)) for b in by_term], dtype=np.intp)
         self._cut_lists = [tuple(b) for b in by_term]
         Fo = np.stack([sample(t.mf, t.params, xs) for t in used])  # (T, M)
-        So = _interp_slopes(xs, Fo)
+        So = interp_slopes(xs, Fo)
         self.out_F = Fo
         # below this aggregated area the table identities' rounding matters: direct centroid
-        self._tiny_area = 1e-6 * float(xs[-1] - xs[0])
+        self._tiny_area = TINY_AREA * float(xs[-1] - xs[0])
         self.out_positive = [bool(np.any(f > 0)) for f in Fo]
         self._out_positive = np.array(self.out_positive)
-        dx = np.diff(xs)
-        W = np.zeros((2, M))  # trapezoid weights of area and first moment
-        W[0, :-1] += 0.5 * dx
-        W[0, 1:] += 0.5 * dx
-        W[1, :-1] += dx / 6.0 * (2.0 * xs[:-1] + xs[1:])
-        W[1, 1:] += dx / 6.0 * (xs[:-1] + 2.0 * xs[1:])
+        W = centroid_weights(xs)
         self._W = W
 
         # plain-universe integral by the max-min identity (term subsets), small T only
@@ -253,7 +295,7 @@ class CompiledSystem:
         if T <= max(SUBSETS_MAX, 4):
             for size in range(1, T + 1):
                 for sub in itertools.combinations(range(T), size):
-                    lv, P, Q = _min_sum_table(Fo[list(sub)].min(axis=0), W)
+                    lv, P, Q = min_sum_table(Fo[list(sub)].min(axis=0), W)
                     self._subsets.append((1.0 if size % 2 else -1.0, sub, lv, P, Q))
         self._subsets_py = [(sign, sub, lv.tolist(), P[0].tolist(), P[1].tolist(), Q[0].tolist(),
                              Q[1].tolist()) for sign, sub, lv, P, Q in self._subsets]

@@ -2,31 +2,44 @@
 
 :func:`to_c` returns a header and a source file with no dependencies (not even ``libm``) and no
 dynamic allocation. The working arrays live on the stack; their size is fixed at generation time
-and printed in the header. The arithmetic is scikit-fuzzy's, step for step:
+and printed in the header. The semantics are scikit-fuzzy's and the arithmetic that of
+:class:`~hybridnav.fuzzy.engine.CompiledSystem`'s scalar path, so C and Python agree to
+rounding (about 1e-15 of the output range in double):
 
-1. a NaN input gives a NaN output; inputs are clipped to their range;
+1. a NaN input gives a NaN output (a bit test: it survives ``-ffast-math``); inputs are clipped
+   to their range;
 2. membership = ``np.interp`` of the term sampled on ``np.linspace(lo, hi, points)``: the tables
-   are the sampled values (17 significant digits, so ``double`` tables are bit-exact), the
-   interval is found by binary search and the value is ``slope * (x - x[j]) + f[j]`` with
-   ``slope = (f[j+1] - f[j]) / (x[j+1] - x[j])``, numpy's formula;
+   hold the samples and numpy's slopes (17 significant digits, so ``double`` tables are
+   bit-exact); the interval is guessed from the uniform grid and corrected against the samples
+   (binary search where the grid's arithmetic would not be finite);
 3. AND = min, OR = max, NOT = ``1 - x``; a rule's strength is its degree times its weight; an
    output term's cut is the largest strength of its rules;
 4. no output term with a positive cut and a positive sample: the output is the default;
-5. otherwise the output universe gets, for every term with cut ``c > 0``, the points where the
-   sampled term crosses ``c`` (``x[i] + (c - f[i]) * (x[i+1] - x[i]) / (f[i+1] - f[i])`` on
-   every interval where ``f >= c`` flips); the aggregated value at every point is
-   ``max_t min(c_t, interp(point))``; the result is scikit-fuzzy's ``defuzz.centroid`` of that
-   polyline, ``sum(moment * area) / fmax(sum(area), DBL_EPSILON)``.
+5. otherwise the centroid of ``max_t min(c_t, term_t)`` on the output universe upsampled at the
+   points where a sampled term crosses its cut (scikit-fuzzy's ``defuzz.centroid`` integrates
+   that polyline exactly), from precomputed tables instead of a loop over the universe:
+
+   - the plain-universe integral: with at most
+     :data:`~hybridnav.fuzzy.engine.SUBSETS_MAX` terms by the max-min identity over term
+     subsets and prefix sums of each subset's sorted samples (one binary search per subset),
+     otherwise one weighted pass over the samples;
+   - the crossing points: at most one per monotone run of a term, found by binary search; each
+     adds the closed-form triangle by which it changes its interval's integral;
+   - where the whole aggregated area is tiny (below :data:`~hybridnav.fuzzy.engine.TINY_AREA`
+     of the output range in double, :data:`TINY_AREA_FLOAT` in float) those identities'
+     cancellation would show, and the direct loop (scikit-fuzzy's own) is used.
 
 ``double`` is the default. Define ``<PREFIX>_REAL`` as ``float`` when compiling (or generate with
 ``real="float"``) for single precision: the tables are rounded to float, results then differ from
 the double ones by about 1e-6 of the output range. Compile with ``-ffp-contract=off`` where the
 compiler would otherwise fuse multiply-adds (GCC in ``-std=gnu*`` mode on FMA hardware) if
 bit-for-bit agreement with the Python evaluator matters; agreement to ~1e-12 holds either way.
+``benchmarks/bench_fuzzy_c.py`` times it against a hand-written evaluator of the same system.
 """
 
 from __future__ import annotations
 
+import itertools
 import re
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -34,13 +47,26 @@ from typing import NamedTuple
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fuzzy.engine import universe
+from hybridnav.fuzzy.engine import (
+    SUBSETS_MAX,
+    TINY_AREA,
+    centroid_weights,
+    interp_slopes,
+    min_sum_table,
+    universe,
+)
 from hybridnav.fuzzy.export._common import check_names, comment_text
+from hybridnav.fuzzy.export.c_runtime import runtime
 from hybridnav.fuzzy.mf import sample
 from hybridnav.fuzzy.spec import And, Antecedent, Not, Or, TermRef
 from hybridnav.fuzzy.system import FuzzySystem
 
-__all__ = ["CCode", "to_c", "c_identifier", "max_crossings"]
+__all__ = ["CCode", "to_c", "c_identifier", "max_crossings", "monotone_runs",
+           "TINY_AREA_FLOAT"]
+
+#: A float build computes the centroid directly below this fraction of the output range of
+#: aggregated area (where the table identities' float rounding would show).
+TINY_AREA_FLOAT = 1e-2
 
 
 class CCode(NamedTuple):
@@ -111,6 +137,105 @@ def _table(values: Sequence[float], K: str, indent: str = "    ", per_line: int 
     return (",\n" + indent).join(rows)
 
 
+def monotone_runs(f: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs ``(a, b)`` of samples on which ``f`` is monotone (non-strictly).
+
+    Parameters
+    ----------
+    f : ndarray
+        A term sampled on its universe.
+
+    Returns
+    -------
+    list of (int, int)
+        First and last sample of each run; consecutive runs share their end sample, so every
+        interval ``[i, i + 1]`` belongs to exactly one run. On a run the test ``f >= y`` flips at
+        most once, for any level ``y``; rounding the samples to ``float`` keeps them monotone.
+    """
+    runs: list[tuple[int, int]] = []
+    a, d = 0, 0
+    for i in range(len(f) - 1):
+        step = int(f[i + 1] > f[i]) - int(f[i + 1] < f[i])
+        if step == 0 or d == 0 or step == d:
+            d = d or step
+            continue
+        runs.append((a, i))
+        a, d = i, step
+    runs.append((a, len(f) - 1))
+    return runs
+
+
+def _uniform_inverse(xs: np.ndarray) -> float:
+    """``(M - 1) / (hi - lo)`` for the C interval guess, or 0 (binary search) where it or the
+    guess's arithmetic would not be finite and positive in double and in float."""
+    with np.errstate(all="ignore"):
+        span = float(xs[-1] - xs[0])
+        inv = (len(xs) - 1) / span if span > 0 else 0.0
+        span32 = np.float32(xs[-1]) - np.float32(xs[0])
+        inv32 = np.float32(inv)
+        ok = (np.isfinite(inv) and inv > 0 and np.isfinite(inv32) and inv32 > 0
+              and np.isfinite(span32) and np.isfinite(span32 * inv32))
+    return inv if ok else 0.0
+
+
+def _slopes(xs: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """np.interp's slopes, 0 where two samples coincide (the C code then uses the sample)."""
+    with np.errstate(all="ignore"):
+        S = interp_slopes(xs, F)
+    return np.where(np.isfinite(S), S, 0.0)
+
+
+def _plain_integral(p: str, K: str, xs: np.ndarray, Fo: np.ndarray,
+                    used: Sequence[str]) -> tuple[str, list[str]]:
+    """C statements that add the plain-universe area and moment of ``max_t min(cut[t], f_t)``
+    to ``area`` and ``mom``, and the tables they read.
+
+    With at most :data:`~hybridnav.fuzzy.engine.SUBSETS_MAX` terms: the max-min identity over
+    term subsets and prefix sums over each subset's sorted values (a binary search and two
+    multiply-adds per subset); otherwise the weighted sum over the samples.
+    """
+    W = centroid_weights(xs)
+    T, M = Fo.shape
+    if T > SUBSETS_MAX:
+        code = (f"    for (i = 0; i < {M}; ++i) {{\n"
+                f"        const {p}_real y = {p}_agg(cut, i);\n"
+                f"        area += {p}_w[i] * y;\n"
+                f"        mom += {p}_w[{M} + i] * y;\n"
+                f"    }}\n")
+        return code, [f"/* area and moment weights of the samples (trapezoids) */\n"
+                      f"static const {p}_real {p}_w[{2 * M}] = {{\n    "
+                      f"{_table(W.ravel(), K)}\n}};"]
+    lines = ["    /* plain universe: sum over term subsets S of (-1)^(|S|+1) sum_j w_j "
+             "min(c_S, g_S[j]), g_S = min of S's terms, c_S = min of their cuts: prefix sums "
+             "over the sorted g_S */"]
+    tables = []
+    n = 0
+    for size in range(1, T + 1):
+        for sub in itertools.combinations(range(T), size):
+            lv, P, Q = min_sum_table(Fo[list(sub)].min(axis=0), W)
+            L = len(lv)
+            names = " & ".join(used[t] for t in sub)
+            tables.append(f"/* subset {n} ({names}): sorted values; then area P, moment P, area Q,"
+                          f" moment Q ({L + 1} each) */\n"
+                          f"static const {p}_real {p}_sub{n}_lv[{L}] = {{\n    "
+                          f"{_table(lv, K)}\n}};\n"
+                          f"static const {p}_real {p}_sub{n}_pq[{4 * (L + 1)}] = {{\n    "
+                          f"{_table(np.concatenate([P[0], P[1], Q[0], Q[1]]), K)}\n}};")
+            c = f"cut[{sub[0]}]"
+            for t in sub[1:]:
+                c = f"{p}_min({c}, cut[{t}])"
+            op = "+=" if size % 2 else "-="
+            q = f"{p}_sub{n}_pq"
+            lines += [f"    c = {c};",
+                      "    if (c > 0) {",
+                      f"        k = {p}_lower_bound({p}_sub{n}_lv, {L}, c);",
+                      f"        area {op} {q}[k] + c * {q}[{2 * (L + 1)} + k];",
+                      f"        mom {op} {q}[{L + 1} + k] + c * {q}[{3 * (L + 1)} + k];",
+                      "    }"]
+            n += 1
+    return "\n".join(lines) + "\n", tables
+
+
 def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "double") -> CCode:
     """Generate the C99 header and source for ``system``.
 
@@ -153,24 +278,29 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
                              f"{in_macros}")
     n_in = len(system.inputs)
 
-    # ---- input tables
+    # ---- input tables: samples, memberships and np.interp slopes (sample-major)
     leaves: dict[tuple[str, str], int] = {}
     tables: list[str] = []
     fuzz_calls: list[str] = []
     for k, v in enumerate(system.inputs):
         xs = universe(v)
         F = np.stack([sample(t.mf, t.params, xs) for t in v.terms])
+        S = _slopes(xs, F)
         m, nt = len(xs), len(v.terms)
         k0 = len(leaves)
         for t in v.terms:
             leaves[(v.name, t.name)] = len(leaves)
         tables.append(f"/* input {k}: {v.name}, {m} samples over [{_lit(v.range[0])}, "
-                      f"{_lit(v.range[1])}], terms {', '.join(v.term_names())} */")
+                      f"{_lit(v.range[1])}], terms {', '.join(v.term_names())}: "
+                      + "; ".join(f"{t.name} = {t.mf} {' '.join(_lit(q) for q in t.params)}"
+                                  for t in v.terms) + " */")
         tables.append(f"static const {p}_real {p}_in{k}_x[{m}] = {{\n    {_table(xs, K)}\n}};")
-        rows = ",\n".join(f"    /* {t.name} ({t.mf} {' '.join(_lit(q) for q in t.params)}) */\n"
-                          f"    {_table(F[j], K)}" for j, t in enumerate(v.terms))
-        tables.append(f"static const {p}_real {p}_in{k}_f[{nt * m}] = {{\n{rows}\n}};")
-        fuzz_calls.append(f"    {p}_fuzzify(in[{k}], {p}_in{k}_x, {p}_in{k}_f, {m}, {nt}, "
+        tables.append(f"static const {p}_real {p}_in{k}_f[{nt * m}] = {{\n    "
+                      f"{_table(F.T.ravel(), K, per_line=max(nt, 4 // nt * nt))}\n}};")
+        tables.append(f"static const {p}_real {p}_in{k}_s[{nt * m}] = {{\n    "
+                      f"{_table(S.T.ravel(), K, per_line=max(nt, 4 // nt * nt))}\n}};")
+        fuzz_calls.append(f"    {p}_fuzzify(in[{k}], {p}_in{k}_x, {p}_in{k}_f, {p}_in{k}_s, {m}, "
+                          f"{nt}, {K}({_lit(xs[0])}), {K}({_lit(_uniform_inverse(xs))}), "
                           f"mu + {k0});")
 
     # ---- output tables: the terms some rule names (others never have a cut)
@@ -178,18 +308,31 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
     xs = universe(o)
     used = [t.name for t in o.terms if any(r.then == t.name for r in system.rules)]
     Fo = np.stack([sample(t.mf, t.params, xs) for t in o.terms if t.name in used])
+    So = _slopes(xs, Fo)
+    width = float(xs[-1] - xs[0])
     M, T = len(xs), len(used)
-    # float tables may cross a level at other intervals than the double ones
+    # the direct path's buffer; float tables may cross a level at other intervals than double's
     n_cross = max(sum(max(max_crossings(f), max_crossings(f.astype(np.float32).astype(float)))
                       for f in Fo), 1)
+    runs = [monotone_runs(f) for f in Fo]
+    run0 = np.cumsum([0] + [len(r) for r in runs]).tolist()
     positive = [1 if np.any(f > 0) else 0 for f in Fo]
     tables.append(f"/* output: {o.name}, {M} samples over [{_lit(o.range[0])}, "
                   f"{_lit(o.range[1])}], terms named by rules: {', '.join(used)} */")
     tables.append(f"static const {p}_real {p}_out_x[{M}] = {{\n    {_table(xs, K)}\n}};")
     rows = ",\n".join(f"    /* {name} */\n    {_table(Fo[j], K)}" for j, name in enumerate(used))
     tables.append(f"static const {p}_real {p}_out_f[{T * M}] = {{\n{rows}\n}};")
+    rows = ",\n".join(f"    /* {name} */\n    {_table(So[j], K)}" for j, name in enumerate(used))
+    tables.append(f"static const {p}_real {p}_out_s[{T * M}] = {{\n{rows}\n}};")
     tables.append(f"static const int {p}_out_positive[{T}] = {{ "
                   f"{', '.join(map(str, positive))} }};")
+    tables.append(f"/* monotone runs (first, last sample) of each term: a level crosses a run at "
+                  f"most once; term t owns runs run0[t] to run0[t+1] - 1 */\n"
+                  f"static const int {p}_out_runs[{2 * run0[-1]}] = {{ "
+                  f"{', '.join(f'{a}, {b}' for r in runs for a, b in r)} }};\n"
+                  f"static const int {p}_out_run0[{T + 1}] = {{ {', '.join(map(str, run0))} }};")
+    plain, plain_tables = _plain_integral(p, K, xs, Fo, used)
+    tables.extend(plain_tables)
 
     # ---- rules
     n_leaves = len(leaves)
@@ -223,7 +366,10 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
 
     s_decl = f"\n    {p}_real s;" if any(ln.startswith("    s = ") for ln in rule_lines) else ""
     real_bytes = 8 if real == "double" else 4
-    stack = (n_leaves + T + n_cross + 2 * (M + n_cross)) * real_bytes
+    n_runs = run0[-1]
+    # evaluate + defuzzify frames; the direct centroid's only where every activation is tiny
+    stack = ((n_leaves + T + 2 * n_runs + 8) * real_bytes + 4 * n_runs
+             + (n_cross + 2 * (M + n_cross)) * real_bytes)
     guard = f"{P}_H_INCLUDED"
     safe_name = comment_text(system.name)
     header = f"""\
@@ -283,141 +429,15 @@ typedef {R} {p}_real;
 #define {P}_M {M}
 #define {P}_N_CROSS {n_cross}  /* most crossing points the output terms can add */
 #define {P}_EPS (({p}_real)2.220446049250313e-16)  /* numpy's finfo(float).eps */
+#define {P}_N_RUNS {n_runs}  /* monotone runs of the output terms: most crossing points */
+#define {P}_THIRD {K}({_lit(1.0 / 3.0)})
+/* below this aggregated area the table identities' rounding (about 1e-16 of the output range
+ * in double, 1e-7 in float) would matter: the centroid is then computed directly */
+#define {P}_TINY (sizeof({p}_real) < sizeof(double) ? {K}({_lit(TINY_AREA_FLOAT * width)}) \
+                                                    : {K}({_lit(TINY_AREA * width)}))
 
 {chr(10).join(tables)}
-
-/* NaN by its bits (exponent all ones, mantissa not zero): -ffast-math may drop a v != v test,
- * it cannot drop this one */
-static int {p}_isnan({p}_real v)
-{{
-    union {{ {p}_real r; uint32_t u32; uint64_t u64; }} b;
-    b.u64 = 0;
-    b.r = v;
-    if (sizeof v == sizeof(uint32_t))
-        return (b.u32 & 0x7fffffffu) > 0x7f800000u;
-    return (b.u64 & 0x7fffffffffffffffu) > 0x7ff0000000000000u;
-}}
-
-static {p}_real {p}_min({p}_real a, {p}_real b) {{ return b < a ? b : a; }}
-static {p}_real {p}_max({p}_real a, {p}_real b) {{ return b > a ? b : a; }}
-
-/* largest j with x[j] <= v, for x[0] <= v <= x[m-1] */
-static int {p}_interval(const {p}_real *x, int m, {p}_real v)
-{{
-    int lo = 0, hi = m - 1;
-    if (v >= x[m - 1]) return m - 1;
-    while (hi - lo > 1) {{
-        int mid = lo + (hi - lo) / 2;
-        if (x[mid] <= v) lo = mid; else hi = mid;
-    }}
-    return lo;
-}}
-
-/* np.interp(v, x, f) for x[0] <= v <= x[m-1] */
-static {p}_real {p}_interp(const {p}_real *x, const {p}_real *f, int m, {p}_real v)
-{{
-    int j;
-    {p}_real slope;
-    if (v <= x[0]) return f[0];
-    if (v >= x[m - 1]) return f[m - 1];
-    j = {p}_interval(x, m, v);
-    if (x[j] == v) return f[j];
-    slope = (f[j + 1] - f[j]) / (x[j + 1] - x[j]);
-    return slope * (v - x[j]) + f[j];
-}}
-
-/* memberships of the clipped input v in the nt terms sampled in f (term-major, m samples) */
-static void {p}_fuzzify({p}_real v, const {p}_real *x, const {p}_real *f, int m, int nt,
-                        {p}_real *mu)
-{{
-    int j, t;
-    if (v < x[0]) v = x[0];
-    if (v > x[m - 1]) v = x[m - 1];
-    j = {p}_interval(x, m, v);
-    for (t = 0; t < nt; ++t) {{
-        const {p}_real *ft = f + t * m;
-        if (j == m - 1 || x[j] == v) {{
-            mu[t] = ft[j];
-        }} else {{
-            {p}_real slope = (ft[j + 1] - ft[j]) / (x[j + 1] - x[j]);
-            mu[t] = slope * (v - x[j]) + ft[j];
-        }}
-    }}
-}}
-
-/* centroid of max_t min(cut[t], term t) on the universe upsampled at the cut crossings */
-static {p}_real {p}_defuzzify(const {p}_real cut[{P}_N_OUT_TERMS])
-{{
-    {p}_real px[{P}_N_CROSS] = {{0}};
-    {p}_real ux[{P}_M + {P}_N_CROSS], uy[{P}_M + {P}_N_CROSS];
-    {p}_real sum_ma = 0, sum_a = 0;
-    int t, i, k, n = 0, m = 0, fired = 0;
-    const {p}_real *x = {p}_out_x;
-
-    for (t = 0; t < {P}_N_OUT_TERMS; ++t)
-        if (cut[t] > 0 && {p}_out_positive[t]) fired = 1;
-    if (!fired) return {P}_DEFAULT;
-
-    /* crossing points of every term with a positive cut (skfuzzy's _interp_universe_fast) */
-    for (t = 0; t < {P}_N_OUT_TERMS; ++t) {{
-        const {p}_real c = cut[t], *f = {p}_out_f + t * {P}_M;
-        if (!(c > 0)) continue;
-        for (i = 0; i + 1 < {P}_M; ++i) {{
-            if ((f[i] >= c) != (f[i + 1] >= c) && n < {P}_N_CROSS)
-                px[n++] = x[i] + (c - f[i]) * (x[i + 1] - x[i]) / (f[i + 1] - f[i]);
-        }}
-    }}
-    for (i = 1; i < n; ++i) {{  /* insertion sort: few points */
-        {p}_real v = px[i];
-        for (k = i; k > 0 && px[k - 1] > v; --k) px[k] = px[k - 1];
-        px[k] = v;
-    }}
-    /* merge with the universe; aggregated membership at every point */
-    i = 0;
-    k = 0;
-    while (i < {P}_M || k < n) {{
-        {p}_real v, y = 0;
-        if (k >= n || (i < {P}_M && x[i] <= px[k])) {{
-            v = x[i];
-            for (t = 0; t < {P}_N_OUT_TERMS; ++t)
-                if (cut[t] > 0) y = {p}_max(y, {p}_min(cut[t], {p}_out_f[t * {P}_M + i]));
-            ++i;
-        }} else {{
-            v = px[k];
-            for (t = 0; t < {P}_N_OUT_TERMS; ++t)
-                if (cut[t] > 0)
-                    y = {p}_max(y, {p}_min(cut[t], {p}_interp(x, {p}_out_f + t * {P}_M, {P}_M, v)));
-            ++k;
-        }}
-        ux[m] = v;
-        uy[m] = y;
-        ++m;
-    }}
-    /* skfuzzy.defuzz.centroid */
-    for (i = 1; i < m; ++i) {{
-        const {p}_real x1 = ux[i - 1], x2 = ux[i], y1 = uy[i - 1], y2 = uy[i];
-        {p}_real moment, area;
-        if ((y1 == y2 && y2 == 0) || x1 == x2) continue;
-        if (y1 == y2) {{
-            moment = ({p}_real)0.5 * (x1 + x2);
-            area = (x2 - x1) * y1;
-        }} else if (y1 == 0 && y2 != 0) {{
-            moment = ({p}_real)2.0 / ({p}_real)3.0 * (x2 - x1) + x1;
-            area = ({p}_real)0.5 * (x2 - x1) * y2;
-        }} else if (y2 == 0 && y1 != 0) {{
-            moment = ({p}_real)1.0 / ({p}_real)3.0 * (x2 - x1) + x1;
-            area = ({p}_real)0.5 * (x2 - x1) * y1;
-        }} else {{
-            moment = ({p}_real)2.0 / ({p}_real)3.0 * (x2 - x1) * (y2 + ({p}_real)0.5 * y1)
-                     / (y1 + y2) + x1;
-            area = ({p}_real)0.5 * (x2 - x1) * (y1 + y2);
-        }}
-        sum_ma += moment * area;
-        sum_a += area;
-    }}
-    return sum_ma / (sum_a > {P}_EPS ? sum_a : {P}_EPS);
-}}
-
+{runtime(p, plain, subsets=T <= SUBSETS_MAX)}
 {p}_real {p}_evaluate(const {p}_real in[{P}_N_INPUTS])
 {{
     {p}_real mu[{P}_N_LEAVES];
