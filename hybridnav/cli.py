@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -556,6 +557,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.verbose < 3:
         for name in ("distributed", "matplotlib", "PIL", "asyncio", "tornado", "bokeh"):
             logging.getLogger(name).setLevel(logging.WARNING)
+        # distributed sets its loggers from Dask's config when it is imported (later, by --dask),
+        # in this process and in its worker processes: the config says warnings too
+        os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "warning")
     try:
         return args.func(args)
     except HybridnavError as exc:

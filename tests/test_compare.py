@@ -192,3 +192,21 @@ def test_cli_compares_two_variants_of_effc(tmp_path):
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert "hybridnav: error: --planners effc: duplicate label 'effc'" in bad.stderr
     assert not (tmp_path / "bad").exists()
+
+
+@pytest.mark.slow
+def test_cli_dask_local_keeps_the_cluster_chatter_out_of_the_progress_bar(tmp_path):
+    """``--dask local`` used to print distributed's INFO lines (scheduler, nanny, connections)
+    into the progress bar: without -vvv only warnings of other libraries reach stderr."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("DASK_")}
+    proc = subprocess.run([sys.executable, "-m", "hybridnav.cli", "compare", "--planners", "apf",
+                           "--scenarios", "effc-train-1", "--runs", "2", "--dask", "local",
+                           "-o", str(tmp_path / "out")], capture_output=True, text=True,
+                          env=env, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "INFO" not in proc.stderr and "distributed" not in proc.stderr
+    assert (tmp_path / "out" / "summary.csv").exists()
