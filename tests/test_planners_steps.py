@@ -112,24 +112,53 @@ def test_feasibility_sees_other_robots_and_moving_circles_at_their_times():
 
 
 def test_goal_distance_is_the_grid_shortest_path():
+    """networkx's Dijkstra on the same graph: the free cells, and the goal joined by straight
+    segments to the free cells inside its free disk."""
     s = _scenario([{"type": "segment", "a": [25.0, 0.0], "b": [25.0, 40.0]}])
     gd = GoalDistance(s, inflate=0.5)
     goal = np.array([45.0, 5.0])
     field = gd.field(goal)
     G = gd.grid.to_networkx()
-    gcell = tuple(gd.grid.to_cell(goal[None])[0])
-    ref = nx.single_source_dijkstra_path_length(G, gcell, weight="weight")
-    for cell in [(5, 90), (60, 10), (95, 95)]:
+    radius = gd.free_radius(goal)
+    assert radius == 20.0  # the wall at x = 25
+    for cell in list(G.nodes):
+        d = math.dist(gd.grid.to_world(np.array([cell]))[0], goal)
+        if d < radius:
+            G.add_edge("goal", cell, weight=d)
+    ref = nx.single_source_dijkstra_path_length(G, "goal", weight="weight")
+    for cell in [(5, 90), (60, 10), (95, 95), (89, 9)]:
         idx = gd.grid.cell_index(np.array([cell]))[0]
-        centre_offset = math.dist(gd.grid.to_world(np.array([gcell]))[0], goal)
-        assert field[idx] == pytest.approx(ref[cell] + centre_offset, rel=1e-12)
-    # in open space, the straight-line distance up to octile rounding; behind the wall, the way
-    # round its end at y = 40
+        assert field[idx] == pytest.approx(ref[cell], rel=1e-12)
+    # in the free disk, the straight line; in open space beyond it, up to octile rounding; behind
+    # the wall, the way round its end at y = 40
+    near = np.array([[46.0, 6.0]])
+    assert gd(near, goal)[0] == math.dist(near[0], goal)
     open_pt = np.array([[44.0, 20.0]])
     assert gd(open_pt, goal)[0] == pytest.approx(math.dist(open_pt[0], goal), rel=0.09)
     behind = np.array([[5.0, 5.0]])
     way_round = math.dist((5, 5), (25, 40.5)) + math.dist((25, 40.5), goal)
     assert way_round <= gd(behind, goal)[0] <= 1.09 * way_round + 1.0
+
+
+def test_goal_distance_is_zero_at_the_goal_and_never_below_the_straight_line():
+    """The cell offset used to be counted twice: 0.707 cells at the goal itself (issue 16)."""
+    s = _scenario([{"type": "segment", "a": [25.0, 0.0], "b": [25.0, 40.0]},
+                   {"type": "circle", "center": [35.0, 30.0], "radius": 4.0}])
+    gd = GoalDistance(s, inflate=0.5)
+    rng = np.random.default_rng(3)
+    P = rng.uniform(0.0, 50.0, (4000, 2))
+    for goal in ([45.0, 5.0], [45.3, 44.9], [10.17, 20.33], [30.5, 30.0]):
+        goal = np.array(goal)
+        assert gd(goal[None], goal)[0] == 0.0
+        d = gd(P, goal)
+        straight = np.hypot(*(P - goal).T)
+        finite = np.isfinite(d)
+        assert finite.mean() > 0.8
+        assert np.all(d[finite] >= straight[finite] - 1e-12)
+    # with no obstacle at all the free disk is the whole plane: exactly the straight line
+    empty = GoalDistance(_scenario([]), inflate=0.5)
+    goal = np.array([20.0, 30.0])
+    np.testing.assert_array_equal(empty(P, goal), np.hypot(*(P - goal).T))
 
 
 # ---- the planners -----------------------------------------------------------------------------

@@ -23,6 +23,7 @@ the workspace border before the robot gets within ``reach`` of it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -224,16 +225,21 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
 class GoalDistance:
     """Distance to a goal along the shortest obstacle-free path (a grid's cost-to-go field).
 
-    The scenario's static obstacles are rasterized (:func:`hybridnav.world.grid.build_grid`, 1/100 of the
-    shorter workspace side unless the scenario's ``[grid]`` says otherwise) with cells closer than
-    ``inflate`` (the robot's radius) to an obstacle blocked; one Dijkstra search from the goal's
-    cell (:func:`scipy.sparse.csgraph.dijkstra` on :meth:`OccupancyGrid.adjacency`, 8-connected,
-    no corner cutting) gives every free cell's cost-to-go ``g``. A point's distance is
-    ``min(g(c) + ||P - c||)`` over the centres ``c`` of the 2 x 2 cells around it (``inf`` where
-    they are all blocked or cut off from the goal). In open space it equals the straight-line
-    distance to within a few percent (octile moves); behind an obstacle it is the way round, so a
-    step planner does not walk into a cup-shaped trap just because its bottom is near the goal.
-    Fields are cached per goal cell.
+    The scenario's static obstacles are rasterized (:func:`hybridnav.world.grid.build_grid`, 1/100
+    of the shorter workspace side unless the scenario's ``[grid]`` says otherwise) with cells
+    closer than ``inflate`` (the robot's radius) to an obstacle blocked. The goal is a node of its
+    own, joined by straight segments to every free cell inside its *free disk* (the largest disk
+    round the goal that no static obstacle reaches), weighted by the straight-line distance;
+    one Dijkstra search from it (:func:`scipy.sparse.csgraph.dijkstra` on
+    :meth:`OccupancyGrid.adjacency`, 8-connected, no corner cutting) gives every free cell's
+    cost-to-go ``g``. A point's distance is the straight-line distance inside the free disk (so
+    it is 0 at the goal itself, and exact wherever the goal is in plain sight across free space),
+    elsewhere ``min(g(c) + ||P - c||)`` over the centres ``c`` of the 2 x 2 cells around it
+    (``inf`` where they are all blocked or cut off from the goal). It is never below the
+    straight-line distance; behind an obstacle it is the way round (octile moves: within a few
+    percent), so a step planner does not walk into a cup-shaped trap just because its bottom is
+    near the goal. A goal whose free disk holds no free cell (closer to an obstacle than about
+    ``inflate``) is joined to the nearest free cell instead. Fields are cached per goal.
     """
 
     def __init__(self, scenario, inflate: float) -> None:
@@ -241,42 +247,72 @@ class GoalDistance:
 
         self.grid = build_grid(scenario, inflate=float(inflate))
         self._adj = self.grid.adjacency()
-        self._free = np.flatnonzero(~self.grid.occ.ravel())
-        self._fields: dict[int, FloatArray] = {}
+        occ = self.grid.occ.ravel()
+        self._free = np.flatnonzero(~occ)
+        self._world = scenario.world.static()
+        g = self.grid
+        self._free_centres = g.to_world(np.stack([self._free % g.width, self._free // g.width],
+                                                 axis=1))
+        self._fields: dict[tuple[float, float], tuple[FloatArray, float]] = {}
+
+    def free_radius(self, goal: FloatArray) -> float:
+        """Radius of the goal's free disk: the distance to the nearest static obstacle's surface.
+
+        Parameters
+        ----------
+        goal : ndarray
+            The goal (2,).
+
+        Returns
+        -------
+        float
+            ``inf`` in a world without static obstacles; 0 for a goal inside one.
+        """
+        if not self._world.obstacles:
+            return math.inf
+        return max(0.0, float(self._world.clearance(np.asarray(goal, float).reshape(1, 2))[0]))
 
     def field(self, goal: FloatArray) -> FloatArray:
         """Cost-to-go of every cell (flat, ``row * width + col``) for ``goal``."""
+        return self._field(goal)[0]
+
+    def _field(self, goal: FloatArray) -> tuple[FloatArray, float]:
+        from scipy.sparse import csr_matrix
+        from scipy.sparse import vstack as sparse_vstack
         from scipy.sparse.csgraph import dijkstra
 
-        g = self.grid
-        cell = g.to_cell(np.asarray(goal, float)[None])
-        idx = int(g.cell_index(cell)[0]) if g.in_bounds(cell)[0] else -1
-        key = idx
+        goal = np.asarray(goal, float).reshape(2)
+        key = (float(goal[0]), float(goal[1]))
         if key in self._fields:
             return self._fields[key]
-        if idx < 0 or g.occ.ravel()[idx]:
-            # a goal in a blocked cell (too close to an obstacle): start from the nearest free one
-            if not len(self._free):
-                field = np.full(g.occ.size, np.inf)
-                self._fields[key] = field
-                return field
-            centres = g.to_world(np.stack([self._free % g.width, self._free // g.width], axis=1))
-            j = int(np.argmin(np.hypot(*(centres - goal).T)))
-            start, offset = int(self._free[j]), float(np.hypot(*(centres[j] - goal)))
-        else:
-            start = idx
-            offset = float(np.hypot(*(g.to_world(cell)[0] - goal)))
-        field = dijkstra(self._adj, indices=start) + offset
-        field[g.occ.ravel()] = np.inf
+        n = self.grid.occ.size
+        if not len(self._free):
+            out = (np.full(n, np.inf), 0.0)
+            self._fields[key] = out
+            return out
+        d = np.hypot(*(self._free_centres - goal).T)
+        radius = self.free_radius(goal)
+        near = d < radius
+        if not near.any():  # no free cell in the free disk: the nearest free cell
+            near = d == d.min()
+        # the goal is node n; its edges are straight segments (a zero weight would be no edge)
+        w = np.maximum(d[near], np.finfo(float).tiny)
+        row = csr_matrix((w, (np.zeros(len(w), dtype=int), self._free[near])), shape=(1, n + 1))
+        adj = self._adj.copy()
+        adj.resize((n, n + 1))
+        graph = sparse_vstack([adj, row]).tocsr()
+        field = dijkstra(graph, indices=n)[:n]
+        field[self.grid.occ.ravel()] = np.inf
         if len(self._fields) > 64:
             self._fields.pop(next(iter(self._fields)))
-        self._fields[key] = field
-        return field
+        self._fields[key] = (field, radius)
+        return field, radius
 
     def __call__(self, P: FloatArray, goal: FloatArray) -> FloatArray:
         g = self.grid
-        field = self.field(goal)
+        field, radius = self._field(goal)
         P = np.asarray(P, dtype=float).reshape(-1, 2)
+        goal = np.asarray(goal, float).reshape(2)
         # the 2 x 2 cell centres around each point
         base = np.floor((P - np.asarray(g.origin)) / g.resolution - 0.5).astype(int)
         best = np.full(len(P), np.inf)
@@ -288,4 +324,5 @@ class GoalDistance:
                 val[inside] = field[g.cell_index(cells[inside])]
                 c = g.to_world(cells)
                 best = np.minimum(best, val + np.hypot(P[:, 0] - c[:, 0], P[:, 1] - c[:, 1]))
-        return best
+        straight = np.hypot(P[:, 0] - goal[0], P[:, 1] - goal[1])
+        return np.where(straight < radius, straight, best)
