@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hybridnav import HybridnavError, __version__
-from hybridnav.params import describe_params
+from hybridnav.params import describe_params, short_repr
 
 __all__ = ["main"]
 
@@ -81,6 +81,12 @@ def _cmd_planners(args: argparse.Namespace) -> int:
         print(f"  robots: {', '.join(cls.models)}")
         for line in describe_params(cls.parameters):
             print(line)
+        for profile, values in cls.profiles.items():
+            if values:
+                print(f"  profile {profile!r}: "
+                      + ", ".join(f"{k} = {short_repr(v)}" for k, v in values.items()))
+        if cls.paper_notes:
+            print(f"    {cls.paper_notes}")
     return 0
 
 

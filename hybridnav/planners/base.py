@@ -4,6 +4,11 @@ Every planner declares its parameters in :attr:`Planner.parameters` as :class:`h
 entries (default, type, bounds, one-line doc), the same declaration models, optimizers and job files
 use; ``hybridnav planners`` lists them and ``hybridnav run --set key=value`` sets them, with the
 same validation as Python keyword arguments. An instance's values are :attr:`Planner.values`.
+
+A planner that reproduces a paper declares :attr:`Planner.profiles`: named sets of parameter
+values. ``hybridnav`` (the defaults, with this package's improvements) and ``paper`` (the paper's
+settings and rules as far as its text gives them) are selected with ``profile=paper`` (``--set
+profile=paper``); parameters given explicitly win over the profile's.
 """
 
 from __future__ import annotations
@@ -51,16 +56,28 @@ class Planner(ABC):
     moving_obstacles: ClassVar[bool] = True
     moving_targets: ClassVar[bool] = True
     stochastic: ClassVar[bool] = False
+    #: named parameter sets (``{"paper": {"distance": "euclidean", ...}}``); ``hybridnav``, the
+    #: declared defaults, is always one of them; selected by the ``profile`` parameter
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+    #: what the ``paper`` profile does and where it still differs from the paper's text
+    paper_notes: ClassVar[str] = ""
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         if "params" in cls.__dict__ and "parameters" not in cls.__dict__:
             cls.parameters = cls.params            # a planner written against the old name
+        if cls.profiles:
+            _declare_profiles(cls)
         cls.params = cls.parameters
         cls.models = _driven(cls.drives)
 
     def __init__(self, **params: Any) -> None:
         values = {k: p.default for k, p in self.parameters.items()}
+        if "profile" in self.parameters:
+            values["profile"] = self.parameters["profile"].check(
+                "profile", params.get("profile", values["profile"]), f"planner {self.name}: ",
+                parse=True)
+            values.update(self.profiles[values["profile"]])
         for key, value in params.items():
             if key not in self.parameters:
                 raise HybridnavError(
@@ -97,6 +114,23 @@ class Planner(ABC):
     def describe(self) -> Mapping[str, Any]:
         """The parameter values of this instance (written into ``result.json``)."""
         return dict(self.values)
+
+
+def _declare_profiles(cls: type[Planner]) -> None:
+    """Add the ``profile`` parameter to a planner with profiles, checking every profile's values
+    against the declarations (a wrong profile is a programming error, found at import)."""
+    profiles = {"hybridnav": {}, **cls.profiles}
+    where = f"planner {cls.name}: profile "
+    for name, values in profiles.items():
+        for key, value in values.items():
+            if key not in cls.parameters or key == "profile":
+                raise TypeError(f"{where}{name!r}: unknown parameter {key!r}")
+            cls.parameters[key].check(key, value, f"{where}{name!r}: ")
+    cls.profiles = profiles
+    doc = ("parameter set: 'hybridnav' (the defaults) or 'paper' (the paper's settings and rules, "
+           "see 'hybridnav planners'); explicit parameters win")
+    cls.parameters = {"profile": Param("hybridnav", doc, choices=tuple(profiles)),
+                      **{k: v for k, v in cls.parameters.items() if k != "profile"}}
 
 
 def _driven(drives) -> tuple[str, ...]:

@@ -156,6 +156,28 @@ def resample_waypoints(points: NDArray[np.float64], k: int) -> NDArray[np.float6
     return np.array(out).reshape(-1, 2)
 
 
+def sample_along(points: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """``k`` points evenly spaced by arc length along a polyline, its ends excluded.
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 2)
+        ``start, ..., goal``, ``M >= 2``.
+    k : int
+        Number of points.
+
+    Returns
+    -------
+    ndarray, shape (k, 2)
+        The points at arc lengths ``j L / (k + 1)``, ``j = 1 .. k`` (``L`` the polyline's length).
+        Unlike :func:`resample_waypoints` the polyline through them cuts the input's corners.
+    """
+    P = np.asarray(points, dtype=float)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(P, axis=0).T))])
+    at = s[-1] * np.arange(1, k + 1) / (k + 1)
+    return np.stack([np.interp(at, s, P[:, 0]), np.interp(at, s, P[:, 1])], axis=1)
+
+
 def _densify(points: NDArray[np.float64], spacing: float) -> tuple[NDArray, NDArray]:
     """Samples of a polyline at most ``spacing`` apart (every vertex kept) and their arc length."""
     P = np.asarray(points, dtype=float)

@@ -110,6 +110,7 @@ from hybridnav.planners.path.geometry import (
     obstacle_world,
     pull_tight,
     resample_waypoints,
+    sample_along,
 )
 from hybridnav.planners.path.gridsearch import HEURISTICS, astar, dijkstra
 from hybridnav.planners.path.rfd_core import rfd
@@ -188,6 +189,12 @@ class PathPlanner(Planner):
     def _clearance(self, ctx: _Context, robot) -> float:
         """Robot radius plus the margin, in world units."""
         return float(robot.radius) + self.values["margin"] * ctx.cell
+
+    def _shortened(self, ctx: _Context, robot, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``points`` pulled tight under the planner's clearance when ``shorten`` is set."""
+        if not self.values.get("shorten"):
+            return points
+        return pull_tight(points, ctx.world, self._clearance(ctx, robot))
 
     def plans(self, scenario, seed: int | None = None) -> list[PlannedPath]:
         """Plan every robot's path without simulating: the paths :meth:`run` follows with the
@@ -311,6 +318,8 @@ def _cells_to_path(robot, points: NDArray[np.float64]) -> NDArray[np.float64]:
 GRID: dict[str, Param] = {
     "diagonal": Param(True, "8-connected octile moves (false: 4-connected)"),
     "corner_cutting": Param(False, "allow a diagonal move past a blocked orthogonal cell"),
+    "shorten": Param(False, "pull the grid path tight before tracking (drop the corners a "
+                            "collision-free shortcut skips; for ablations)"),
 }
 
 
@@ -340,7 +349,8 @@ class AStarPlanner(PathPlanner):
             out = _failed("the goal cell is not reachable from the start cell", grid=grid,
                           search=gp)
         else:
-            out = _found(_cells_to_path(robot, gp.points), grid=grid, search=gp)
+            out = _found(self._shortened(ctx, robot, _cells_to_path(robot, gp.points)),
+                         grid=grid, search=gp)
         out.metrics.update(grid_length=gp.length, expanded=gp.expanded)
         return out
 
@@ -386,6 +396,8 @@ class RFDPlanner(PathPlanner):
     description = "river formation dynamics on the inflated grid, pure-pursuit tracking"
     stochastic = True
     parameters: ClassVar[dict[str, Param]] = {**GRID, **RFD, **TRACKING}
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"slope": 0.0}}
+    paper_notes = "paper: flat initial terrain (standard RFD)"
 
     def rfd_path(self, ctx, robot, rng) -> PlannedPath:
         v = self.values
@@ -404,7 +416,12 @@ class RFDPlanner(PathPlanner):
         return out
 
     def plan(self, ctx, robot, rngs):
-        return self.rfd_path(ctx, robot, rngs[0])
+        out = self.rfd_path(ctx, robot, rngs[0])
+        if out.found and self.values["shorten"]:
+            tight = _found(self._shortened(ctx, robot, out.points), **out.info)
+            tight.metrics.update(out.metrics)
+            out = tight
+        return out
 
 
 class PSOPathPlanner(PathPlanner):
@@ -415,6 +432,8 @@ class PSOPathPlanner(PathPlanner):
                    "Table 1 parameters), pure-pursuit tracking")
     stochastic = True
     parameters: ClassVar[dict[str, Param]] = {**SWARM, **TRACKING}
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"iterations": 50}}
+    paper_notes = "paper (RFD-PSO's PSO baseline): 50 iterations (Figs. 7 and 10)"
 
     def seed_particle(self, ctx, robot, rngs) -> tuple[NDArray | None, PlannedPath | None]:
         """The waypoints of a seeded particle and the plan they come from (plain PSO: none)."""
@@ -489,17 +508,28 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
     description = ("RFD-PSO: river formation dynamics seeds one PSO particle (w 0.5, c1 = c2 = "
                    "0.75), pure-pursuit tracking")
     stochastic = True
-    parameters: ClassVar[dict[str, Param]] = {**GRID, **RFD, **SWARM, **TRACKING}
+    parameters: ClassVar[dict[str, Param]] = {
+        **GRID,
+        "shorten": Param(True, "pull the RFD path tight before it seeds the PSO particle (the "
+                               "paper seeds the RFD path itself: false samples it at K points)"),
+        **RFD, **SWARM, **TRACKING}
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {
+        "paper": {"slope": 0.0, "iterations": 50, "shorten": False}}
+    paper_notes = ("paper: flat RFD terrain, 50 PSO iterations (Figs. 7-11), the seed particle "
+                   "is the RFD path sampled at K points (no shortening)")
 
     def seed_particle(self, ctx, robot, rngs):
         base = self.rfd_path(ctx, robot, rngs[0])
         if not base.found:
             return None, base
+        k = self.values["waypoints"]
+        if not self.values["shorten"]:
+            return sample_along(base.points, k), base
         tight = pull_tight(base.points, ctx.world, self._clearance(ctx, robot))
-        wp = resample_waypoints(tight, self.values["waypoints"])
-        if len(wp) > self.values["waypoints"]:
+        wp = resample_waypoints(tight, k)
+        if len(wp) > k:
             log.info("rfd-pso: robot %s: the RFD path needs %d waypoints; using %d instead of %d",
-                     robot.name, len(wp), len(wp), self.values["waypoints"])
+                     robot.name, len(wp), len(wp), k)
         return wp, base
 
     def plan(self, ctx, robot, rngs):

@@ -14,7 +14,7 @@ shared loop and feasibility check.
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from hybridnav.planners.base import Param
 from hybridnav.planners.step.base import COMMON, StepPlanner
@@ -41,6 +41,11 @@ class ACOKinematic(StepPlanner):
         "iterations": Param(1, "ACOR generations per step", lo=1),
         **COMMON,
     }
+
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"distance": "euclidean"}}
+    paper_notes = ("paper: the straight-line distance to the goal in the step fitness (eq. 13); "
+                   "still ours in both profiles: the goal is a candidate of every step and the "
+                   "archive starts afresh at every step")
 
     def optimize(self, f, lower, upper, rng, init):
         v = self.values

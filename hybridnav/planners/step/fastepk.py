@@ -20,7 +20,7 @@ fastep`) and 30 generations (3050 candidates per step) are our choices. See
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from hybridnav.planners.base import Param
 from hybridnav.planners.step.base import COMMON, StepPlanner
@@ -58,6 +58,9 @@ class FAStepKinematic(StepPlanner):
         "window": Param(10.0, "half-width of the square the fireflies search around the robot, "
                               "in robot radii; 0: the whole workspace", lo=0.0),
     }
+
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"distance": "euclidean"}}
+    paper_notes = "paper: the straight-line distance to the goal in the step fitness (eq. 10)"
 
     def optimize(self, f, lower, upper, rng, init):
         v = self.values
