@@ -309,3 +309,100 @@ def test_the_readme_main_c_compiles_against_the_tuners_export(tmp_path):
     out = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout
     want = float(fuzzy.builtin("effc-tuned").evaluate(dtheta=0.3, alpha=0.15))
     assert out.startswith("w = ") and abs(float(out.split("=")[1]) - want) < 1e-6
+
+
+def _one_term(out_range, points, mf, params):
+    """A system whose single output term's cut equals the input: xi in [0, 1], 'up' the line."""
+    return FuzzySystem.from_dict({
+        "format": "hybridnav-fis/1", "name": "fis",
+        "inputs": [{"name": "xi", "range": [0.0, 1.0], "points": 2,
+                    "terms": [{"name": "up", "mf": "trimf", "params": [0.0, 1.0, 1.0]}]}],
+        "output": {"name": "oi", "range": list(out_range), "points": points,
+                   "terms": [{"name": "o", "mf": mf, "params": list(params)}],
+                   "defuzz": "centroid", "default": 0.0},
+        "rules": [{"if": ["xi", "up"], "then": "o", "weight": 1.0}]})
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+@pytest.mark.parametrize("out_range, points, mf, params, cut", [
+    ((0.0, 0.1), 2, "zmf", (0.0, 0.03), 1.4128e-11),
+    ((0.0, 0.1), 3, "trimf", (0.0, 0.0, 0.05), 1e-12),
+    ((-1e9, 1e9), 3, "gbellmf", (6e8, 30.0, 0.0), 1e-12),
+    ((-1e9, 1e9), 3, "gbellmf", (6e8, 30.0, 0.0), 1e-9),
+    ((-1e9, 1e9), 3, "gbellmf", (6e8, 30.0, 0.0), 1e-7),
+])
+def test_tiny_activations_equal_skfuzzy_bit_for_bit(tmp_path, out_range, points, mf, params,
+                                                     cut):
+    """Where the aggregated area is tiny both evaluators compute the polyline itself, with
+    np.interp at the crossing points, as scikit-fuzzy does (a review found evaluate's direct
+    path interpolating differently: 0.088 apart from skfuzzy at cut 1e-7 on the wide range)."""
+    fs = _one_term(out_range, points, mf, params)
+    X = np.array([[cut]])
+    c = run(build(tmp_path, fs), X)[0]
+    assert c == fs.evaluate(xi=cut) == skfuzzy_reference(fs, X)[0]
+
+
+def test_ranges_whose_tables_overflow_are_refused():
+    d = fuzzy.builtin("effc-2rule").to_dict()
+    d["inputs"][1]["range"] = [-1.7e308, 1.7e308]
+    with np.errstate(all="ignore"):
+        fs = FuzzySystem.from_dict(d)
+    with pytest.raises(HybridnavError, match=r"C export: inputs\[1\]\.range: expected a range "
+                                             r"whose samples and integrals stay finite in "
+                                             r"double, got one that makes the samples overflow"):
+        to_c(fs)
+    with np.errstate(all="ignore"):
+        fs = _one_term((0.0, 1e200), 11, "trimf", (0.0, 5e199, 1e200))
+    with pytest.raises(HybridnavError, match=r"C export: output\.range: .* makes the centroid "
+                                             r"weights overflow"):
+        to_c(fs)
+
+
+def test_the_direct_path_needs_no_stack_of_the_universes_size(tmp_path):
+    """20001 output points and a tiny activation (the direct path) under a 64 KiB stack: the
+    direct centroid visits the points one segment at a time (it used to keep two arrays of the
+    universe's size on the stack: 320 KB here, a segfault at 600000 points)."""
+    import resource
+
+    fs = _one_term((0.0, 1.0), 20001, "trimf", (0.2, 0.5, 0.8))
+    code = to_c(fs)
+    stack = int(re.search(r"about (\d+) bytes", code.header).group(1))
+    assert stack < 1024
+    exe = build(tmp_path, fs)
+    X = np.array([[1e-9], [0.5], [1.0]])
+
+    def small_stack():
+        resource.setrlimit(resource.RLIMIT_STACK, (64 * 1024, 64 * 1024))
+
+    text = "\n".join(repr(float(v)) for v in X[:, 0]) + "\n"
+    res = subprocess.run([str(exe)], input=text, capture_output=True, text=True, timeout=60,
+                         preexec_fn=small_stack, check=False)
+    assert res.returncode == 0, res.returncode
+    got = np.array([float(v) for v in res.stdout.split()])
+    np.testing.assert_allclose(got, evaluate(fs, X), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("flags", [("-Os",), ("-O0",), ("-O3",), ("-Og",),
+                                   ("-O1", "-fsanitize=address,undefined")],
+                         ids=lambda f: " ".join(f))
+def test_other_optimization_levels_and_sanitizers_build_clean(tmp_path, flags):
+    """-Werror with the strict warnings at other levels (gcc's flow analysis differs: -Os and
+    the sanitizers warned about the crossing buffers of one-term systems), and the sanitized
+    build runs clean and right."""
+    systems = [_one_term((0.0, 1.0), 101, "zmf", (0.1, 0.6)),
+               _one_term((0.0, 1.0), 2, "trapmf", (-1.0, -0.5, 2.0, 3.0)),
+               FuzzySystem.from_dict(ZOO)]
+    for k, fs in enumerate(systems):
+        d = tmp_path / str(k)
+        d.mkdir()
+        code = export(fs, "c", d / "fis")
+        p = c_identifier(code.basename)
+        (d / "driver.c").write_text(DRIVER.format(base=code.basename, p=p, P=p.upper()))
+        exe = d / "driver"
+        cmd = [CC, *CFLAGS[:-1], *flags, "-o", str(exe), str(d / "driver.c"), str(d / "fis.c")]
+        res = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if res.returncode and "sanitize" in " ".join(flags) and "cannot find" in res.stderr:
+            pytest.skip("no sanitizer runtime")  # pragma: no cover - toolchain without libasan
+        assert res.returncode == 0 and res.stderr == "", res.stderr
+        X = random_inputs(fs, 300, np.random.default_rng(k))
+        np.testing.assert_allclose(run(exe, X), evaluate(fs, X), rtol=0, atol=1e-9)

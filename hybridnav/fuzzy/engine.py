@@ -62,7 +62,7 @@ from hybridnav.fuzzy.spec import (
 )
 
 __all__ = ["CompiledSystem", "universe", "SUBSETS_MAX", "centroid_weights", "min_sum_table",
-           "interp_slopes", "TINY_AREA"]
+           "interp_slopes", "TINY_AREA", "polyline_centroid"]
 
 FloatArray = NDArray[np.float64]
 _EPS = float(np.finfo(float).eps)
@@ -180,6 +180,38 @@ def min_sum_table(g: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatArray,
         P[r, 1:] = np.cumsum(np.bincount(rank, weights=W[r] * g, minlength=K))
         Q[r, :K] = np.cumsum(np.bincount(rank, weights=W[r], minlength=K)[::-1])[::-1]
     return levels, P, Q
+
+
+def polyline_centroid(x: FloatArray, y: FloatArray) -> float:
+    """``skfuzzy.defuzz.centroid(x, y)``: its segment formulas, vectorized.
+
+    Parameters
+    ----------
+    x : ndarray
+        Ascending points (M,), ``M >= 2``.
+    y : ndarray
+        Membership at them (M,).
+
+    Returns
+    -------
+    float
+        ``sum(moment * area) / fmax(sum(area), eps)`` over the segments that have width and
+        height (rectangles, triangles and trapezoids as scikit-fuzzy distinguishes them).
+    """
+    x1, x2, y1, y2 = x[:-1], x[1:], y[:-1], y[1:]
+    keep = ~(((y1 == y2) & (y2 == 0.0)) | (x1 == x2))
+    x1, x2, y1, y2 = x1[keep], x2[keep], y1[keep], y2[keep]
+    h = x2 - x1
+    rect = y1 == y2
+    up = ~rect & (y1 == 0.0)
+    down = ~rect & ~up & (y2 == 0.0)
+    trap = ~(rect | up | down)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        moment = np.select([rect, up, down],
+                           [0.5 * (x1 + x2), 2.0 / 3.0 * h + x1, 1.0 / 3.0 * h + x1],
+                           2.0 / 3.0 * h * (y2 + 0.5 * y1) / (y1 + y2) + x1)
+    area = np.select([rect, up, down], [h * y1, 0.5 * h * y2, 0.5 * h * y1], 0.5 * h * (y1 + y2))
+    return float(np.sum(moment * area) / max(float(np.sum(area)), _EPS))
 
 
 class CompiledSystem:
@@ -416,17 +448,31 @@ class CompiledSystem:
         return out
 
     def _direct(self, cuts: FloatArray) -> FloatArray:
-        """The centroid computed directly from ``min(cut, F)`` for samples ``cuts`` (B, T).
+        """The centroid computed directly, scikit-fuzzy's way, for samples ``cuts`` (B, T).
 
         The table identities above subtract quantities of the size of the output range, which
         leaves rounding noise of about 1e-16 of it in the area; where the whole aggregated area
-        is that small (all activations tiny) the direct computation keeps the result exact.
+        is that small (all activations tiny) the result must come from the polyline itself: per
+        sample, the universe with every positive cut's crossing points (``np.union1d``), the
+        aggregated curve from ``np.interp`` there, and ``defuzz.centroid``'s segment formulas.
+        The exported C code's direct path computes the same.
         """
-        from hybridnav.fuzzy.family import upsampled_centroid
-
-        B, T = cuts.shape
-        F = np.broadcast_to(self.out_F, (B,) + self.out_F.shape)
-        return upsampled_centroid(self.out_x, F, cuts, np.ones((B, T), dtype=bool), self.default)
+        xs, F = self.out_x, self.out_F
+        out = np.empty(len(cuts))
+        for b, c in enumerate(np.asarray(cuts, dtype=float)):
+            live = [t for t in range(len(c)) if c[t] > 0.0]
+            new = []
+            for t in live:
+                f = F[t]
+                above = f >= c[t]
+                i = np.flatnonzero(above[:-1] != above[1:])
+                new.append(xs[i] + (c[t] - f[i]) * (xs[i + 1] - xs[i]) / (f[i + 1] - f[i]))
+            u = np.union1d(xs, np.concatenate(new)) if new else xs
+            agg = np.zeros(len(u))
+            for t in live:
+                np.maximum(agg, np.minimum(c[t], np.interp(u, xs, F[t])), out=agg)
+            out[b] = polyline_centroid(u, agg)
+        return out
 
     def _dense(self, cuts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``W @ A`` with ``A = max_t min(c_t, f_t)`` formed as an ``(M, B)`` array."""

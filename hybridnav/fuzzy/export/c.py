@@ -129,6 +129,16 @@ def _lit(x: float) -> str:
     return s
 
 
+def _finite(system: FuzzySystem, key: str, **arrays: np.ndarray) -> None:
+    """Refuse (naming ``key``) a system whose C tables would hold a non-finite number."""
+    for what, a in arrays.items():
+        if not np.all(np.isfinite(a)):
+            raise HybridnavError(
+                f"{system.source + ': ' if system.source else ''}C export: {key}: expected a "
+                f"range whose samples and integrals stay finite in double, got one that makes "
+                f"the {what} overflow")
+
+
 def _table(values: Sequence[float], K: str, indent: str = "    ", per_line: int = 4) -> str:
     """Table entries as ``K(literal)``: the macro casts each to the build's real type, so a float
     build has no implicit double-to-float conversion (-Wconversion -Werror clean)."""
@@ -286,6 +296,7 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
         xs = universe(v)
         F = np.stack([sample(t.mf, t.params, xs) for t in v.terms])
         S = _slopes(xs, F)
+        _finite(system, f"inputs[{k}].range", samples=xs, memberships=F)
         m, nt = len(xs), len(v.terms)
         k0 = len(leaves)
         for t in v.terms:
@@ -331,6 +342,8 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
                   f"static const int {p}_out_runs[{2 * run0[-1]}] = {{ "
                   f"{', '.join(f'{a}, {b}' for r in runs for a, b in r)} }};\n"
                   f"static const int {p}_out_run0[{T + 1}] = {{ {', '.join(map(str, run0))} }};")
+    _finite(system, "output.range", samples=xs, memberships=Fo,
+            **{"centroid weights": centroid_weights(xs)})
     plain, plain_tables = _plain_integral(p, K, xs, Fo, used)
     tables.extend(plain_tables)
 
@@ -367,9 +380,8 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
     s_decl = f"\n    {p}_real s;" if any(ln.startswith("    s = ") for ln in rule_lines) else ""
     real_bytes = 8 if real == "double" else 4
     n_runs = run0[-1]
-    # evaluate + defuzzify frames; the direct centroid's only where every activation is tiny
-    stack = ((n_leaves + T + 2 * n_runs + 8) * real_bytes + 4 * n_runs
-             + (n_cross + 2 * (M + n_cross)) * real_bytes)
+    # the frames of evaluate, defuzzify and (where every activation is tiny) the direct centroid
+    stack = (n_leaves + T + 2 * n_runs + n_cross + 16) * real_bytes + 4 * n_runs
     guard = f"{P}_H_INCLUDED"
     safe_name = comment_text(system.name)
     header = f"""\

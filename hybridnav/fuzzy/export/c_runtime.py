@@ -107,13 +107,13 @@ static @p_real @p_agg(const @p_real cut[@P_N_OUT_TERMS], int i)
 }
 
 /* skfuzzy's loop, used where every activation is tiny: the universe upsampled at the cut
- * crossings, max_t min(cut[t], term t) at every point, defuzz.centroid of that polyline */
+ * crossings, max_t min(cut[t], term t) at every point, defuzz.centroid of that polyline (the
+ * points are visited in order, one segment at a time: no array of the universe's size) */
 static @p_real @p_centroid_direct(const @p_real cut[@P_N_OUT_TERMS])
 {
-    @p_real px[@P_N_CROSS] = {0};
-    @p_real ux[@P_M + @P_N_CROSS], uy[@P_M + @P_N_CROSS];
-    @p_real sum_ma = 0, sum_a = 0;
-    int t, i, k, n = 0, m = 0;
+    @p_real px[@P_N_CROSS + 1] = {0};  /* (+1: compilers cannot see that n <= N_CROSS) */
+    @p_real x1 = 0, y1 = 0, sum_ma = 0, sum_a = 0;
+    int t, i, k, n = 0, first = 1;
     const @p_real *x = @p_out_x;
 
     for (t = 0; t < @P_N_OUT_TERMS; ++t) {
@@ -132,46 +132,45 @@ static @p_real @p_centroid_direct(const @p_real cut[@P_N_OUT_TERMS])
     i = 0;
     k = 0;
     while (i < @P_M || k < n) {
-        @p_real v, y = 0;
+        @p_real x2, y2 = 0;
         if (k >= n || (i < @P_M && x[i] <= px[k])) {
-            v = x[i];
-            y = @p_agg(cut, i);
+            x2 = x[i];
+            y2 = @p_agg(cut, i);
             ++i;
         } else {
             int j = @p_interval(x, @P_M, px[k], 0, 0);
             @p_real d = px[k] - x[j];
-            v = px[k];
+            x2 = px[k];
             for (t = 0; t < @P_N_OUT_TERMS; ++t)
                 if (cut[t] > 0) {
                     const @p_real *f = @p_out_f + t * @P_M, *s = @p_out_s + t * @P_M;
-                    y = @p_max(y, @p_min(cut[t], d == 0 ? f[j] : s[j] * d + f[j]));
+                    y2 = @p_max(y2, @p_min(cut[t], d == 0 ? f[j] : s[j] * d + f[j]));
                 }
             ++k;
         }
-        ux[m] = v;
-        uy[m] = y;
-        ++m;
-    }
-    for (i = 1; i < m; ++i) {  /* skfuzzy.defuzz.centroid */
-        const @p_real x1 = ux[i - 1], x2 = ux[i], y1 = uy[i - 1], y2 = uy[i];
-        @p_real moment, area;
-        if ((y1 == y2 && y2 == 0) || x1 == x2) continue;
-        if (y1 == y2) {
-            moment = (@p_real)0.5 * (x1 + x2);
-            area = (x2 - x1) * y1;
-        } else if (y1 == 0 && y2 != 0) {
-            moment = (@p_real)2.0 / (@p_real)3.0 * (x2 - x1) + x1;
-            area = (@p_real)0.5 * (x2 - x1) * y2;
-        } else if (y2 == 0 && y1 != 0) {
-            moment = (@p_real)1.0 / (@p_real)3.0 * (x2 - x1) + x1;
-            area = (@p_real)0.5 * (x2 - x1) * y1;
-        } else {
-            moment = (@p_real)2.0 / (@p_real)3.0 * (x2 - x1) * (y2 + (@p_real)0.5 * y1)
-                     / (y1 + y2) + x1;
-            area = (@p_real)0.5 * (x2 - x1) * (y1 + y2);
+        /* skfuzzy.defuzz.centroid, segment (x1, y1)-(x2, y2) */
+        if (!first && !((y1 == y2 && y2 == 0) || x1 == x2)) {
+            @p_real moment, area;
+            if (y1 == y2) {
+                moment = (@p_real)0.5 * (x1 + x2);
+                area = (x2 - x1) * y1;
+            } else if (y1 == 0 && y2 != 0) {
+                moment = (@p_real)2.0 / (@p_real)3.0 * (x2 - x1) + x1;
+                area = (@p_real)0.5 * (x2 - x1) * y2;
+            } else if (y2 == 0 && y1 != 0) {
+                moment = (@p_real)1.0 / (@p_real)3.0 * (x2 - x1) + x1;
+                area = (@p_real)0.5 * (x2 - x1) * y1;
+            } else {
+                moment = (@p_real)2.0 / (@p_real)3.0 * (x2 - x1) * (y2 + (@p_real)0.5 * y1)
+                         / (y1 + y2) + x1;
+                area = (@p_real)0.5 * (x2 - x1) * (y1 + y2);
+            }
+            sum_ma += moment * area;
+            sum_a += area;
         }
-        sum_ma += moment * area;
-        sum_a += area;
+        x1 = x2;
+        y1 = y2;
+        first = 0;
     }
     return sum_ma / (sum_a > @P_EPS ? sum_a : @P_EPS);
 }
@@ -181,8 +180,8 @@ static @p_real @p_centroid_direct(const @p_real cut[@P_N_OUT_TERMS])
 static @p_real @p_defuzzify(const @p_real cut[@P_N_OUT_TERMS])
 {
     @p_real area = 0, mom = 0, c, lx = 0, ly = 0, a1 = 0;
-    @p_real cp[@P_N_RUNS], ca[@P_N_RUNS];
-    int ci[@P_N_RUNS];
+    @p_real cp[@P_N_RUNS + 1] = {0}, ca[@P_N_RUNS + 1] = {0};  /* (+1, zeros: see px above) */
+    int ci[@P_N_RUNS + 1] = {0};
     int t, r, s, i, k, n = 0, fired = 0;
     const @p_real *x = @p_out_x;
 

@@ -6,15 +6,19 @@ segments, other robots, goal), and the robot's kinematic equations drive it ther
 the paper's Table 1: archive 300, sample size 10000, deviation-distance ratio ``xi = 1``,
 intensification factor ``q = 0.5``, ``a = b = c = 0.18``, ``d = 0.01`` (its Table 3 uses
 ``a = 0.02`` and ``c = 0.05`` / 0.18 for the comparison with LbCS). One ACOR generation per step,
-as in the paper's Algorithm 1; the archive starts afresh at every step (with the goal in it),
-because the robot has moved and every stored fitness, which includes the feasibility of driving
-there from the robot's state, would be stale. See :mod:`hybridnav.planners.step.base` for the
+as in the paper's Algorithm 1; by default the archive starts afresh at every step (with the goal
+in it), because the robot has moved and every stored fitness, which includes the feasibility of
+driving there from the robot's state, would be stale. ``profile=paper`` keeps one archive for the
+run as Algorithm 1 does (``archive=persistent``, its solutions re-evaluated at every step) and
+leaves the goal out (``goal_candidate=false``). See :mod:`hybridnav.planners.step.base` for the
 shared loop and feasibility check.
 """
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
+
+import numpy as np
 
 from hybridnav.planners.base import Param
 from hybridnav.planners.step.base import COMMON, StepPlanner
@@ -39,15 +43,27 @@ class ACOKinematic(StepPlanner):
         "xi": Param(float(ACO_KINEMATIC["xi"]), "deviation-distance ratio", lo=0.0, lo_open=True),
         "q": Param(float(ACO_KINEMATIC["q"]), "intensification factor", lo=0.0, lo_open=True),
         "iterations": Param(1, "ACOR generations per step", lo=1),
+        "archive": Param("fresh", "ACOR archive of a step: 'fresh' (random, with the goal, at every "
+                                  "step) or 'persistent' (the paper's Algorithm 1: one archive for "
+                                  "the run, re-evaluated at every step)",
+                         choices=("fresh", "persistent")),
         **COMMON,
     }
 
-    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"distance": "euclidean"}}
-    paper_notes = ("paper: the straight-line distance to the goal in the step fitness (eq. 13); "
-                   "still ours in both profiles: the goal is a candidate of every step and the "
-                   "archive starts afresh at every step")
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {
+        "paper": {"distance": "euclidean", "goal_candidate": False, "archive": "persistent"}}
+    paper_notes = ("paper: the straight-line distance to the goal in the step fitness (eq. 13), "
+                   "no goal candidate, one ACOR archive for the whole run (Algorithm 1; its "
+                   "solutions are re-evaluated at every step, since a step's feasibility "
+                   "depends on where the robot is)")
 
-    def optimize(self, f, lower, upper, rng, init):
+    def optimize(self, f, lower, upper, rng, init, memory):
         v = self.values
-        return acor(f, (lower, upper), k=v["k"], m=v["m"], iterations=v["iterations"], seed=rng,
-                    init=init, xi=v["xi"], q=v["q"])
+        if v["archive"] == "persistent" and "archive" in memory:
+            kept = np.clip(memory["archive"], lower, upper)
+            init = kept if init is None else np.concatenate([init, kept])[:v["k"]]
+        res = acor(f, (lower, upper), k=v["k"], m=v["m"], iterations=v["iterations"], seed=rng,
+                   init=init, xi=v["xi"], q=v["q"])
+        if v["archive"] == "persistent":
+            memory["archive"] = res.population
+        return res

@@ -91,6 +91,8 @@ COMMON: dict[str, Param] = {
     "distance": Param("geodesic", "distance-to-goal term: 'geodesic' along the shortest "
                                   "obstacle-free path (grid cost-to-go), 'euclidean' as the papers",
                       choices=("geodesic", "euclidean")),
+    "goal_candidate": Param(True, "the goal is a starting candidate of every step's search, so "
+                                  "a robot that can drive straight to it does (the papers: no)"),
     "stall_steps": Param(10, "a robot with a fixed goal that plans this many steps in a row "
                              "without getting closer to its goal than before is stuck", lo=1),
     "patience": Param(5.0, "seconds a robot waits for a feasible step (re-planning every second) "
@@ -112,8 +114,10 @@ class StepPlanner(Planner):
 
     @abstractmethod
     def optimize(self, f, lower: np.ndarray, upper: np.ndarray, rng: np.random.Generator,
-                 init: np.ndarray) -> OptResult:
-        """Minimize the step fitness ``f`` over the box; ``init`` rows are starting candidates."""
+                 init: np.ndarray | None, memory: dict) -> OptResult:
+        """Minimize the step fitness ``f`` over the box; ``init`` rows are starting candidates
+        (None: none); ``memory`` is this robot's dict for the run (what a search keeps from one
+        step to the next)."""
 
     # ---- the run ------------------------------------------------------------------------------
 
@@ -159,6 +163,7 @@ class StepPlanner(Planner):
         stalled = np.zeros(n, dtype=int)
         plan_time = np.zeros(n)
         plans = np.zeros(n, dtype=int)
+        memories: list[dict] = [{} for _ in range(n)]
 
         def discs(sim: Simulation, others: list[int]):
             cs_, rs_ = [], []
@@ -237,8 +242,8 @@ class StepPlanner(Planner):
                                              reach=reach[i], margin=m_i, end_margin=margin[i])
                 return np.where(ok, val, np.inf)
 
-            init = np.clip(goal, lower, upper)[None]
-            res = self.optimize(f, lower, upper, rng, init)
+            init = np.clip(goal, lower, upper)[None] if v["goal_candidate"] else None
+            res = self.optimize(f, lower, upper, rng, init, memories[i])
             plan_time[i] += time.perf_counter() - tic
             plans[i] += 1
             if np.isfinite(res.fun):

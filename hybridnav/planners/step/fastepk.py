@@ -59,10 +59,12 @@ class FAStepKinematic(StepPlanner):
                               "in robot radii; 0: the whole workspace", lo=0.0),
     }
 
-    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"distance": "euclidean"}}
-    paper_notes = "paper: the straight-line distance to the goal in the step fitness (eq. 10)"
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {
+        "paper": {"distance": "euclidean", "goal_candidate": False}}
+    paper_notes = ("paper: the straight-line distance to the goal in the step fitness (eq. 10), "
+                   "no goal among the fireflies' starting points")
 
-    def optimize(self, f, lower, upper, rng, init):
+    def optimize(self, f, lower, upper, rng, init, memory):
         v = self.values
         return fastep(f, (lower, upper), n=v["n"], iterations=v["iterations"], seed=rng,
                       init=init, alpha=v["alpha"], beta0=v["beta0"], gamma=v["gamma"],
