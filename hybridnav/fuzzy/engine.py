@@ -62,7 +62,7 @@ from hybridnav.fuzzy.spec import (
 )
 
 __all__ = ["CompiledSystem", "universe", "SUBSETS_MAX", "centroid_weights", "min_sum_table",
-           "interp_slopes", "TINY_AREA", "polyline_centroid"]
+           "interp_slopes", "TINY_AREA", "polyline_centroid", "SUBSETS_SCALAR_MAX"]
 
 FloatArray = NDArray[np.float64]
 _EPS = float(np.finfo(float).eps)
@@ -71,6 +71,8 @@ _AND, _OR, _NOT = 0, 1, 2
 #: Up to this many output terms in rules, the plain-universe integral uses the max-min identity
 #: (2**T - 1 subset tables) instead of an (M, B) array.
 SUBSETS_MAX = 3
+#: The scalar path (and the C export) use the subset tables up to this many terms.
+SUBSETS_SCALAR_MAX = 4
 #: Below this fraction of the output range the aggregated area is computed directly (see
 #: ``CompiledSystem._direct``).
 TINY_AREA = 1e-6
@@ -324,7 +326,7 @@ class CompiledSystem:
 
         # plain-universe integral by the max-min identity (term subsets), small T only
         self._subsets: list[tuple[float, tuple[int, ...], FloatArray, FloatArray, FloatArray]] = []
-        if T <= max(SUBSETS_MAX, 4):
+        if T <= SUBSETS_SCALAR_MAX:
             for size in range(1, T + 1):
                 for sub in itertools.combinations(range(T), size):
                     lv, P, Q = min_sum_table(Fo[list(sub)].min(axis=0), W)

@@ -20,9 +20,9 @@ rounding (about 1e-15 of the output range in double):
    that polyline exactly), from precomputed tables instead of a loop over the universe:
 
    - the plain-universe integral: with at most
-     :data:`~hybridnav.fuzzy.engine.SUBSETS_MAX` terms by the max-min identity over term
+     :data:`~hybridnav.fuzzy.engine.SUBSETS_SCALAR_MAX` terms by the max-min identity over term
      subsets and prefix sums of each subset's sorted samples (one binary search per subset),
-     otherwise one weighted pass over the samples;
+     otherwise one weighted pass over the samples; moments about the range's midpoint;
    - the crossing points: at most one per monotone run of a term, found by binary search; each
      adds the closed-form triangle by which it changes its interval's integral;
    - where the whole aggregated area is tiny (below :data:`~hybridnav.fuzzy.engine.TINY_AREA`
@@ -31,7 +31,10 @@ rounding (about 1e-15 of the output range in double):
 
 ``double`` is the default. Define ``<PREFIX>_REAL`` as ``float`` when compiling (or generate with
 ``real="float"``) for single precision: the tables are rounded to float, results then differ from
-the double ones by about 1e-6 of the output range. Compile with ``-ffp-contract=off`` where the
+the double ones by about 1e-6 of the output range; more where float cannot resolve the geometry:
+a cut so small that its crossing points fall within float resolution of the samples (2e-3 of the
+range at a cut of 2e-6 on a spike term), an output range far from zero relative to its width
+(float has 7 digits for both), cuts below float's range (the default is returned). Compile with ``-ffp-contract=off`` where the
 compiler would otherwise fuse multiply-adds (GCC in ``-std=gnu*`` mode on FMA hardware) if
 bit-for-bit agreement with the Python evaluator matters; agreement to ~1e-12 holds either way.
 ``benchmarks/bench_fuzzy_c.py`` times it against a hand-written evaluator of the same system.
@@ -48,7 +51,7 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fuzzy.engine import (
-    SUBSETS_MAX,
+    SUBSETS_SCALAR_MAX,
     TINY_AREA,
     centroid_weights,
     interp_slopes,
@@ -200,13 +203,13 @@ def _plain_integral(p: str, K: str, xs: np.ndarray, Fo: np.ndarray,
     """C statements that add the plain-universe area and moment of ``max_t min(cut[t], f_t)``
     to ``area`` and ``mom``, and the tables they read.
 
-    With at most :data:`~hybridnav.fuzzy.engine.SUBSETS_MAX` terms: the max-min identity over
-    term subsets and prefix sums over each subset's sorted values (a binary search and two
+    With at most :data:`~hybridnav.fuzzy.engine.SUBSETS_SCALAR_MAX` terms (as the Python
+    evaluator's scalar path): the max-min identity over term subsets and prefix sums over each subset's sorted values (a binary search and two
     multiply-adds per subset); otherwise the weighted sum over the samples.
     """
-    W = centroid_weights(xs)
+    W = centroid_weights(xs - 0.5 * (xs[0] + xs[-1]))  # moments about the midpoint
     T, M = Fo.shape
-    if T > SUBSETS_MAX:
+    if T > SUBSETS_SCALAR_MAX:
         code = (f"    for (i = 0; i < {M}; ++i) {{\n"
                 f"        const {p}_real y = {p}_agg(cut, i);\n"
                 f"        area += {p}_w[i] * y;\n"
@@ -443,13 +446,14 @@ typedef {R} {p}_real;
 #define {P}_EPS (({p}_real)2.220446049250313e-16)  /* numpy's finfo(float).eps */
 #define {P}_N_RUNS {n_runs}  /* monotone runs of the output terms: most crossing points */
 #define {P}_THIRD {K}({_lit(1.0 / 3.0)})
+#define {P}_MID {K}({_lit(0.5 * (xs[0] + xs[-1]))})  /* moments are taken about this point */
 /* below this aggregated area the table identities' rounding (about 1e-16 of the output range
  * in double, 1e-7 in float) would matter: the centroid is then computed directly */
 #define {P}_TINY (sizeof({p}_real) < sizeof(double) ? {K}({_lit(TINY_AREA_FLOAT * width)}) \
                                                     : {K}({_lit(TINY_AREA * width)}))
 
 {chr(10).join(tables)}
-{runtime(p, plain, subsets=T <= SUBSETS_MAX)}
+{runtime(p, plain, subsets=T <= SUBSETS_SCALAR_MAX)}
 {p}_real {p}_evaluate(const {p}_real in[{P}_N_INPUTS])
 {{
     {p}_real mu[{P}_N_LEAVES];

@@ -176,7 +176,9 @@ static @p_real @p_centroid_direct(const @p_real cut[@P_N_OUT_TERMS])
 }
 
 /* centroid of max_t min(cut[t], term t) on skfuzzy's upsampled universe, from tables: the
- * plain-universe integral, then for every crossing point the triangle it adds to its interval */
+ * plain-universe integral, then for every crossing point the triangle it adds to its interval;
+ * moments are taken about the range's midpoint MID (rounding then scales with the range's width,
+ * not with its distance from 0) */
 static @p_real @p_defuzzify(const @p_real cut[@P_N_OUT_TERMS])
 {
     @p_real area = 0, mom = 0, c, lx = 0, ly = 0, a1 = 0;
@@ -229,12 +231,12 @@ static @p_real @p_defuzzify(const @p_real cut[@P_N_OUT_TERMS])
         x1 = x[i + 1];
         da = (@p_real)0.5 * ((x1 - lx) * ca[k] - (x1 - cp[k]) * ly - (cp[k] - lx) * a1);
         area += da;
-        mom += da * (lx + cp[k] + x1) * @P_THIRD;
+        mom += da * ((lx - @P_MID) + (cp[k] - @P_MID) + (x1 - @P_MID)) * @P_THIRD;
         lx = cp[k];
         ly = ca[k];
     }
     if (area < @P_TINY) return @p_centroid_direct(cut);  /* the identities' rounding matters */
-    return mom / (area > @P_EPS ? area : @P_EPS);
+    return @P_MID + mom / (area > @P_EPS ? area : @P_EPS);
 }
 """
 
