@@ -101,3 +101,22 @@ def test_profile_from_the_cli_is_listed_and_recorded(tmp_path, capsys):
 
     back = read_result(tmp_path / "run")
     assert back.params["profile"] == "paper" and back.params["slope"] == 0.0
+
+
+def test_lbcs_stalls_in_the_papers_scenario_4():
+    """The ACO-Kinematic paper's scenario 4 (start (5,5), goal (45,45), our reconstruction of
+    its cup): LbCS is trapped, as the paper reports."""
+    r = planners.get("lbcs").run(load_scenario("aco-scenario-4"))
+    assert r.robots[0].outcome == "stuck"
+
+
+def test_aco_kinematic_paper_profile_is_stuck_in_the_local_minimum_trap():
+    """With the paper's straight-line distance, no goal candidate and one archive, ACO-Kinematic
+    walks into the cup of aco-local-minimum and stays there; the geodesic distance leads it round
+    (seed 0 of both)."""
+    s = load_scenario("aco-local-minimum")
+    paper = planners.get("aco-kinematic", profile="paper").run(s, seed=0).robots[0]
+    ours = planners.get("aco-kinematic").run(s, seed=0).robots[0]
+    assert paper.outcome == "stuck" and ours.outcome == "reached"
+    # stuck inside the cup: within the arc of radius 6 round (27, 25)
+    assert np.hypot(*(paper.states[-1, :2] - (27.0, 25.0))) < 6.0
