@@ -120,3 +120,16 @@ def test_aco_kinematic_paper_profile_is_stuck_in_the_local_minimum_trap():
     assert paper.outcome == "stuck" and ours.outcome == "reached"
     # stuck inside the cup: within the arc of radius 6 round (27, 25)
     assert np.hypot(*(paper.states[-1, :2] - (27.0, 25.0))) < 6.0
+
+
+def test_pso_ba_paper_profile_has_eq_9s_pso_and_the_swarm_barely_matters():
+    """eq. 9 has no inertia factor; the PSO tunes the bats, but the best bat is a full step
+    towards the goal whatever they are: two seeds give paths 5e-4 (of 50) apart."""
+    assert planners.get("pso-ba", profile="paper").values["pso_w"] == 1.0
+    s = load_scenario("pso-ba-dynamic")
+    a = planners.get("pso-ba", profile="paper").run(s, seed=0)
+    b = planners.get("pso-ba", profile="paper").run(s, seed=1)
+    for ra, rb in zip(a.robots, b.robots):
+        assert ra.outcome == rb.outcome == "reached"
+        assert ra.states.shape == rb.states.shape
+        assert 0 < np.abs(ra.states - rb.states).max() < 1e-2

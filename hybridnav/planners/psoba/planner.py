@@ -208,6 +208,9 @@ class PSOBAPlanner(Planner):
                        hi=0.99),
         "particles": Param(5, "PSO particles (alpha, gamma)", lo=1),
         "pso_iterations": Param(5, "PSO iterations", lo=1),
+        "pso_w": Param(0.7298, "PSO inertia weight (the paper's eq. 9 has none: 1)", lo=0.0),
+        "pso_c1": Param(1.49618, "PSO cognitive coefficient (the paper: not given)", lo=0.0),
+        "pso_c2": Param(1.49618, "PSO social coefficient (the paper: not given)", lo=0.0),
         "bats": Param(12, "bats per bat run", lo=1),
         "bat_iterations": Param(12, "iterations per bat run", lo=1),
         "alpha_min": Param(0.1, "lower bound of the bats' loudness decay alpha", lo=0.0, lo_open=True,
@@ -224,6 +227,12 @@ class PSOBAPlanner(Planner):
                                     "(0: off)", lo=0.0),
         "stuck_radius": Param(1.0, "that disk's radius, robot radii", lo=0.0),
     }
+
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"pso_w": 1.0}}
+    paper_notes = ("paper: eq. 9's PSO velocity update has no inertia factor (pso_w = 1); its "
+                   "c1, c2 are not given. In both profiles the PSO barely matters: the fitness "
+                   "has no obstacle term, so the best bat is a full step towards the goal whatever "
+                   "(alpha, gamma) are (pso-ba-dynamic: seeds 0 and 1 give paths 5e-4 apart)")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -400,7 +409,8 @@ class PSOBAPlanner(Planner):
                      pso_iterations=v["pso_iterations"], bats=v["bats"],
                      bat_iterations=v["bat_iterations"],
                      alpha_bounds=(v["alpha_min"], v["alpha_max"]),
-                     gamma_bounds=(v["gamma_min"], v["gamma_max"]))
+                     gamma_bounds=(v["gamma_min"], v["gamma_max"]),
+                     pso_w=v["pso_w"], pso_c1=v["pso_c1"], pso_c2=v["pso_c2"])
         st.counts["pso_ba_runs"] += 1
         c = disk_candidates(res.x, p, step)[0]
         point, repaired = local_search(scene, p, c, v["ds"] * R, r_safe)

@@ -49,7 +49,8 @@ def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles:
            pso_iterations: int = 5, bats: int = 12, bat_iterations: int = 12,
            alpha_bounds: tuple[float, float] = (0.1, 1.0),
            gamma_bounds: tuple[float, float] = (0.0, 1.0),
-           init: ArrayLike | None = None) -> PSOBAResult:
+           init: ArrayLike | None = None, pso_w: float = 0.7298, pso_c1: float = 1.49618,
+           pso_c2: float = 1.49618) -> PSOBAResult:
     """Maximize ``fitness`` with bats whose ``(alpha, gamma)`` a PSO tunes (Algorithm 1).
 
     Each PSO particle ``s = (alpha, gamma)`` is evaluated by one run of
@@ -75,6 +76,9 @@ def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles:
         Range of the pulse-rate constant, ``0 <= lo < hi``.
     init : array_like, shape (m, d), optional
         Starting bats of every run (``m <= bats``).
+    pso_w, pso_c1, pso_c2 : float
+        The PSO's inertia weight and coefficients (:func:`~hybridnav.planners.swarm.pso`'s
+        defaults; the paper's eq. 9 has no inertia factor, ``pso_w = 1``).
 
     Returns
     -------
@@ -108,6 +112,6 @@ def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles:
         return out
 
     opt = pso(run_bats, ([a_lo, g_lo], [a_hi, g_hi]), n=particles, iterations=pso_iterations,
-              seed=rng)
+              seed=rng, w=pso_w, c1=pso_c1, c2=pso_c2)
     return PSOBAResult(x=best["x"], fitness=float(best["f"]), alpha=best["alpha"],
                        gamma=best["gamma"], bat_runs=best["runs"], pso=opt)
