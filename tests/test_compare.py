@@ -210,3 +210,38 @@ def test_cli_dask_local_keeps_the_cluster_chatter_out_of_the_progress_bar(tmp_pa
     assert proc.returncode == 0, proc.stderr
     assert "INFO" not in proc.stderr and "distributed" not in proc.stderr
     assert (tmp_path / "out" / "summary.csv").exists()
+
+
+def test_summary_statistics_against_scipy(serial, tmp_path):
+    """Medians, 95 % intervals of the mean (Student's t), best and worst runs with their own
+    times, and the pairwise Mann-Whitney U p-values, recomputed from runs.csv with scipy."""
+    import numpy as np
+    from scipy import stats
+
+    table, summary = serial
+    for _, row in summary.iterrows():
+        g = table[(table.planner == row.planner) & (table.scenario == row.scenario)]
+        ok = g[g.outcome == "reached"]
+        v = ok.path_length.astype(float).to_numpy()
+        if len(v) >= 2:
+            lo, hi = ((v.mean(), v.mean()) if np.all(v == v[0]) else   # scipy: nan at sem 0
+                      stats.t.interval(0.95, len(v) - 1, loc=v.mean(), scale=stats.sem(v)))
+            assert row.path_length_ci95_lo == pytest.approx(lo, rel=1e-12, abs=1e-12)
+            assert row.path_length_ci95_hi == pytest.approx(hi, rel=1e-12, abs=1e-12)
+        if len(v):
+            assert row.path_length_median == np.median(v)
+            best = ok.loc[ok.path_length.astype(float).idxmin()]
+            assert (row.best_path_length, row.best_time_to_goal) == (best.path_length,
+                                                                     best.time_to_goal)
+        assert row.units == "m"
+        other = "pbpf" if row.planner == "apf" else "apf"
+        w = table[(table.planner == other) & (table.scenario == row.scenario)
+                  & (table.outcome == "reached")].path_length.astype(float).to_numpy()
+        p = row[f"path_length_p_vs_{other}"]
+        if len(v) and len(w):
+            assert p == stats.mannwhitneyu(v, w, alternative="two-sided").pvalue
+        else:
+            assert np.isnan(p)
+    files = write_comparison(tmp_path, table, summary)
+    assert {"paths_effc-train-1.png", "paths_effc-train-2.png",
+            "compare_compute_time.png"} <= set(files)

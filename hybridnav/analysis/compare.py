@@ -223,6 +223,9 @@ def _execute(task: _Task) -> list[dict[str, Any]]:
         rows.append({"planner": task.label, "scenario": scenario.name, "run": task.run,
                      "seed": task.seed, "robot": r.name, **{k: s[k] for k in RUN_COLUMNS[5:11]},
                      "planner_name": task.planner})
+    if task.run == 0:   # the first run's paths, for the overlay figure
+        rows.append({"_paths": {r.name: np.asarray(r.states)[:, :2].copy()
+                                for r in result.robots}})
     return rows
 
 
@@ -320,24 +323,40 @@ def compare(
 
     with make_backend(workers, dask or "") as backend:
         results = backend.map(_execute, [(t,) for t in tasks], on_done=finished)
-    rows = [row for result_rows in results for row in result_rows]
+    rows = [row for result_rows in results for row in result_rows if "_paths" not in row]
+    paths = {(t.label, load_scenario(t.scenario).name): row["_paths"]
+             for t, result_rows in zip(tasks, results) for row in result_rows if "_paths" in row}
     table = pd.DataFrame(rows, columns=RUN_COLUMNS)
     order = {label: i for i, label in enumerate(labels)}
     table = table.sort_values(["planner", "scenario", "run", "robot"],
                               key=lambda c: c.map(order) if c.name == "planner" else c,
                               kind="stable").reset_index(drop=True)
+    table.attrs.update(units={sc.name: sc.units for sc in loaded},
+                       scenarios={sc.name: spec for sc, spec in zip(loaded, scenarios)},
+                       paths=paths)
     return table, summarize_runs(table)
 
 
 def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
-    """Per planner x scenario: runs, success rate, and mean/std/min/max of every metric.
+    """Per planner x scenario: runs, success rate, and the statistics of every metric.
 
     ``path_length``, ``time_to_goal`` and ``smoothness`` are summarized over the robots that
     reached their goal (a failed run has no meaningful length); clearance and compute time over
-    all robots.
+    all robots. Per metric: mean, std, min, max, median and the 95 % confidence interval of the
+    mean (Student's t; ``ci95_lo``, ``ci95_hi``; NaN below two values). ``best_path_length`` and
+    ``best_time_to_goal`` are the shortest reached run's length and its own time (``worst_*``:
+    the longest), as papers report best and worst cases. For every other planner on the same
+    scenario, ``path_length_p_vs_<label>`` and ``time_to_goal_p_vs_<label>`` hold the two-sided
+    Mann-Whitney U test's p-value (:func:`scipy.stats.mannwhitneyu`; NaN where either side has
+    no reached run). ``units`` is the scenario's length unit where the table knows it
+    (``table.attrs["units"]``, set by :func:`compare`).
     """
+    from scipy import stats
+
+    units = table.attrs.get("units", {})
     out = []
-    for (planner, scenario), g in table.groupby(["planner", "scenario"], sort=False):
+    groups = {key: g for key, g in table.groupby(["planner", "scenario"], sort=False)}
+    for (planner, scenario), g in groups.items():
         ok = g[g["outcome"] == "reached"]
         row: dict[str, Any] = {"planner": planner, "scenario": scenario, "robots": len(g),
                                "success_rate": len(ok) / len(g)}
@@ -345,8 +364,30 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
             row[outcome] = int((g["outcome"] == outcome).sum())
         for m in METRICS:
             vals = (ok if m in REACHED_ONLY else g)[m].astype(float).dropna()
-            for stat in ("mean", "std", "min", "max"):
+            for stat in ("mean", "std", "min", "max", "median"):
                 row[f"{m}_{stat}"] = getattr(vals, stat)() if len(vals) else np.nan
+            n = len(vals)
+            half = (stats.t.ppf(0.975, n - 1) * vals.std() / np.sqrt(n)) if n >= 2 else np.nan
+            row[f"{m}_ci95_lo"] = row[f"{m}_mean"] - half
+            row[f"{m}_ci95_hi"] = row[f"{m}_mean"] + half
+        reached = ok.dropna(subset=["path_length"])
+        for side, idx in (("best", "idxmin"), ("worst", "idxmax")):
+            if len(reached):
+                r = reached.loc[getattr(reached["path_length"].astype(float), idx)()]
+                row[f"{side}_path_length"] = float(r["path_length"])
+                row[f"{side}_time_to_goal"] = float(r["time_to_goal"])
+            else:
+                row[f"{side}_path_length"] = row[f"{side}_time_to_goal"] = np.nan
+        for (other, sc2), g2 in groups.items():
+            if sc2 != scenario or other == planner:
+                continue
+            ok2 = g2[g2["outcome"] == "reached"]
+            for m in ("path_length", "time_to_goal"):
+                a = ok[m].astype(float).dropna().to_numpy()
+                b = ok2[m].astype(float).dropna().to_numpy()
+                row[f"{m}_p_vs_{other}"] = (float(stats.mannwhitneyu(a, b).pvalue)
+                                            if len(a) and len(b) else np.nan)
+        row["units"] = units.get(scenario, "")
         out.append(row)
     return pd.DataFrame(out)
 
@@ -378,30 +419,84 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
         atomic_write_text(folder / "comparison.json",
                           dumps_json({"version": __version__, **dict(settings)}))
         names.append("comparison.json")
-    for metric, label in (("path_length", "path length (reached)"),
+    for metric, label in (("path_length", "path length [{units}] (reached)"),
                           ("time_to_goal", "time to goal [s] (reached)"),
+                          ("compute_time", "compute time [s]"),
                           ("success_rate", "success rate")):
         save_figure(_bars(summary, metric, label), folder / f"compare_{metric}.png")
         names.append(f"compare_{metric}.png")
+    for scenario, paths in _paths_by_scenario(table).items():
+        fig = _overlay(table.attrs["scenarios"][scenario], paths)
+        name = f"paths_{_file_stem(scenario)}.png"
+        save_figure(fig, folder / name)
+        names.append(name)
     return names
 
 
-def _bars(summary: pd.DataFrame, metric: str, label: str) -> Figure:
-    fig = Figure(figsize=(7.0, 4.2), layout="constrained")
+def _file_stem(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in name)
+
+
+def _paths_by_scenario(table: pd.DataFrame) -> dict[str, dict[str, dict[str, np.ndarray]]]:
+    """``{scenario: {planner label: {robot: (N, 2) path}}}`` of run 0 (when ``compare`` kept
+    them in ``table.attrs``)."""
+    out: dict[str, dict[str, dict[str, np.ndarray]]] = {}
+    if "scenarios" not in table.attrs:
+        return out
+    for (label, scenario), robots in table.attrs.get("paths", {}).items():
+        out.setdefault(scenario, {})[label] = robots
+    return out
+
+
+def _overlay(spec: str, paths: Mapping[str, Mapping[str, np.ndarray]]) -> Figure:
+    """Every planner's run-0 path on the scenario's map, one colour per planner."""
+    from hybridnav.plotting import draw_scenario
+    from hybridnav.world import load_scenario
+
+    scenario = load_scenario(spec)
+    fig = Figure(figsize=(6.4, 6.4), layout="constrained")
     ax = fig.add_subplot()
-    scen = list(dict.fromkeys(summary["scenario"]))
+    draw_scenario(scenario, ax)
+    colours = [f"C{k}" for k in range(10)]
+    for k, (label, robots) in enumerate(paths.items()):
+        for j, xy in enumerate(robots.values()):
+            ax.plot(xy[:, 0], xy[:, 1], color=colours[k % 10], linewidth=1.4,
+                    label=label if j == 0 else None, zorder=5)
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(f"{scenario.name}: run 0 of every planner")
+    return fig
+
+
+def _bars(summary: pd.DataFrame, metric: str, label: str) -> Figure:
+    """Bars per scenario and planner (mean with its 95 % interval; success rate plain), one panel
+    per length unit where the scenarios' units differ (``{units}`` in ``label``)."""
+    units_of = (dict(zip(summary["scenario"], summary["units"])) if "units" in summary
+                else {})
+    groups: dict[str, list[str]] = {}
+    for sc in dict.fromkeys(summary["scenario"]):
+        key = units_of.get(sc, "") if "{units}" in label else ""
+        groups.setdefault(key, []).append(sc)
+    fig = Figure(figsize=(7.0, 4.2 * len(groups)), layout="constrained")
     plans = list(dict.fromkeys(summary["planner"]))
     width = 0.8 / max(1, len(plans))
-    for i, p in enumerate(plans):
-        sub = summary[summary["planner"] == p].set_index("scenario").reindex(scen)
-        x = np.arange(len(scen)) + (i - (len(plans) - 1) / 2) * width
-        if metric == "success_rate":
-            ax.bar(x, sub[metric], width, label=p)
-        else:
-            ax.bar(x, sub[f"{metric}_mean"], width, yerr=sub[f"{metric}_std"].fillna(0),
-                   capsize=3, label=p)
-    ax.set_xticks(np.arange(len(scen)), scen, rotation=20)
-    ax.set_ylabel(label)
-    ax.legend(fontsize=8)
-    ax.set_title(label)
+    for row, (unit, scen) in enumerate(groups.items()):
+        ax = fig.add_subplot(len(groups), 1, row + 1)
+        for i, p in enumerate(plans):
+            sub = summary[summary["planner"] == p].set_index("scenario").reindex(scen)
+            x = np.arange(len(scen)) + (i - (len(plans) - 1) / 2) * width
+            if metric == "success_rate":
+                ax.bar(x, sub[metric], width, label=p)
+            else:
+                mean = sub[f"{metric}_mean"]
+                if f"{metric}_ci95_lo" in sub:
+                    err = np.vstack([mean - sub[f"{metric}_ci95_lo"],
+                                     sub[f"{metric}_ci95_hi"] - mean])
+                else:
+                    err = sub[f"{metric}_std"].to_numpy()
+                ax.bar(x, mean, width, yerr=np.nan_to_num(err), capsize=3, label=p)
+        ax.set_xticks(np.arange(len(scen)), scen, rotation=20)
+        text = label.replace("{units}", unit or "scenario units")
+        ax.set_ylabel(text)
+        ax.legend(fontsize=8)
+        ax.set_title(text)
     return fig
