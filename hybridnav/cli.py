@@ -235,6 +235,45 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from hybridnav.reproduce import PROTOCOLS, reproduce, variants
+
+    if args.list or not args.name:
+        for name, protocol in PROTOCOLS.items():
+            print(f"{name}: {protocol.paper}, {protocol.source}; {protocol.runs} runs; "
+                  f"scenarios {', '.join(r.scenario for r in protocol.rows)}")
+        return 0
+    if args.out is None:
+        raise HybridnavError("reproduce: -o/--out: expected the output folder")
+    if args.name not in PROTOCOLS:
+        raise HybridnavError(f"reproduce: unknown protocol {args.name!r}; expected one of: "
+                             + ", ".join(sorted(PROTOCOLS)))
+    protocol = PROTOCOLS[args.name]
+    runs = protocol.runs if args.runs is None else args.runs
+    scens = [s.strip() for s in (args.scenarios or "").split(",") if s.strip()]
+    rows = len(scens) if scens else len(protocol.rows)
+    bar = tqdm(total=len(variants(protocol)) * rows * max(runs, 0), unit="run",
+               desc=args.name)
+
+    def progress(done, total):
+        bar.update(done - bar.n)
+
+    try:
+        result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
+                           workers=args.workers, dask=args.dask, progress=progress,
+                           scenarios=scens)
+    finally:
+        bar.close()
+    words = {True: "holds", False: "does not hold", None: "cannot be checked"}
+    for c in result["claims"]:
+        print(f"{c['text']}: paper's table {words[c['paper']]}; ours, profile=paper "
+              f"{words[c['paper profile']]}; profile=hybridnav {words[c['hybridnav profile']]}")
+    print(f"wrote {args.out}/: {', '.join(result['files'])}")
+    return 0
+
+
 def _cmd_fis(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -493,6 +532,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", required=True, metavar="DIR",
                    help="folder for the tables and plots")
     p.set_defaults(func=_cmd_compare)
+
+    p = add_command("reproduce", help="run a paper's protocol in both profiles; report.md with "
+                                      "the paper's numbers and claims beside ours")
+    p.add_argument("name", nargs="?", help="protocol (see --list)")
+    p.add_argument("--list", action="store_true", help="list the protocols")
+    p.add_argument("--runs", type=int, default=None,
+                   help="runs per planner and scenario (default: the paper's number)")
+    p.add_argument("--scenarios", help="comma-separated: only these of the protocol's scenarios")
+    p.add_argument("--seed", type=int, default=0, help="seed from which every run's seed derives")
+    backend = p.add_mutually_exclusive_group()
+    backend.add_argument("--workers", type=int, default=1, help="local worker processes")
+    backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
+    p.add_argument("-o", "--out", metavar="DIR", help="folder for the report, tables and plots")
+    p.set_defaults(func=_cmd_reproduce)
 
     p = add_command("fis", help="describe a fuzzy system; plot its membership functions and "
                                    "control surface")

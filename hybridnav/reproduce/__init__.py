@@ -1,0 +1,95 @@
+"""``hybridnav reproduce NAME``: run a paper's protocol in both profiles and report beside it.
+
+:func:`reproduce` runs :data:`PROTOCOLS` ``[name]`` through :func:`hybridnav.analysis.compare`
+(every planner with profiles as ``NAME/paper`` with ``profile=paper`` and as ``NAME`` with the
+default ``hybridnav`` profile; planners without profiles once; the protocol's ablations with the
+default profile), writes the comparison's tables and figures, and ``report.md``
+(:mod:`hybridnav.reproduce.report`): the paper's numbers beside ours for each profile, the
+paper's derived figures recomputed, and for each of the paper's claims whether it holds in the
+paper's own table and here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from hybridnav.errors import HybridnavError
+from hybridnav.reproduce.protocols import PROTOCOLS, Claim, Protocol, Row, Value
+from hybridnav.reproduce.variants import PROFILES, label_for, variants
+
+__all__ = ["PROFILES", "PROTOCOLS", "Claim", "Protocol", "Row", "Value", "label_for", "reproduce",
+           "variants"]
+
+
+def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
+              workers: int = 1, dask: str | Any | None = None,
+              progress: Callable[[int, int], None] | None = None,
+              scenarios: Sequence[str] | None = None) -> dict[str, Any]:
+    """Run protocol ``name`` and write its report into ``out``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PROTOCOLS`.
+    out : str or Path
+        The output folder (``report.md``, ``runs.csv``, ``summary.csv``, figures,
+        ``comparison.json``).
+    runs : int, optional
+        Runs per planner and scenario (default: the paper's number).
+    seed : int
+        Base seed of the comparison.
+    workers : int
+        Local worker processes.
+    dask : str or distributed.Client, optional
+        A Dask scheduler (as for ``compare``).
+    progress : callable, optional
+        ``progress(done, total)``.
+    scenarios : sequence of str, optional
+        Run only these of the protocol's scenarios (its rows; default all).
+
+    Returns
+    -------
+    dict
+        ``claims``: per claim, ``{"text", "paper", "paper profile", "hybridnav profile"}`` with
+        True, False or None (not checkable); ``files``: what was written.
+
+    Raises
+    ------
+    HybridnavError
+        An unknown protocol or a bad ``runs``.
+    """
+    from hybridnav.analysis.compare import PlannerSpec, compare, write_comparison
+    from hybridnav.reproduce.report import check_claims, write_report
+
+    if name not in PROTOCOLS:
+        raise HybridnavError(f"reproduce: unknown protocol {name!r}; expected one of: "
+                             + ", ".join(sorted(PROTOCOLS)))
+    protocol = PROTOCOLS[name]
+    if scenarios:
+        known = [row.scenario for row in protocol.rows]
+        bad = [sc for sc in scenarios if sc not in known]
+        if bad:
+            raise HybridnavError(f"reproduce {name}: --scenarios: expected some of "
+                                 f"{', '.join(known)}, got {bad[0]!r}")
+        protocol = dataclasses.replace(protocol, rows=tuple(
+            row for row in protocol.rows if row.scenario in scenarios))
+    n = protocol.runs if runs is None else runs
+    if int(n) != n or n < 1:
+        raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
+    specs = [PlannerSpec(label, planner, params) for label, planner, params in variants(protocol)]
+    scenarios = [row.scenario for row in protocol.rows]
+    table, summary = compare(specs, scenarios, int(n), seed=seed, workers=workers, dask=dask,
+                             progress=progress)
+    from hybridnav import __version__
+
+    settings = {"protocol": name, "paper": protocol.paper, "runs": int(n),
+                "paper_runs": protocol.runs, "seed": seed, "profiles": list(PROFILES),
+                "planners": [s.format() for s in specs], "scenarios": scenarios}
+    files = write_comparison(out, table, summary, settings=settings)
+    claims = check_claims(protocol, summary)
+    write_report(Path(out) / "report.md", protocol, summary, claims, runs=int(n), seed=seed,
+                 version=__version__, files=files)
+    return {"claims": claims, "files": ["report.md", *files]}

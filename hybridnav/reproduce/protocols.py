@@ -1,0 +1,158 @@
+"""The papers' protocols: what each reproduction runs, the paper's numbers and the paper's claims.
+
+A :class:`Protocol` names the compared planners (every planner with profiles runs in both, the
+``paper`` and the ``hybridnav`` one; the others once), the scenarios standing for the paper's
+rows, the paper's number of runs, parameter settings the paper states (``settings``), ablation
+variants, the paper's reported values per row and planner, and its :class:`Claim` s, which the
+report checks on the paper's own numbers and on ours.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["PROTOCOLS", "Claim", "Protocol", "Row", "Value"]
+
+
+@dataclass(frozen=True)
+class Value:
+    """What a paper reports for one planner in one row: time (s), length (the scenario's units)
+    and the outcome when it gives only that (``"reached"``/``"stuck"``)."""
+
+    time: float | None = None
+    length: float | None = None
+    outcome: str = "reached"
+
+
+@dataclass(frozen=True)
+class Row:
+    """One row of a paper's table: its label there, our scenario, the paper's values by planner."""
+
+    label: str
+    scenario: str
+    paper: dict[str, Value]
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A paper's claim about two planners (``kind``: ``shorter`` or ``faster``: ``a`` beats ``b``
+    in mean length / time on every listed row) or one (``reaches``: every run of ``a`` reaches
+    its goal; ``stuck``: none does). ``rows``: the row labels it covers (empty: all)."""
+
+    text: str
+    kind: str
+    a: str
+    b: str = ""
+    rows: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """One paper's comparison, as ``hybridnav reproduce NAME`` runs it."""
+
+    name: str
+    paper: str
+    source: str                      # where in the paper
+    planners: tuple[str, ...]
+    rows: tuple[Row, ...]
+    runs: int
+    claims: tuple[Claim, ...]
+    settings: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: ablation variants, ``(label, planner, params)``, run with the default profile
+    ablations: tuple[tuple[str, str, dict[str, Any]], ...] = ()
+    #: ``(a, b)``: recompute the paper's enhancement percentages ``100 (b - a) / b``
+    enhancement: tuple[str, str] | None = None
+    #: values the paper quotes from other work (not run here): ``{row label: {method: length}}``
+    literature: dict[str, dict[str, float]] = field(default_factory=dict)
+    notes: str = ""
+
+
+FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic)"
+ACOK = "Chaudhary, Prasad, Chand & Sharma, PeerJ CS 2022 (ACO-Kinematic)"
+RFDPSO = "Hassen, Amin & Al-Araji, IJRITCC 2023 (RFD-PSO)"
+EFFC = "Golkhatib, Shahmansoorian & Davoudi, IJEEE 2025 (EFFC)"
+
+PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
+    Protocol(
+        name="fastep-table2", paper=FASTEP, source="Table 2 (30 runs per scenario), Section V",
+        planners=("fastep-kinematic", "aco-kinematic"),
+        rows=(Row("scenario 1", "fastep-s1", {"fastep-kinematic": Value(69.62, 56.56),
+                                              "aco-kinematic": Value(133.76, 56.77)}),
+              Row("scenario 2", "fastep-s2", {"fastep-kinematic": Value(154.04, 59.69),
+                                              "aco-kinematic": Value(283.25, 65.75)}),
+              Row("scenario 3", "fastep-s3", {"fastep-kinematic": Value(95.80, 45.73),
+                                              "aco-kinematic": Value(173.27, 48.54)})),
+        runs=30,
+        claims=(Claim("FAStep-Kinematic's mean path is shorter than ACO-Kinematic's in all three "
+                      "scenarios", "shorter", "fastep-kinematic", "aco-kinematic"),
+                Claim("FAStep-Kinematic reaches the goal in less time than ACO-Kinematic in all "
+                      "three scenarios", "faster", "fastep-kinematic", "aco-kinematic")),
+        enhancement=("fastep-kinematic", "aco-kinematic"),
+        notes="The scenarios are reconstructions of the paper's figures."),
+    Protocol(
+        name="aco-table5", paper=ACOK, source="Tables 3-5 and scenario 4 (Figs. 18-19)",
+        planners=("aco-kinematic", "lbcs"),
+        rows=(Row("scenario 1", "fastep-s1", {"lbcs": Value(251.02, 58.57),
+                                              "aco-kinematic": Value(208.72, 57.98)}),
+              Row("scenario 2", "fastep-s2", {"lbcs": Value(309.44, 66.3),
+                                              "aco-kinematic": Value(124.99, 65.35)}),
+              Row("scenario 3", "tractor-trailer-1", {"lbcs": Value(240.92, 68.34),
+                                                      "aco-kinematic": Value(195.79, 66.27)}),
+              Row("scenario 4", "aco-scenario-4", {"lbcs": Value(outcome="stuck"),
+                                                   "aco-kinematic": Value()})),
+        runs=30,
+        settings={"aco-kinematic": {"a": 0.02, "c": 0.05}},
+        claims=(Claim("ACO-Kinematic's path is shorter than LbCS's", "shorter", "aco-kinematic",
+                      "lbcs", ("scenario 1", "scenario 2", "scenario 3")),
+                Claim("ACO-Kinematic reaches the goal in less time than LbCS", "faster",
+                      "aco-kinematic", "lbcs", ("scenario 1", "scenario 2", "scenario 3")),
+                Claim("LbCS is trapped in the local minimum of scenario 4", "stuck", "lbcs",
+                      rows=("scenario 4",)),
+                Claim("ACO-Kinematic reaches the goal of scenario 4", "reaches", "aco-kinematic",
+                      rows=("scenario 4",))),
+        enhancement=("aco-kinematic", "lbcs"),
+        notes=("Table 3's weights (a = 0.02, c = 0.05) are set for ACO-Kinematic; LbCS is "
+               "deterministic (the paper ran it once). Scenario 4's cup is our reconstruction "
+               "(aco-scenario-4); the other layouts reconstruct the paper's figures.")),
+    Protocol(
+        name="rfdpso-table3", paper=RFDPSO, source="Table 2 (700 x 700 cm map), Table 3 "
+                                                   "(20 x 20 m map), Figs. 6-11",
+        planners=("rfd", "pso", "rfd-pso", "astar", "dijkstra"),
+        rows=(Row("700 x 700 cm", "rfd-pso-700", {"rfd": Value(length=596.69),
+                                                  "pso": Value(length=626.82),
+                                                  "rfd-pso": Value(length=628.86)}),
+              Row("20 x 20 m", "rfd-pso-20m", {"rfd": Value(length=32.68),
+                                               "pso": Value(length=44.96),
+                                               "rfd-pso": Value(length=29.58)})),
+        runs=10,
+        ablations=(("rfd-pso/no-shorten", "rfd-pso", {"shorten": False}),
+                   ("rfd/shortened", "rfd", {"shorten": True}),
+                   ("astar/shortened", "astar", {"shorten": True})),
+        claims=(Claim("RFD-PSO's path is shorter than RFD's", "shorter", "rfd-pso", "rfd"),
+                Claim("RFD-PSO's path is shorter than PSO's", "shorter", "rfd-pso", "pso")),
+        literature={"20 x 20 m": {"SAACO [28]": 29.796, "FACO [29]": 29.3848}},
+        notes=("Lengths are travelled path lengths. The maps are reconstructions; in ours the "
+               "straight line of the 700 cm map is 626.82 cm, so the paper's 596.69 cm cannot be "
+               "a path there. The ablations separate the PSO's gain from the shortening "
+               "(pulling the path tight), which the paper does not have.")),
+    Protocol(
+        name="effc-table3", paper=EFFC, source="Table 3",
+        planners=("effc", "hapf", "pbpf"),
+        rows=(Row("environment (a)", "effc-env-a", {"effc": Value(11.5, 2.3),
+                                                    "hapf": Value(15.5, 3.1),
+                                                    "pbpf": Value(13.1, 2.6)}),
+              Row("environment (b)", "effc-env-b", {"effc": Value(12.2, 2.4),
+                                                    "hapf": Value(14.3, 2.8),
+                                                    "pbpf": Value(13.5, 2.7)})),
+        runs=10,
+        ablations=(("effc/tuned", "effc", {"fis": "effc-tuned"}),),
+        claims=(Claim("EFFC's path is shorter than HAPF's", "shorter", "effc", "hapf"),
+                Claim("EFFC's path is shorter than PBPF's", "shorter", "effc", "pbpf"),
+                Claim("EFFC reaches the goal in less time than HAPF", "faster", "effc", "hapf"),
+                Claim("EFFC reaches the goal in less time than PBPF", "faster", "effc", "pbpf")),
+        enhancement=("effc", "hapf"),
+        notes=("The environments are reconstructions; issue 16 found that the paper's EFFC "
+               "lengths are below our layouts' straight-line start-goal distances (3.0 m, "
+               "3.11 m), so no planner can match them here.")),
+)}

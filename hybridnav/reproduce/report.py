@@ -1,0 +1,268 @@
+"""``report.md`` of a reproduction: the paper's numbers beside ours, per profile, and its claims.
+
+Our figures are means over the runs that reached the goal (the success count beside them); a
+claim about two planners compares those means row by row, and says "cannot be checked" where one
+side has no reached run (or the paper gives no number). Each comparison also quotes the
+Mann-Whitney U p-value of our runs (from ``summary.csv``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from hybridnav.fileio import atomic_write_text
+from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
+from hybridnav.reproduce.variants import label_for
+
+__all__ = ["check_claims", "ours", "write_report"]
+
+VIEWS = ("paper", "paper profile", "hybridnav profile")
+
+
+def ours(summary: pd.DataFrame, label: str, scenario: str) -> dict[str, Any] | None:
+    """Our summary row of one variant on one scenario.
+
+    Parameters
+    ----------
+    summary : DataFrame
+        ``summarize_runs`` of the reproduction.
+    label : str
+        The variant's label.
+    scenario : str
+        The scenario's name.
+
+    Returns
+    -------
+    dict or None
+        The row (None if that variant did not run on that scenario).
+    """
+    sel = summary[(summary["planner"] == label) & (summary["scenario"] == scenario)]
+    return None if sel.empty else sel.iloc[0].to_dict()
+
+
+def _label(protocol: Protocol, planner: str, view: str) -> str:
+    return label_for(protocol, planner, "paper" if view == "paper profile" else "hybridnav")
+
+
+def _rows(protocol: Protocol, claim: Claim) -> list[Row]:
+    return [r for r in protocol.rows if not claim.rows or r.label in claim.rows]
+
+
+def _metric(value: Value | dict[str, Any] | None, what: str) -> float | None:
+    """Length or time of a paper value or one of our summary rows (None: none reached)."""
+    if value is None:
+        return None
+    if isinstance(value, Value):
+        v = value.length if what == "length" else value.time
+        return v if value.outcome == "reached" else None
+    if not value["success_rate"] > 0:
+        return None
+    v = value["path_length_mean" if what == "length" else "time_to_goal_mean"]
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def _reached(value: Value | dict[str, Any] | None) -> float | None:
+    """Share of reached runs (paper: 1 or 0 by its outcome)."""
+    if value is None:
+        return None
+    if isinstance(value, Value):
+        return 1.0 if value.outcome == "reached" else 0.0
+    return float(value["success_rate"])
+
+
+def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
+           ) -> tuple[bool | None, str]:
+    parts, verdicts = [], []
+    for row in _rows(protocol, claim):
+        if view == "paper":
+            va, vb = row.paper.get(claim.a), row.paper.get(claim.b)
+        else:
+            va = ours(summary, _label(protocol, claim.a, view), row.scenario)
+            vb = ours(summary, _label(protocol, claim.b, view), row.scenario) if claim.b else None
+        if claim.kind in ("shorter", "faster"):
+            what = "length" if claim.kind == "shorter" else "time"
+            a, b = _metric(va, what), _metric(vb, what)
+            if a is None or b is None:
+                verdicts.append(None)
+                parts.append(f"{row.label}: no number")
+                continue
+            p = ""
+            if isinstance(va, dict):
+                key = f"{'path_length' if what == 'length' else 'time_to_goal'}_p_vs_" \
+                      f"{_label(protocol, claim.b, view)}"
+                if key in va and va[key] == va[key]:
+                    p = f", p = {va[key]:.2g}"
+            verdicts.append(a < b)
+            parts.append(f"{row.label}: {a:.4g} vs {b:.4g}{p}")
+        else:
+            share = _reached(va)
+            if share is None:
+                verdicts.append(None)
+                parts.append(f"{row.label}: no number")
+                continue
+            verdicts.append(share == 1.0 if claim.kind == "reaches" else share == 0.0)
+            parts.append(f"{row.label}: reached {share:.0%}")
+    if any(v is False for v in verdicts):
+        holds: bool | None = False
+    elif verdicts and all(v is True for v in verdicts):
+        holds = True
+    else:
+        holds = None
+    return holds, "; ".join(parts)
+
+
+def check_claims(protocol: Protocol, summary: pd.DataFrame) -> list[dict[str, Any]]:
+    """Each claim's verdict in the paper's own numbers and in ours for both profiles.
+
+    Parameters
+    ----------
+    protocol : Protocol
+    summary : DataFrame
+        ``summarize_runs`` of the reproduction.
+
+    Returns
+    -------
+    list of dict
+        ``text``, and per view (``paper``, ``paper profile``, ``hybridnav profile``) the verdict
+        (True, False or None) and ``<view> detail`` (the numbers it rests on).
+    """
+    out = []
+    for claim in protocol.claims:
+        item: dict[str, Any] = {"text": claim.text}
+        for view in VIEWS:
+            item[view], item[f"{view} detail"] = _check(protocol, claim, summary, view)
+        out.append(item)
+    return out
+
+
+def _word(v: bool | None) -> str:
+    return {True: "holds", False: "does not hold", None: "cannot be checked"}[v]
+
+
+def _cell(row: dict[str, Any] | None, units: str) -> str:
+    if row is None:
+        return "-"
+    n = int(row["robots"])
+    k = int(round(row["success_rate"] * n))
+    if k == 0:
+        fails = [o for o in ("stuck", "collided", "timeout", "out_of_bounds") if row.get(o)]
+        return f"none reached ({', '.join(f'{o} {int(row[o])}' for o in fails)})"
+    return (f"{row['time_to_goal_mean']:.1f} s / {row['path_length_mean']:.4g} {units} "
+            f"({k}/{n})")
+
+
+def _paper_cell(v: Value | None, units: str) -> str:
+    if v is None:
+        return "-"
+    if v.outcome != "reached":
+        return v.outcome
+    parts = [f"{v.time:g} s" if v.time is not None else "", f"{v.length:g} {units}"
+             if v.length is not None else ""]
+    return " / ".join(p for p in parts if p) or "reached"
+
+
+def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
+                 claims: Sequence[dict[str, Any]], *, runs: int, seed: int, version: str,
+                 files: Sequence[str]) -> None:
+    """Write ``report.md``.
+
+    Parameters
+    ----------
+    path : Path
+    protocol : Protocol
+    summary : DataFrame
+    claims : sequence of dict
+        :func:`check_claims` of the same summary.
+    runs, seed : int
+        What the comparison ran with.
+    version : str
+        The package version.
+    files : sequence of str
+        The comparison's files in the same folder (figures are linked).
+    """
+    units_of = dict(zip(summary["scenario"], summary["units"]))
+    lines = [f"# `{protocol.name}`: {protocol.paper}", "",
+             f"Reproduces {protocol.source}. hybridnav {version}; {runs} run(s) per planner and "
+             f"scenario (the paper: {protocol.runs}), seed {seed}. Every planner with profiles "
+             "ran twice: `profile=paper` (the paper's settings and rules, see `hybridnav "
+             "planners`) and the default `profile=hybridnav`.", ""]
+    if protocol.settings:
+        lines += ["Settings from the paper: " + "; ".join(
+            f"{p}: " + ", ".join(f"{k} = {v}" for k, v in s.items())
+            for p, s in protocol.settings.items()) + ".", ""]
+    if protocol.notes:
+        lines += [protocol.notes, ""]
+    lines += ["Ours: mean time to goal / mean path length over the runs that reached it (reached "
+              "runs / runs).", ""]
+    for view in ("paper profile", "hybridnav profile"):
+        lines += [f"## Our runs, {view}", ""]
+        head = ["row", "scenario"]
+        for p in protocol.planners:
+            head += [f"paper: {p}", f"ours: `{_label(protocol, p, view)}`"]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for row in protocol.rows:
+            u = units_of.get(row.scenario, "")
+            cells = [row.label, f"`{row.scenario}`"]
+            for p in protocol.planners:
+                cells += [_paper_cell(row.paper.get(p), u),
+                          _cell(ours(summary, _label(protocol, p, view), row.scenario), u)]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+        if protocol.enhancement:
+            a, b = protocol.enhancement
+            lines += [f"Enhancement of `{a}` over `{b}`, `100 (b - a) / b` (the paper's derived "
+                      "figures, recomputed from its table and from ours):", "",
+                      "| row | paper: length | ours: length | paper: time | ours: time |",
+                      "|---|---|---|---|---|"]
+            for row in protocol.rows:
+                cells = [row.label]
+                for what in ("length", "time"):
+                    for side in ("paper", "ours"):
+                        if side == "paper":
+                            va, vb = row.paper.get(a), row.paper.get(b)
+                        else:
+                            va = ours(summary, _label(protocol, a, view), row.scenario)
+                            vb = ours(summary, _label(protocol, b, view), row.scenario)
+                        x, y = _metric(va, what), _metric(vb, what)
+                        cells.append(f"{100 * (y - x) / y:.2f} %" if x is not None and y else "-")
+                lines.append("| " + " | ".join([cells[0], cells[1], cells[2], cells[3],
+                                                cells[4]]) + " |")
+            lines.append("")
+    lines += ["## The paper's claims", "",
+              "| claim | in the paper's table | ours, `profile=paper` | ours, `profile=hybridnav` |",
+              "|---|---|---|---|"]
+    for c in claims:
+        lines.append(f"| {c['text']} | " + " | ".join(
+            f"{_word(c[v])} ({c[f'{v} detail']})" for v in VIEWS) + " |")
+    lines.append("")
+    names = [label for label in dict.fromkeys(summary["planner"])]
+    lines += ["## Every variant", "", "Including the ablations (default profile unless the "
+              "label says `/paper`): mean time / length, median length, 95 % interval of the "
+              "mean length, best run (length, its time).", "",
+              "| variant | scenario | time / length (reached) | median | 95 % interval | best |",
+              "|---|---|---|---|---|---|"]
+    for label in names:
+        for row in protocol.rows:
+            r = ours(summary, label, row.scenario)
+            if r is None:
+                continue
+            u = units_of.get(row.scenario, "")
+            fmt = (lambda x: "-" if x != x else f"{x:.4g}")  # noqa: E731 - NaN shows as '-'
+            lines.append(f"| `{label}` | `{row.scenario}` | {_cell(r, u)} | "
+                         f"{fmt(r['path_length_median'])} | [{fmt(r['path_length_ci95_lo'])}, "
+                         f"{fmt(r['path_length_ci95_hi'])}] | {fmt(r['best_path_length'])} {u}"
+                         f", {fmt(r['best_time_to_goal'])} s |")
+    lines.append("")
+    if protocol.literature:
+        lines += ["Values the paper quotes from other work (not run here): " + "; ".join(
+            f"{row}: " + ", ".join(f"{m} {v:g}" for m, v in vals.items())
+            for row, vals in protocol.literature.items()) + ".", ""]
+    figures = [f for f in files if f.endswith(".png")]
+    if figures:
+        lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
+    atomic_write_text(path, "\n".join(lines))

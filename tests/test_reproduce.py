@@ -1,0 +1,88 @@
+"""``hybridnav reproduce`` (issue 16): the papers' protocols in both profiles, with the papers'
+numbers and claims beside ours. Reduced runs here (one run of one row per protocol); the full
+runs are by hand and quoted in the README."""
+
+from __future__ import annotations
+
+import re
+
+import pandas as pd
+import pytest
+
+from hybridnav import HybridnavError
+from hybridnav.cli import main
+from hybridnav.reproduce import PROTOCOLS, reproduce, variants
+from hybridnav.reproduce.report import check_claims
+
+EMPTY = pd.DataFrame(columns=["planner", "scenario", "robots", "success_rate", "units"])
+
+
+def test_the_protocols_the_issue_names_exist_and_name_real_things():
+    from hybridnav import planners
+    from hybridnav.world import load_scenario
+
+    assert {"fastep-table2", "aco-table5", "rfdpso-table3", "effc-table3"} <= set(PROTOCOLS)
+    for p in PROTOCOLS.values():
+        for row in p.rows:
+            load_scenario(row.scenario)
+            assert set(row.paper) <= set(p.planners)
+        labels = [label for label, _, _ in variants(p)]
+        assert len(labels) == len(set(labels))
+        for label, name, params in variants(p):
+            planners.get(name, **params)          # every variant is a valid planner
+        for c in p.claims:
+            assert c.a in p.planners and (not c.b or c.b in p.planners)
+
+
+def test_claims_checked_on_the_papers_own_numbers():
+    """FAStep's Table 2 supports both its claims; RFD-PSO's own 700 cm table does not support
+    'shorter than RFD' (628.86 cm against RFD's 596.69 cm) while its 20 m table does."""
+    fastep = check_claims(PROTOCOLS["fastep-table2"], EMPTY)
+    assert [c["paper"] for c in fastep] == [True, True]
+    assert all(c["paper profile"] is None for c in fastep)        # nothing run: not checkable
+    rfd = check_claims(PROTOCOLS["rfdpso-table3"], EMPTY)
+    assert rfd[0]["paper"] is False
+    assert "700 x 700 cm: 628.9 vs 596.7" in rfd[0]["paper detail"]
+    assert "20 x 20 m: 29.58 vs 32.68" in rfd[0]["paper detail"]
+    aco = check_claims(PROTOCOLS["aco-table5"], EMPTY)
+    assert [c["paper"] for c in aco] == [True, True, True, True]
+
+
+def test_bad_requests_are_refused_before_any_work(tmp_path):
+    with pytest.raises(HybridnavError, match="reproduce: unknown protocol 'table9'; expected one "
+                                             "of: aco-table5, effc-table3"):
+        reproduce("table9", tmp_path)
+    with pytest.raises(HybridnavError, match=r"reproduce fastep-table2: --scenarios: expected "
+                                             r"some of fastep-s1, fastep-s2, fastep-s3, got "
+                                             r"'arena'"):
+        reproduce("fastep-table2", tmp_path, scenarios=["arena"])
+    with pytest.raises(HybridnavError, match="--runs: expected a positive integer, got 0"):
+        reproduce("fastep-table2", tmp_path, runs=0)
+
+
+def test_list_from_the_cli(capsys):
+    assert main(["reproduce", "--list"]) == 0
+    out = capsys.readouterr().out
+    for name in PROTOCOLS:
+        assert out.count(f"{name}: ") == 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, scenario", [("fastep-table2", "fastep-s1"),
+                                            ("aco-table5", "aco-scenario-4"),
+                                            ("rfdpso-table3", "rfd-pso-700"),
+                                            ("effc-table3", "effc-env-b")])
+def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
+    out = tmp_path / name
+    assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "-o", str(out)]) == 0
+    text = (out / "report.md").read_text()
+    assert "## The paper's claims" in text and "## Our runs, paper profile" in text
+    summary = pd.read_csv(out / "summary.csv")
+    assert set(summary["scenario"]) == {scenario}
+    assert set(summary["planner"]) == {label for label, _, _ in variants(PROTOCOLS[name])}
+    printed = capsys.readouterr().out
+    for claim in PROTOCOLS[name].claims:
+        line = next(ln for ln in printed.splitlines() if ln.startswith(claim.text))
+        verdicts = re.findall(r"(does not hold|holds|cannot be checked)", line)
+        assert len(verdicts) == 3, line
+    assert (out / f"paths_{scenario}.png").exists()
