@@ -86,3 +86,22 @@ def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
         verdicts = re.findall(r"(does not hold|holds|cannot be checked)", line)
         assert len(verdicts) == 3, line
     assert (out / f"paths_{scenario}.png").exists()
+
+
+def test_paper_lengths_that_our_layouts_cannot_have_are_known():
+    """Every reconstructed row is checked against the straight-line distance from start to goal
+    disk in our layout. These paper lengths are below it (issue 16): in EFFC's environments (a)
+    and (b) (bounds 2.9 m and 3.01 m) EFFC's and PBPF's, in (b) HAPF's too, and RFD-PSO's RFD
+    on the 700 cm map (596.69 against 621.8 cm); the report says so, and a rebuilt layout must
+    shrink this list, not grow it."""
+    from hybridnav.reproduce.report import impossible_lengths
+
+    found = {(name, row, planner) for name, p in PROTOCOLS.items()
+             for row, planner, _, _ in impossible_lengths(p)}
+    assert found == {("effc-table3", "environment (a)", "effc"),
+                     ("effc-table3", "environment (b)", "effc"),
+                     ("effc-table3", "environment (a)", "pbpf"),
+                     ("effc-table3", "environment (b)", "pbpf"),
+                     ("effc-table3", "environment (b)", "hapf"),
+                     ("rfdpso-table3", "700 x 700 cm", "rfd"),
+                     }, found

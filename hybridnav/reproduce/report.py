@@ -19,7 +19,7 @@ from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
-__all__ = ["check_claims", "ours", "write_report"]
+__all__ = ["check_claims", "impossible_lengths", "ours", "straight_line_bound", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
 
@@ -43,6 +43,31 @@ def ours(summary: pd.DataFrame, label: str, scenario: str) -> dict[str, Any] | N
     """
     sel = summary[(summary["planner"] == label) & (summary["scenario"] == scenario)]
     return None if sel.empty else sel.iloc[0].to_dict()
+
+
+def straight_line_bound(scenario) -> float:
+    """The shortest any path of the scenario's first robot can be: start to goal in a straight
+    line, less the goal radius (reaching the goal disk ends the run)."""
+    r = scenario.robots[0]
+    return max(0.0, math.dist(r.start, r.goal) - r.goal_radius)
+
+
+def impossible_lengths(protocol: Protocol) -> list[tuple[str, str, float, float]]:
+    """The paper's lengths that no path in our layout can have: ``(row, planner, paper length,
+    straight-line bound)`` for every single-robot row whose reported length is below
+    :func:`straight_line_bound` of our scenario."""
+    from hybridnav.world import load_scenario
+
+    out = []
+    for row in protocol.rows:
+        scenario = load_scenario(row.scenario)
+        if len(scenario.robots) != 1:
+            continue
+        bound = straight_line_bound(scenario)
+        for planner, v in row.paper.items():
+            if v.length is not None and v.length < bound:
+                out.append((row.label, planner, v.length, bound))
+    return out
 
 
 def _label(protocol: Protocol, planner: str, view: str) -> str:
@@ -199,6 +224,12 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
         lines += [protocol.notes, ""]
     lines += ["Ours: mean time to goal / mean path length over the runs that reached it (reached "
               "runs / runs).", ""]
+    bad = impossible_lengths(protocol)
+    if bad:
+        lines += ["Paper lengths that no path in our reconstruction can have (below the "
+                  "straight-line distance from start to goal disk): " + "; ".join(
+                      f"{row}, {p}: {length:g} < {bound:.4g}" for row, p, length, bound in bad)
+                  + ". Those rows compare layouts, not planners.", ""]
     for view in ("paper profile", "hybridnav profile"):
         lines += [f"## Our runs, {view}", ""]
         head = ["row", "scenario"]
