@@ -210,8 +210,9 @@ class _Task:
     seed: int
 
 
-def _execute(task: _Task) -> list[dict[str, Any]]:
-    """Run one planner on one scenario (in whatever process gets the task)."""
+def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] | None]:
+    """Run one planner on one scenario (in whatever process gets the task): the table rows, and
+    for run 0 the robots' paths (for the overlay figure)."""
     from hybridnav import planners
     from hybridnav.world import load_scenario
 
@@ -223,10 +224,9 @@ def _execute(task: _Task) -> list[dict[str, Any]]:
         rows.append({"planner": task.label, "scenario": scenario.name, "run": task.run,
                      "seed": task.seed, "robot": r.name, **{k: s[k] for k in RUN_COLUMNS[5:11]},
                      "planner_name": task.planner})
-    if task.run == 0:   # the first run's paths, for the overlay figure
-        rows.append({"_paths": {r.name: np.asarray(r.states)[:, :2].copy()
-                                for r in result.robots}})
-    return rows
+    paths = ({r.name: np.asarray(r.states)[:, :2].copy() for r in result.robots}
+             if task.run == 0 else None)
+    return rows, paths
 
 
 def compare(
@@ -323,9 +323,10 @@ def compare(
 
     with make_backend(workers, dask or "") as backend:
         results = backend.map(_execute, [(t,) for t in tasks], on_done=finished)
-    rows = [row for result_rows in results for row in result_rows if "_paths" not in row]
-    paths = {(t.label, load_scenario(t.scenario).name): row["_paths"]
-             for t, result_rows in zip(tasks, results) for row in result_rows if "_paths" in row}
+    rows = [row for result_rows, _ in results for row in result_rows]
+    names = {spec: sc.name for spec, sc in zip(scenarios, loaded)}
+    paths = {(t.label, names[t.scenario]): p for t, (_, p) in zip(tasks, results)
+             if p is not None}
     table = pd.DataFrame(rows, columns=RUN_COLUMNS)
     order = {label: i for i, label in enumerate(labels)}
     table = table.sort_values(["planner", "scenario", "run", "robot"],
