@@ -208,7 +208,8 @@ def scenario_from_dict(data: Mapping[str, Any], source: str | os.PathLike[str] |
     max_time = chk.number(d["max_time"], "max_time", lo=0.0, lo_open=True)
     if max_time < dt:
         raise chk.fail("max_time", f"expected max_time >= dt ({dt:g}), got {max_time:g}")
-    steps = math.ceil(max_time / dt - 1e-9)
+    ratio = max_time / dt            # inf for a subnormal dt: refused below, not ceil'd
+    steps = math.ceil(ratio - 1e-9) if math.isfinite(ratio) else math.inf
     if steps > MAX_STEPS:
         raise chk.fail("max_time", f"expected at most {MAX_STEPS} control cycles (max_time / dt, "
                                    f"hybridnav.limits.MAX_STEPS), got {steps:.4g} "
