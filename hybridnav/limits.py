@@ -37,6 +37,10 @@ MAX_ROBOTS = 1_000
 
 
 def grid_cells(width: float, height: float, resolution: float) -> float:
-    """Cells of a grid over ``width x height`` at ``resolution`` (as a float: it may be huge)."""
-    return max(1.0, math.ceil(width / resolution - 1e-9)) * \
-        max(1.0, math.ceil(height / resolution - 1e-9))
+    """Cells of a grid over ``width x height`` at ``resolution`` (as a float: it may be huge, or
+    ``inf`` where the ratio overflows, e.g. for a subnormal resolution)."""
+    def side(length: float) -> float:
+        ratio = length / resolution
+        return max(1.0, math.ceil(ratio - 1e-9)) if math.isfinite(ratio) else math.inf
+
+    return side(width) * side(height)
