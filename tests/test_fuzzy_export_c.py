@@ -213,8 +213,8 @@ def test_names_become_identifiers():
 @given(f=st.lists(st.sampled_from([0.0, 0.25, 0.5, 1.0]) | st.floats(0.0, 1.0), min_size=2,
                   max_size=60))
 def test_crossing_buffer_bound(f):
-    """The C crossing buffer is sized by max_crossings: the widest row of the evaluator's own
-    crossing table (all levels y > 0)."""
+    """max_crossings is the widest row of the evaluator's own crossing table (all levels y > 0);
+    the C buffers, sized by the monotone runs, hold it (test_monotone_runs_bound_the_crossings)."""
     from hybridnav.fuzzy.engine import _crossing_table
     from hybridnav.fuzzy.export.c import max_crossings
 

@@ -207,7 +207,6 @@ def polyline_centroid(x: FloatArray, y: FloatArray) -> float:
     rect = y1 == y2
     up = ~rect & (y1 == 0.0)
     down = ~rect & ~up & (y2 == 0.0)
-    trap = ~(rect | up | down)
     with np.errstate(divide="ignore", invalid="ignore"):
         moment = np.select([rect, up, down],
                            [0.5 * (x1 + x2), 2.0 / 3.0 * h + x1, 1.0 / 3.0 * h + x1],

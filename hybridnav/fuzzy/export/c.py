@@ -112,8 +112,9 @@ def max_crossings(f: np.ndarray) -> int:
     Returns
     -------
     int
-        ``max over y > 0 of #{i : (f[i] >= y) != (f[i+1] >= y)}``: the size the C crossing
-        buffer needs for this term. The count only changes at the sample values, and on
+        ``max over y > 0 of #{i : (f[i] >= y) != (f[i+1] >= y)}``: the crossing points one
+        cut can add for this term, never more than ``len(monotone_runs(f))`` (what the C code's
+        buffers are sized by). The count only changes at the sample values, and on
         ``(levels[k-1], levels[k]]`` equals its value at ``levels[k]``.
     """
     levels = np.unique(f[f > 0])
@@ -204,8 +205,9 @@ def _plain_integral(p: str, K: str, xs: np.ndarray, Fo: np.ndarray,
     to ``area`` and ``mom``, and the tables they read.
 
     With at most :data:`~hybridnav.fuzzy.engine.SUBSETS_SCALAR_MAX` terms (as the Python
-    evaluator's scalar path): the max-min identity over term subsets and prefix sums over each subset's sorted values (a binary search and two
-    multiply-adds per subset); otherwise the weighted sum over the samples.
+    evaluator's scalar path): the max-min identity over term subsets and prefix sums over each
+    subset's sorted values (a binary search and two multiply-adds per subset); otherwise the
+    weighted sum over the samples.
     """
     W = centroid_weights(xs - 0.5 * (xs[0] + xs[-1]))  # moments about the midpoint
     T, M = Fo.shape
@@ -220,7 +222,8 @@ def _plain_integral(p: str, K: str, xs: np.ndarray, Fo: np.ndarray,
                       f"{_table(W.ravel(), K)}\n}};"]
     lines = ["    /* plain universe: sum over term subsets S of (-1)^(|S|+1) sum_j w_j "
              "min(c_S, g_S[j]), g_S = min of S's terms, c_S = min of their cuts: prefix sums "
-             "over the sorted g_S */"]
+             "over the sorted g_S */",
+             f"    {p}_real c;"]
     tables = []
     n = 0
     for size in range(1, T + 1):
@@ -325,9 +328,6 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
     So = _slopes(xs, Fo)
     width = float(xs[-1] - xs[0])
     M, T = len(xs), len(used)
-    # the direct path's buffer; float tables may cross a level at other intervals than double's
-    n_cross = max(sum(max(max_crossings(f), max_crossings(f.astype(np.float32).astype(float)))
-                      for f in Fo), 1)
     runs = [monotone_runs(f) for f in Fo]
     run0 = np.cumsum([0] + [len(r) for r in runs]).tolist()
     positive = [1 if np.any(f > 0) else 0 for f in Fo]
@@ -384,7 +384,7 @@ def to_c(system: FuzzySystem, basename: str | None = None, *, real: str = "doubl
     real_bytes = 8 if real == "double" else 4
     n_runs = run0[-1]
     # the frames of evaluate, defuzzify and (where every activation is tiny) the direct centroid
-    stack = (n_leaves + T + 2 * n_runs + n_cross + 16) * real_bytes + 4 * n_runs
+    stack = (n_leaves + T + 3 * n_runs + 16) * real_bytes + 8 * n_runs
     guard = f"{P}_H_INCLUDED"
     safe_name = comment_text(system.name)
     header = f"""\
@@ -442,7 +442,6 @@ typedef {R} {p}_real;
 #define {P}_N_LEAVES {n_leaves}
 #define {P}_N_OUT_TERMS {T}
 #define {P}_M {M}
-#define {P}_N_CROSS {n_cross}  /* most crossing points the output terms can add */
 #define {P}_EPS (({p}_real)2.220446049250313e-16)  /* numpy's finfo(float).eps */
 #define {P}_N_RUNS {n_runs}  /* monotone runs of the output terms: most crossing points */
 #define {P}_THIRD {K}({_lit(1.0 / 3.0)})

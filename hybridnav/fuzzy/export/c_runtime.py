@@ -106,29 +106,47 @@ static @p_real @p_agg(const @p_real cut[@P_N_OUT_TERMS], int i)
     return y;
 }
 
+/* skfuzzy's _interp_universe_fast for every positive cut: the points where a sampled term
+ * crosses its cut, at most one per monotone run of a term, into ci (interval) and cp (position),
+ * sorted by (interval, position); returns how many */
+static int @p_crossings(const @p_real cut[@P_N_OUT_TERMS], int ci[@P_N_RUNS + 1],
+                        @p_real cp[@P_N_RUNS + 1])
+{
+    int t, r, k, n = 0;
+    const @p_real *x = @p_out_x;
+    for (t = 0; t < @P_N_OUT_TERMS; ++t) {
+        const @p_real c = cut[t], *f = @p_out_f + t * @P_M;
+        if (!(c > 0)) continue;
+        for (r = @p_out_run0[t]; r < @p_out_run0[t + 1]; ++r) {
+            const int j = @p_flip(f, @p_out_runs[2 * r], @p_out_runs[2 * r + 1], c);
+            @p_real p;
+            if (j < 0) continue;
+            p = x[j] + (c - f[j]) * (x[j + 1] - x[j]) / (f[j + 1] - f[j]);
+            for (k = n; k > 0 && (ci[k - 1] > j || (ci[k - 1] == j && cp[k - 1] > p)); --k) {
+                ci[k] = ci[k - 1];
+                cp[k] = cp[k - 1];
+            }
+            ci[k] = j;
+            cp[k] = p;
+            ++n;
+        }
+    }
+    return n;
+}
+
 /* skfuzzy's loop, used where every activation is tiny: the universe upsampled at the cut
  * crossings, max_t min(cut[t], term t) at every point, defuzz.centroid of that polyline (the
  * points are visited in order, one segment at a time: no array of the universe's size) */
 static @p_real @p_centroid_direct(const @p_real cut[@P_N_OUT_TERMS])
 {
-    @p_real px[@P_N_CROSS + 1] = {0};  /* (+1: compilers cannot see that n <= N_CROSS) */
+    /* (+1 and zeros: compilers cannot see that n <= N_RUNS; -Os and sanitizers warn) */
+    @p_real px[@P_N_RUNS + 1] = {0};
+    int ci[@P_N_RUNS + 1] = {0};
     @p_real x1 = 0, y1 = 0, sum_ma = 0, sum_a = 0;
-    int t, i, k, n = 0, first = 1;
+    int t, i, k, first = 1;
     const @p_real *x = @p_out_x;
+    const int n = @p_crossings(cut, ci, px);  /* sorted by position: the intervals are */
 
-    for (t = 0; t < @P_N_OUT_TERMS; ++t) {
-        const @p_real c = cut[t], *f = @p_out_f + t * @P_M;
-        if (!(c > 0)) continue;
-        for (i = 0; i + 1 < @P_M; ++i) {
-            if ((f[i] >= c) != (f[i + 1] >= c) && n < @P_N_CROSS)
-                px[n++] = x[i] + (c - f[i]) * (x[i + 1] - x[i]) / (f[i + 1] - f[i]);
-        }
-    }
-    for (i = 1; i < n; ++i) {  /* insertion sort: few points */
-        @p_real v = px[i];
-        for (k = i; k > 0 && px[k - 1] > v; --k) px[k] = px[k - 1];
-        px[k] = v;
-    }
     i = 0;
     k = 0;
     while (i < @P_M || k < n) {
@@ -181,42 +199,26 @@ static @p_real @p_centroid_direct(const @p_real cut[@P_N_OUT_TERMS])
  * not with its distance from 0) */
 static @p_real @p_defuzzify(const @p_real cut[@P_N_OUT_TERMS])
 {
-    @p_real area = 0, mom = 0, c, lx = 0, ly = 0, a1 = 0;
+    @p_real area = 0, mom = 0, lx = 0, ly = 0, a1 = 0;
     @p_real cp[@P_N_RUNS + 1] = {0}, ca[@P_N_RUNS + 1] = {0};  /* (+1, zeros: see px above) */
     int ci[@P_N_RUNS + 1] = {0};
-    int t, r, s, i, k, n = 0, fired = 0;
+    int t, s, i, k, n, fired = 0;
     const @p_real *x = @p_out_x;
 
     for (t = 0; t < @P_N_OUT_TERMS; ++t)
         if (cut[t] > 0 && @p_out_positive[t]) fired = 1;
     if (!fired) return @P_DEFAULT;
 @plain
-    /* crossing points (skfuzzy's _interp_universe_fast): at most one per monotone run of a term,
-     * kept sorted by (interval, position) */
-    for (t = 0; t < @P_N_OUT_TERMS; ++t) {
-        const @p_real *f = @p_out_f + t * @P_M;
-        c = cut[t];
-        if (!(c > 0)) continue;
-        for (r = @p_out_run0[t]; r < @p_out_run0[t + 1]; ++r) {
-            const int j = @p_flip(f, @p_out_runs[2 * r], @p_out_runs[2 * r + 1], c);
-            @p_real p, d, y = 0;
-            if (j < 0) continue;
-            p = x[j] + (c - f[j]) * (x[j + 1] - x[j]) / (f[j + 1] - f[j]);
-            d = p - x[j];
-            for (s = 0; s < @P_N_OUT_TERMS; ++s)
-                if (cut[s] > 0)
-                    y = @p_max(y, @p_min(@p_out_s[s * @P_M + j] * d + @p_out_f[s * @P_M + j],
-                                         cut[s]));
-            for (k = n; k > 0 && (ci[k - 1] > j || (ci[k - 1] == j && cp[k - 1] > p)); --k) {
-                ci[k] = ci[k - 1];
-                cp[k] = cp[k - 1];
-                ca[k] = ca[k - 1];
-            }
-            ci[k] = j;
-            cp[k] = p;
-            ca[k] = y;
-            ++n;
-        }
+    /* the crossing points, and the aggregated output at each (np.interp on its interval) */
+    n = @p_crossings(cut, ci, cp);
+    for (k = 0; k < n; ++k) {
+        const int j = ci[k];
+        const @p_real d = cp[k] - x[j];
+        @p_real y = 0;
+        for (s = 0; s < @P_N_OUT_TERMS; ++s)
+            if (cut[s] > 0)
+                y = @p_max(y, @p_min(@p_out_s[s * @P_M + j] * d + @p_out_f[s * @P_M + j], cut[s]));
+        ca[k] = y;
     }
     /* inserting p (value ap) between (lx, ly) and the interval's right end (x1, a1) adds the
      * triangle (lx, 0), (p, ap - line(p)), (x1, 0) */
