@@ -115,8 +115,12 @@ class DaskBackend(Backend):
                     from None
             self._own.append(self.client)
         else:
+            # no dashboard, and the scheduler's HTTP endpoint on a free local port: the default
+            # 8787 warns on stderr when another cluster has it
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+                                   dashboard_address=None,
+                                   scheduler_kwargs={"dashboard": False,
+                                                     "dashboard_address": "127.0.0.1:0"})
             self.client = Client(cluster)
             self._own += [self.client, cluster]
 
