@@ -525,8 +525,7 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
         k = self.values["waypoints"]
         if not self.values["shorten"]:
             return sample_along(base.points, k), base
-        tight = pull_tight(base.points, ctx.world, self._clearance(ctx, robot))
-        wp = resample_waypoints(tight, k)
+        wp = resample_waypoints(self._shortened(ctx, robot, base.points), k)
         if len(wp) > k:
             log.info("rfd-pso: robot %s: the RFD path needs %d waypoints; using %d instead of %d",
                      robot.name, len(wp), len(wp), k)
