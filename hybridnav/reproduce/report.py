@@ -191,6 +191,11 @@ def _paper_cell(v: Value | None, units: str) -> str:
     return " / ".join(p for p in parts if p) or "reached"
 
 
+def _fmt(x: float) -> str:
+    """A number to 4 significant digits, NaN as ``-``."""
+    return "-" if x != x else f"{x:.4g}"
+
+
 def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                  claims: Sequence[dict[str, Any]], *, runs: int, seed: int, version: str,
                  files: Sequence[str]) -> None:
@@ -261,8 +266,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                             vb = ours(summary, _label(protocol, b, view), row.scenario)
                         x, y = _metric(va, what), _metric(vb, what)
                         cells.append(f"{100 * (y - x) / y:.2f} %" if x is not None and y else "-")
-                lines.append("| " + " | ".join([cells[0], cells[1], cells[2], cells[3],
-                                                cells[4]]) + " |")
+                lines.append("| " + " | ".join(cells) + " |")
             lines.append("")
     lines += ["## The paper's claims", "",
               "| claim | in the paper's table | ours, `profile=paper` | ours, `profile=hybridnav` |",
@@ -271,7 +275,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
         lines.append(f"| {c['text']} | " + " | ".join(
             f"{_word(c[v])} ({c[f'{v} detail']})" for v in VIEWS) + " |")
     lines.append("")
-    names = [label for label in dict.fromkeys(summary["planner"])]
+    names = list(dict.fromkeys(summary["planner"]))
     lines += ["## Every variant", "", "Including the ablations (default profile unless the "
               "label says `/paper`): mean time / length, median length, 95 % interval of the "
               "mean length, best run (length, its time).", "",
@@ -283,11 +287,10 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
             if r is None:
                 continue
             u = units_of.get(row.scenario, "")
-            fmt = (lambda x: "-" if x != x else f"{x:.4g}")  # noqa: E731 - NaN shows as '-'
             lines.append(f"| `{label}` | `{row.scenario}` | {_cell(r, u)} | "
-                         f"{fmt(r['path_length_median'])} | [{fmt(r['path_length_ci95_lo'])}, "
-                         f"{fmt(r['path_length_ci95_hi'])}] | {fmt(r['best_path_length'])} {u}"
-                         f", {fmt(r['best_time_to_goal'])} s |")
+                         f"{_fmt(r['path_length_median'])} | [{_fmt(r['path_length_ci95_lo'])}, "
+                         f"{_fmt(r['path_length_ci95_hi'])}] | {_fmt(r['best_path_length'])} {u}"
+                         f", {_fmt(r['best_time_to_goal'])} s |")
     lines.append("")
     if protocol.literature:
         lines += ["Values the paper quotes from other work (not run here): " + "; ".join(
