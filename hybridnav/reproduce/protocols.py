@@ -132,10 +132,9 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
         claims=(Claim("RFD-PSO's path is shorter than RFD's", "shorter", "rfd-pso", "rfd"),
                 Claim("RFD-PSO's path is shorter than PSO's", "shorter", "rfd-pso", "pso")),
         literature={"20 x 20 m": {"SAACO [28]": 29.796, "FACO [29]": 29.3848}},
-        notes=("Lengths are travelled path lengths. The maps are reconstructions; in ours the "
-               "straight line of the 700 cm map is 626.82 cm, so the paper's 596.69 cm cannot be "
-               "a path there. The ablations separate the PSO's gain from the shortening "
-               "(pulling the path tight), which the paper does not have.")),
+        notes=("Lengths are travelled path lengths. The maps are reconstructions. The "
+               "ablations separate the PSO's gain from the shortening (pulling the path tight), "
+               "which the paper does not have.")),
     Protocol(
         name="effc-table3", paper=EFFC, source="Table 3",
         planners=("effc", "hapf", "pbpf"),
@@ -146,13 +145,16 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                                                     "hapf": Value(14.3, 2.8),
                                                     "pbpf": Value(13.5, 2.7)})),
         runs=10,
+        settings={name: {"speed": 0.2} for name in ("effc", "hapf", "pbpf")},
         ablations=(("effc/tuned", "effc", {"fis": "effc-tuned"}),),
         claims=(Claim("EFFC's path is shorter than HAPF's", "shorter", "effc", "hapf"),
                 Claim("EFFC's path is shorter than PBPF's", "shorter", "effc", "pbpf"),
                 Claim("EFFC reaches the goal in less time than HAPF", "faster", "effc", "hapf"),
                 Claim("EFFC reaches the goal in less time than PBPF", "faster", "effc", "pbpf")),
         enhancement=("effc", "hapf"),
-        notes=("The environments are reconstructions; issue 16 found that the paper's EFFC "
-               "lengths are below our layouts' straight-line start-goal distances (3.0 m, "
-               "3.11 m), so no planner can match them here.")),
+        notes=("The environments are reconstructions (the paper shows them only in Fig. 20), "
+               "built so that every length the paper reports is possible in them (see the "
+               "bounds below). The speed is the 0.2 m/s that Table 3's lengths and times imply "
+               "(2.3 m in 11.5 s; a TurtleBot3 tops out at 0.22 m/s); the paper's training ran "
+               "at 0.1 m/s, the planners' default.")),
 )}
