@@ -245,3 +245,33 @@ def test_summary_statistics_against_scipy(serial, tmp_path):
     files = write_comparison(tmp_path, table, summary)
     assert {"paths_effc-train-1.png", "paths_effc-train-2.png",
             "compare_compute_time.png"} <= set(files)
+
+
+def test_convergence_of_the_swarm_searches_is_recorded_per_run_and_plotted(tmp_path):
+    """Every run's searches land in ``convergence.csv``: PSO's one search per run (its best
+    never rises, and its last value is the cost the planner reports), a step planner's one
+    search per plan call, PBPF's gain search; A* searches with no swarm and has no rows."""
+    from hybridnav import planners
+    from hybridnav.world import load_scenario
+
+    specs = ["pso@pso:iterations=15:particles=10", "fastep-kinematic",
+             "pbpf@pbpf:population=3:generations=2", "astar"]
+    table, summary = compare(specs, ["fastep-s3"], 2, seed=3)
+    files = write_comparison(tmp_path, table, summary)
+    assert "convergence.csv" in files and "convergence_fastep-s3.png" in files
+    conv = pd.read_csv(tmp_path / "convergence.csv")
+    assert set(conv["planner"]) == {"pso", "fastep-kinematic", "pbpf"}
+    for (label, run, plan), g in conv.groupby(["planner", "run", "plan"]):
+        best = g.sort_values("iteration")["best"].dropna().to_numpy()
+        assert (best[1:] <= best[:-1]).all(), (label, run, plan)      # elitist
+        assert list(g["iteration"]) == list(range(len(g)))
+    s = load_scenario("fastep-s3")
+    for run in (0, 1):
+        seed = int(table[(table.planner == "pso") & (table.run == run)]["seed"].iloc[0])
+        res = planners.get("pso", iterations=15, particles=10).run(s, seed=seed)
+        mine = conv[(conv.planner == "pso") & (conv.run == run)]
+        assert set(mine["plan"]) == {0} and len(mine) == 16
+        assert mine["best"].iloc[-1] == pytest.approx(res.extras["swarm_best_R1"]["best"][-1])
+        fa = planners.get("fastep-kinematic").run(s, seed=seed).robots[0]
+        steps = conv[(conv.planner == "fastep-kinematic") & (conv.run == run)]
+        assert steps["plan"].nunique() == fa.metrics["planning_calls"]

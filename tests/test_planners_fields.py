@@ -97,7 +97,7 @@ def test_pbpf_is_reproducible_and_improves_on_its_starting_gains():
     assert a.to_dict()["robots"][0]["path_length"] == b.to_dict()["robots"][0]["path_length"]
     p = planners.get("pbpf", population=4, generations=2)
     res = p.run(s, seed=7)
-    log = list(res.extras[f"pbpf_search_{res.robots[0].name}"]["best"])
+    log = list(res.extras[f"swarm_best_{res.robots[0].name}"]["best"])
     assert all(x >= y for x, y in zip(log, log[1:]))          # elitist: never worse
     assert res.robots[0].outcome == "reached"
     default = planners.get("apf").run(s).robots[0]

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from hybridnav.analysis.convergence import CONVERGENCE_COLUMNS, convergence_rows, plot_convergence
 from hybridnav.backends import make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
@@ -219,9 +220,10 @@ class _Task:
     seed: int
 
 
-def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] | None]:
-    """Run one planner on one scenario (in whatever process gets the task): the table rows, and
-    for run 0 the robots' paths (for the overlay figure)."""
+def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] | None,
+                                   pd.DataFrame]:
+    """Run one planner on one scenario (in whatever process gets the task): the table rows, for
+    run 0 the robots' paths (for the overlay figure), and the swarm searches' convergence."""
     from hybridnav import planners
     from hybridnav.world import load_scenario
 
@@ -235,7 +237,7 @@ def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] |
                      "planner_name": task.planner})
     paths = ({r.name: np.asarray(r.states)[:, :2].copy() for r in result.robots}
              if task.run == 0 else None)
-    return rows, paths
+    return rows, paths, convergence_rows(result, task.label, task.run)
 
 
 def compare(
@@ -332,10 +334,13 @@ def compare(
 
     with make_backend(workers, dask or "") as backend:
         results = backend.map(_execute, [(t,) for t in tasks], on_done=finished)
-    rows = [row for result_rows, _ in results for row in result_rows]
+    rows = [row for result_rows, _, _ in results for row in result_rows]
     names = {spec: sc.name for spec, sc in zip(scenarios, loaded)}
-    paths = {(t.label, names[t.scenario]): p for t, (_, p) in zip(tasks, results)
+    paths = {(t.label, names[t.scenario]): p for t, (_, p, _) in zip(tasks, results)
              if p is not None}
+    curves = [c for _, _, c in results if not c.empty]
+    convergence = (pd.concat(curves, ignore_index=True) if curves
+                   else pd.DataFrame(columns=CONVERGENCE_COLUMNS))
     table = pd.DataFrame(rows, columns=RUN_COLUMNS)
     order = {label: i for i, label in enumerate(labels)}
     table = table.sort_values(["planner", "scenario", "run", "robot"],
@@ -343,7 +348,7 @@ def compare(
                               kind="stable").reset_index(drop=True)
     table.attrs.update(units={sc.name: sc.units for sc in loaded},
                        scenarios={sc.name: spec for sc, spec in zip(loaded, scenarios)},
-                       paths=_Shared(paths))
+                       paths=_Shared(paths), convergence=_Shared(table=convergence))
     return table, summarize_runs(table)
 
 
@@ -440,6 +445,17 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
         name = f"paths_{_file_stem(scenario)}.png"
         save_figure(fig, folder / name)
         names.append(name)
+    convergence = table.attrs.get("convergence", {}).get("table")
+    if convergence is not None and not convergence.empty:
+        atomic_write_text(folder / "convergence.csv", convergence.to_csv(index=False))
+        names.append("convergence.csv")
+        labels = list(dict.fromkeys(table["planner"]))
+        for scenario, rows in convergence.groupby("scenario", sort=False):
+            fig = plot_convergence(scenario, rows, labels)
+            if fig is not None:
+                name = f"convergence_{_file_stem(scenario)}.png"
+                save_figure(fig, folder / name)
+                names.append(name)
     return names
 
 

@@ -12,9 +12,9 @@ figure                    extras
 ========================  ==================================================================
 :func:`plot_signals`      ``signals_<robot>``: ``t`` and one column per traced signal
 :func:`plot_potential`    ``harmonic_potential_<robot>`` (array), ``harmonic_grid_<robot>``
-:func:`plot_gain_search`  ``pbpf_search_<robot>``: ``generation``, ``best``
+:func:`plot_gain_search`  ``swarm_best_<robot>``: ``plan``, ``iteration`` (generation), ``best``
 :func:`plot_planned`      ``planned_<robot>`` (``x``, ``y``, ``time``), ``rfd_seed_<robot>``,
-                          ``rfd_path_<robot>``, ``swarm_best_<robot>`` (``iteration``, ``best``)
+                          ``rfd_path_<robot>``, ``swarm_best_<robot>`` (``plan``, ``iteration``, ``best``)
 :func:`plot_steps`        ``steps_<robot>``: ``t``, ``cost``, ``xdot``, ``ydot``, ...
 :func:`plot_waypoints`    ``waypoints_<robot>``: ``t``, ``x``, ``y``, ``cost``
 :func:`plot_pso_ba`       ``path_points_<robot>``: ``t``, ``x``, ``y``, ``mode``, ``fitness``,
@@ -94,13 +94,13 @@ def plot_potential(scenario, result: Result) -> Figure | None:
 
 def plot_gain_search(result: Result) -> Figure | None:
     """Best fitness per generation of an offline gain search, per robot."""
-    logs = extras_of(result, "pbpf_search")
+    logs = extras_of(result, "swarm_best")
     if not logs:
         return None
     fig = Figure(figsize=(6.0, 3.6), layout="constrained")
     ax = fig.add_subplot()
     for name, log in logs.items():
-        ax.plot(log["generation"], log["best"], marker="o", label=name)
+        ax.plot(log["iteration"], log["best"], marker="o", label=name)
     ax.set_xlabel("generation")
     ax.set_ylabel("best fitness (path length, penalized)")
     ax.set_title("pseudo-bacterial gain search")

@@ -75,8 +75,11 @@ class PBPF(APF):
         return _Tuned(np.array(tuned), logs)
 
     def extras(self, scenario, state) -> dict[str, Any]:
-        """Best fitness per generation of each robot's search (``pbpf_search_<robot>``)."""
-        return {f"pbpf_search_{r.name}": {"generation": np.arange(len(h)), "best": h}
+        """Best fitness per generation of each robot's gain search (``swarm_best_<robot>``:
+        ``plan`` 0, ``iteration`` the generation, ``best``), as every swarm search records it."""
+        return {f"swarm_best_{r.name}": {"plan": np.zeros(len(h), dtype=int),
+                                         "iteration": np.arange(len(h)),
+                                         "best": np.asarray(h, dtype=float)}
                 for r, h in zip(scenario.robots, state.logs)}
 
     def diagnostics(self, scenario, result):

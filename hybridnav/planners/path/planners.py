@@ -538,7 +538,7 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
 def _plan_extras(scenario, plans: list[PlannedPath]) -> dict[str, Any]:
     """The planned paths as result extras: ``planned_<robot>`` (``x, y``; empty when none was
     found), the RFD path and seed of hybrids (``rfd_path_<robot>``, ``rfd_seed_<robot>``) and the
-    swarm's best cost per iteration (``swarm_best_<robot>``)."""
+    swarm's best cost per iteration (``swarm_best_<robot>``: ``plan`` 0, ``iteration``, ``best``)."""
     def xy(points) -> dict[str, np.ndarray]:
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         return {"x": pts[:, 0], "y": pts[:, 1]}
@@ -552,5 +552,6 @@ def _plan_extras(scenario, plans: list[PlannedPath]) -> dict[str, Any]:
         opt = p.info.get("opt")
         if opt is not None:
             best = np.asarray(opt.history.best, dtype=float)
-            out[f"swarm_best_{r.name}"] = {"iteration": np.arange(len(best)), "best": best}
+            out[f"swarm_best_{r.name}"] = {"plan": np.zeros(len(best), dtype=int),
+                                           "iteration": np.arange(len(best)), "best": best}
     return out

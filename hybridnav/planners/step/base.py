@@ -164,6 +164,7 @@ class StepPlanner(Planner):
         plan_time = np.zeros(n)
         plans = np.zeros(n, dtype=int)
         memories: list[dict] = [{} for _ in range(n)]
+        searches: list[list[np.ndarray]] = [[] for _ in range(n)]   # best per iteration, per plan
 
         def discs(sim: Simulation, others: list[int]):
             cs_, rs_ = [], []
@@ -245,6 +246,7 @@ class StepPlanner(Planner):
             init = np.clip(goal, lower, upper)[None] if v["goal_candidate"] else None
             res = self.optimize(f, lower, upper, rng, init, memories[i])
             plan_time[i] += time.perf_counter() - tic
+            searches[i].append(np.asarray(res.history.best, dtype=float))
             plans[i] += 1
             if np.isfinite(res.fun):
                 wp[i] = res.x
@@ -312,10 +314,11 @@ class StepPlanner(Planner):
         tables = _step_tables(sim_models, robot_results, {k: np.array(x) for k, x in
                                                           trace.items()})
         extras: dict[str, Any] = {}
-        for r in robot_results:
+        for i, r in enumerate(robot_results):
             extras[f"steps_{r.name}"] = tables[r.name]
             W = np.array(waypoints[r.name], dtype=float).reshape(-1, 4)
             extras[f"waypoints_{r.name}"] = dict(zip(("t", "x", "y", "cost"), W.T))
+            extras[f"swarm_best_{r.name}"] = _searches_table(searches[i])
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
                       seed=seed, robots=robot_results, extras=extras)
 
@@ -375,3 +378,14 @@ def _step_tables(sim_models, robot_results, trace) -> dict[str, dict[str, np.nda
                                         dtype=str),
                        "xdot": xdot[0], "ydot": xdot[1]}
     return out
+
+
+def _searches_table(searches: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """The optimizer's best cost per iteration of every plan, stacked: ``plan``, ``iteration``,
+    ``best`` (infinite where no feasible step was known yet)."""
+    if not searches:
+        return {"plan": np.zeros(0, dtype=int), "iteration": np.zeros(0, dtype=int),
+                "best": np.zeros(0)}
+    return {"plan": np.concatenate([np.full(len(b), k) for k, b in enumerate(searches)]),
+            "iteration": np.concatenate([np.arange(len(b)) for b in searches]),
+            "best": np.concatenate(searches)}
