@@ -268,7 +268,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         bar.close()
     words = {True: "holds", False: "does not hold", None: "cannot be checked"}
     for c in result["claims"]:
-        print(f"{c['text']}: paper's table {words[c['paper']]}; ours, profile=paper "
+        print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, profile=paper "
               f"{words[c['paper profile']]}; profile=hybridnav {words[c['hybridnav profile']]}")
     print(f"wrote {args.out}/: {', '.join(result['files'])}")
     return 0

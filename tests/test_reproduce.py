@@ -21,7 +21,8 @@ def test_the_protocols_the_issue_names_exist_and_name_real_things():
     from hybridnav import planners
     from hybridnav.world import load_scenario
 
-    assert {"fastep-table2", "aco-table5", "rfdpso-table3", "effc-table3"} <= set(PROTOCOLS)
+    assert {"fastep-table2", "aco-table5", "rfdpso-table3", "effc-table3",
+            "psoba-fig15"} <= set(PROTOCOLS)
     for p in PROTOCOLS.values():
         for row in p.rows:
             load_scenario(row.scenario)
@@ -71,7 +72,8 @@ def test_list_from_the_cli(capsys):
 @pytest.mark.parametrize("name, scenario", [("fastep-table2", "fastep-s1"),
                                             ("aco-table5", "aco-scenario-4"),
                                             ("rfdpso-table3", "rfd-pso-700"),
-                                            ("effc-table3", "effc-env-b")])
+                                            ("effc-table3", "effc-env-b"),
+                                            ("psoba-fig15", "pso-ba-dynamic")])
 def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     out = tmp_path / name
     assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "-o", str(out)]) == 0

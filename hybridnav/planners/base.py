@@ -17,11 +17,13 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
+import numpy as np
+
 from hybridnav.errors import HybridnavError
 from hybridnav.params import Param
 from hybridnav.results import Result
 
-__all__ = ["Param", "Planner", "parse_assignments"]
+__all__ = ["Param", "Planner", "parse_assignments", "searches_table"]
 
 
 def parse_assignments(items: Sequence[str]) -> dict[str, str]:
@@ -142,3 +144,21 @@ def _driven(drives) -> tuple[str, ...]:
 
 
 Planner.models = _driven(Planner.drives)
+
+
+def searches_table(searches: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """A robot's swarm searches as the ``swarm_best_<robot>`` extra every swarm planner records:
+    the best cost per iteration of each search, stacked as ``plan`` (the search's index),
+    ``iteration`` and ``best`` (infinite where the search knew no feasible point yet).
+
+    Parameters
+    ----------
+    searches : list of ndarray
+        One search's best cost per iteration each, in the order they ran.
+    """
+    if not searches:
+        return {"plan": np.zeros(0, dtype=int), "iteration": np.zeros(0, dtype=int),
+                "best": np.zeros(0)}
+    return {"plan": np.concatenate([np.full(len(b), k) for k, b in enumerate(searches)]),
+            "iteration": np.concatenate([np.arange(len(b)) for b in searches]),
+            "best": np.concatenate(searches)}

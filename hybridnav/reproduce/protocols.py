@@ -72,6 +72,7 @@ FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic
 ACOK = "Chaudhary, Prasad, Chand & Sharma, PeerJ CS 2022 (ACO-Kinematic)"
 RFDPSO = "Hassen, Amin & Al-Araji, IJRITCC 2023 (RFD-PSO)"
 EFFC = "Golkhatib, Shahmansoorian & Davoudi, IJEEE 2025 (EFFC)"
+PSOBA = "Abed, Hameed, Al-Araji et al., IJ-AI 2022 (PSO-BA)"
 
 PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
     Protocol(
@@ -160,4 +161,19 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "bounds below). The speed is the 0.2 m/s that Table 3's lengths and times imply "
                "(2.3 m in 11.5 s; a TurtleBot3 tops out at 0.22 m/s); the paper's training ran "
                "at 0.1 m/s, the planners' default.")),
+    Protocol(
+        name="psoba-fig15", paper=PSOBA, source="Section 6 and Fig. 15 (one sample run)",
+        planners=("pso-ba",),
+        rows=(Row("Fig. 15", "pso-ba-dynamic", {"pso-ba": Value()}),),
+        runs=1,
+        claims=(Claim("Both robots reach their targets without a collision (robot 1 its fixed "
+                      "goal, robot 2 the moving robot 1) among static and moving obstacles",
+                      "reaches", "pso-ba"),),
+        notes=("The paper shows one sample run and gives no table: robot 2 meets robot 1 at its "
+               "88th iteration (one path point per iteration), and at iteration 51 it prints "
+               "distance 89, smoothness 196, fitness 0.441. Its step length is not given, so "
+               "iteration counts are not comparable with our path points. The layout is a "
+               "reconstruction (start, goals and the robots from the text; the obstacles ours). "
+               "PSO-BA's swarm barely matters here: its fitness has no obstacle term, so other "
+               "seeds give almost the same paths.")),
 )}

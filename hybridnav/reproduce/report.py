@@ -330,7 +330,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                 lines.append("| " + " | ".join(cells) + " |")
             lines.append("")
     lines += ["## The paper's claims", "",
-              "| claim | in the paper's table | ours, `profile=paper` | ours, `profile=hybridnav` |",
+              "| claim | in the paper's numbers | ours, `profile=paper` | ours, `profile=hybridnav` |",
               "|---|---|---|---|"]
     for c in claims:
         lines.append(f"| {c['text']} | " + " | ".join(

@@ -127,7 +127,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.base import Param, Planner, searches_table
 from hybridnav.planners.path.geometry import obstacle_world
 from hybridnav.planners.psoba.fitness import disk_candidates, psoba_fitness
 from hybridnav.planners.psoba.sensors import (
@@ -182,6 +182,8 @@ class _Robot:
         "path_points": 0, "pso_ba_runs": 0, "ls_repairs": 0, "wall_episodes": 0,
         "direction_changes": 0, "memory_refusals": 0})
     planning_time: float = 0.0
+    #: the PSO's best cost per iteration, one array per PSO-BA run (``swarm_best_<robot>``)
+    searches: list = field(default_factory=list)
 
 
 class PSOBAPlanner(Planner):
@@ -335,6 +337,8 @@ class PSOBAPlanner(Planner):
             r.metrics["planning_time"] = st.planning_time
         extras = {f"path_points_{r.name}": _points_table(st.trace)
                   for r, st in zip(robots, states)}
+        extras.update({f"swarm_best_{r.name}": searches_table(st.searches)
+                       for r, st in zip(robots, states)})
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
                       seed=seed, robots=results, extras=extras)
 
@@ -412,6 +416,7 @@ class PSOBAPlanner(Planner):
                      gamma_bounds=(v["gamma_min"], v["gamma_max"]),
                      pso_w=v["pso_w"], pso_c1=v["pso_c1"], pso_c2=v["pso_c2"])
         st.counts["pso_ba_runs"] += 1
+        st.searches.append(np.asarray(res.pso.history.best, dtype=float))
         c = disk_candidates(res.x, p, step)[0]
         point, repaired = local_search(scene, p, c, v["ds"] * R, r_safe)
         if repaired:

@@ -59,7 +59,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav import models as model_registry
-from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.base import Param, Planner, searches_table
 from hybridnav.planners.simulate import Simulation, simulate
 from hybridnav.planners.step.stepfit import (
     GoalDistance,
@@ -318,7 +318,7 @@ class StepPlanner(Planner):
             extras[f"steps_{r.name}"] = tables[r.name]
             W = np.array(waypoints[r.name], dtype=float).reshape(-1, 4)
             extras[f"waypoints_{r.name}"] = dict(zip(("t", "x", "y", "cost"), W.T))
-            extras[f"swarm_best_{r.name}"] = _searches_table(searches[i])
+            extras[f"swarm_best_{r.name}"] = searches_table(searches[i])
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
                       seed=seed, robots=robot_results, extras=extras)
 
@@ -379,13 +379,3 @@ def _step_tables(sim_models, robot_results, trace) -> dict[str, dict[str, np.nda
                        "xdot": xdot[0], "ydot": xdot[1]}
     return out
 
-
-def _searches_table(searches: list[np.ndarray]) -> dict[str, np.ndarray]:
-    """The optimizer's best cost per iteration of every plan, stacked: ``plan``, ``iteration``,
-    ``best`` (infinite where no feasible step was known yet)."""
-    if not searches:
-        return {"plan": np.zeros(0, dtype=int), "iteration": np.zeros(0, dtype=int),
-                "best": np.zeros(0)}
-    return {"plan": np.concatenate([np.full(len(b), k) for k, b in enumerate(searches)]),
-            "iteration": np.concatenate([np.arange(len(b)) for b in searches]),
-            "best": np.concatenate(searches)}
