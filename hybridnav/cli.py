@@ -240,6 +240,13 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     from hybridnav.reproduce import PROTOCOLS, reproduce, variants
 
+    if args.update_readme:
+        from hybridnav.reproduce.readme import STORE, update_readme
+
+        names = update_readme(args.readme, args.reports or STORE)
+        print(f"{args.readme}: rewrote the blocks of {', '.join(names)} from "
+              f"{args.reports or STORE}/")
+        return 0
     if args.list or not args.name:
         for name, protocol in PROTOCOLS.items():
             print(f"{name}: {protocol.paper}, {protocol.source}; {protocol.runs} runs; "
@@ -545,6 +552,11 @@ def build_parser() -> argparse.ArgumentParser:
     backend.add_argument("--workers", type=int, default=1, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for the report, tables and plots")
+    p.add_argument("--update-readme", action="store_true",
+                   help="rewrite README's reproduce blocks from the stored full runs")
+    p.add_argument("--readme", default="README.md", help="with --update-readme: the README")
+    p.add_argument("--reports", metavar="DIR",
+                   help="with --update-readme: the stored runs (default docs/reproductions)")
     p.set_defaults(func=_cmd_reproduce)
 
     p = add_command("fis", help="describe a fuzzy system; plot its membership functions and "

@@ -182,7 +182,7 @@ def test_fastep_kinematic_drives_the_straight_line_when_it_is_free():
 
 
 @pytest.mark.parametrize("name", ["fastep-kinematic", "aco-kinematic"])
-@pytest.mark.parametrize("scen", ["fastep-s2", "fastep-s3"])
+@pytest.mark.parametrize("scen", ["fastep-s2", "fastep-s3", "aco-case-study-1"])
 def test_step_planners_reach_the_paper_scenarios_with_their_margin(name, scen):
     s = load_scenario(scen)
     p = planners.get(name, **FAST)

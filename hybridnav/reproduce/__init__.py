@@ -12,6 +12,8 @@ paper's own table and here.
 from __future__ import annotations
 
 import dataclasses
+import os
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -81,15 +83,27 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
     specs = [PlannerSpec(label, planner, params) for label, planner, params in variants(protocol)]
     scenarios = [row.scenario for row in protocol.rows]
+    tic = time.perf_counter()
     table, summary = compare(specs, scenarios, int(n), seed=seed, workers=workers, dask=dask,
                              progress=progress)
+    elapsed = time.perf_counter() - tic
     from hybridnav import __version__
 
     settings = {"protocol": name, "paper": protocol.paper, "runs": int(n),
                 "paper_runs": protocol.runs, "seed": seed, "profiles": list(PROFILES),
-                "planners": [s.format() for s in specs], "scenarios": scenarios}
+                "planners": [s.format() for s in specs], "scenarios": scenarios,
+                "workers": workers if dask is None else f"dask {dask}",
+                "elapsed_s": round(elapsed, 1), "load": _load()}
     files = write_comparison(out, table, summary, settings=settings)
     claims = check_claims(protocol, summary)
     write_report(Path(out) / "report.md", protocol, summary, claims, runs=int(n), seed=seed,
                  version=__version__, files=files)
     return {"claims": claims, "files": ["report.md", *files]}
+
+
+def _load() -> str:
+    """The 1, 5 and 15 minute load averages (what timings on a shared machine need beside them)."""
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:                      # not available on this platform
+        return "unknown"

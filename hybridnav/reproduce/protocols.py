@@ -96,7 +96,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
         planners=("aco-kinematic", "lbcs"),
         rows=(Row("scenario 1", "fastep-s1", {"lbcs": Value(251.02, 58.57),
                                               "aco-kinematic": Value(208.72, 57.98)}),
-              Row("scenario 2", "fastep-s2", {"lbcs": Value(309.44, 66.3),
+              Row("scenario 2", "aco-s2", {"lbcs": Value(309.44, 66.3),
                                               "aco-kinematic": Value(124.99, 65.35)}),
               Row("scenario 3", "tractor-trailer-1", {"lbcs": Value(240.92, 68.34),
                                                       "aco-kinematic": Value(195.79, 66.27)}),

@@ -19,8 +19,9 @@ from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
-__all__ = ["ASTAR_SLACK", "astar_bound", "check_claims", "impossible_lengths", "length_bounds", "ours",
-           "straight_line_bound", "write_report"]
+__all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section",
+           "impossible_lengths", "length_bounds", "ours", "profile_sections", "straight_line_bound",
+           "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
 
@@ -244,6 +245,82 @@ def _fmt(x: float) -> str:
     return "-" if x != x else f"{x:.4g}"
 
 
+def bounds_section(protocol: Protocol, units_of: dict[str, str]) -> list[str]:
+    """The layouts' length bounds per row and the paper lengths they contradict (markdown lines)."""
+    lines: list[str] = []
+    bounds = length_bounds(protocol)
+    if bounds:
+        lines += ["How short a path can be in our layouts (first robot, to its goal disk): the "
+                  "straight line, and the shortened A* path with the robot's radius as "
+                  "clearance.", "", "| row | scenario | straight line | shortened A* |",
+                  "|---|---|---|---|"]
+        for row in protocol.rows:
+            if row.label in bounds:
+                straight, astar = bounds[row.label]
+                u = units_of.get(row.scenario, "")
+                lines.append(f"| {row.label} | `{row.scenario}` | {straight:.4g} {u} | "
+                             + (f"{astar:.4g} {u}" if astar is not None else "-") + " |")
+        lines.append("")
+    bad = impossible_lengths(protocol, bounds)
+    if bad:
+        lines += ["Paper lengths that our reconstruction contradicts: " + "; ".join(
+                      f"{row}, {p}: {length:g} below the {what} ({bound:.4g})"
+                      for row, p, length, what, bound in bad)
+                  + ". Those rows compare layouts, not planners.", ""]
+    return lines
+
+
+def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) -> list[str]:
+    """Per profile: the paper's values beside ours, and the enhancement percentages (markdown;
+    ``level``: of the headings)."""
+    lines: list[str] = []
+    units_of = dict(zip(summary["scenario"], summary["units"]))
+    for view in ("paper profile", "hybridnav profile"):
+        lines += [f"{'#' * level} Our runs, {view}", ""]
+        head = ["row", "scenario"]
+        for p in protocol.planners:
+            head += [f"paper: {p}", f"ours: `{_label(protocol, p, view)}`"]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for row in protocol.rows:
+            u = units_of.get(row.scenario, "")
+            cells = [row.label, f"`{row.scenario}`"]
+            for p in protocol.planners:
+                cells += [_paper_cell(row.paper.get(p), u),
+                          _cell(ours(summary, _label(protocol, p, view), row.scenario), u)]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+        if protocol.enhancement:
+            a, b = protocol.enhancement
+            lines += [f"Enhancement of `{a}` over `{b}`, `100 (b - a) / b` (the paper's derived "
+                      "figures, recomputed from its table and from ours):", "",
+                      "| row | paper: length | ours: length | paper: time | ours: time |",
+                      "|---|---|---|---|---|"]
+            for row in protocol.rows:
+                cells = [row.label]
+                for what in ("length", "time"):
+                    for side in ("paper", "ours"):
+                        if side == "paper":
+                            va, vb = row.paper.get(a), row.paper.get(b)
+                        else:
+                            va = ours(summary, _label(protocol, a, view), row.scenario)
+                            vb = ours(summary, _label(protocol, b, view), row.scenario)
+                        x, y = _metric(va, what), _metric(vb, what)
+                        cells.append(f"{100 * (y - x) / y:.2f} %" if x is not None and y else "-")
+                lines.append("| " + " | ".join(cells) + " |")
+            lines.append("")
+    return lines
+
+
+def claims_section(claims: Sequence[dict[str, Any]], level: int = 2) -> list[str]:
+    """The paper's claims with their verdicts in its numbers and in ours (markdown lines;
+    ``level``: of the heading)."""
+    return [f"{'#' * level} The paper's claims", "",
+            "| claim | in the paper's numbers | ours, `profile=paper` | ours, "
+            "`profile=hybridnav` |", "|---|---|---|---|"] + [
+        f"| {c['text']} | " + " | ".join(f"{_word(c[v])} ({c[f'{v} detail']})" for v in VIEWS)
+        + " |" for c in claims] + [""]
+
+
 def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                  claims: Sequence[dict[str, Any]], *, runs: int, seed: int, version: str,
                  files: Sequence[str]) -> None:
@@ -277,65 +354,9 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
         lines += [protocol.notes, ""]
     lines += ["Ours: mean time to goal / mean path length over the runs that reached it (reached "
               "runs / runs).", ""]
-    bounds = length_bounds(protocol)
-    if bounds:
-        lines += ["How short a path can be in our layouts (first robot, to its goal disk): the "
-                  "straight line, and the shortened A* path with the robot's radius as "
-                  "clearance.", "", "| row | scenario | straight line | shortened A* |",
-                  "|---|---|---|---|"]
-        for row in protocol.rows:
-            if row.label in bounds:
-                straight, astar = bounds[row.label]
-                u = units_of.get(row.scenario, "")
-                lines.append(f"| {row.label} | `{row.scenario}` | {straight:.4g} {u} | "
-                             + (f"{astar:.4g} {u}" if astar is not None else "-") + " |")
-        lines.append("")
-    bad = impossible_lengths(protocol, bounds)
-    if bad:
-        lines += ["Paper lengths that our reconstruction contradicts: " + "; ".join(
-                      f"{row}, {p}: {length:g} below the {what} ({bound:.4g})"
-                      for row, p, length, what, bound in bad)
-                  + ". Those rows compare layouts, not planners.", ""]
-    for view in ("paper profile", "hybridnav profile"):
-        lines += [f"## Our runs, {view}", ""]
-        head = ["row", "scenario"]
-        for p in protocol.planners:
-            head += [f"paper: {p}", f"ours: `{_label(protocol, p, view)}`"]
-        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        for row in protocol.rows:
-            u = units_of.get(row.scenario, "")
-            cells = [row.label, f"`{row.scenario}`"]
-            for p in protocol.planners:
-                cells += [_paper_cell(row.paper.get(p), u),
-                          _cell(ours(summary, _label(protocol, p, view), row.scenario), u)]
-            lines.append("| " + " | ".join(cells) + " |")
-        lines.append("")
-        if protocol.enhancement:
-            a, b = protocol.enhancement
-            lines += [f"Enhancement of `{a}` over `{b}`, `100 (b - a) / b` (the paper's derived "
-                      "figures, recomputed from its table and from ours):", "",
-                      "| row | paper: length | ours: length | paper: time | ours: time |",
-                      "|---|---|---|---|---|"]
-            for row in protocol.rows:
-                cells = [row.label]
-                for what in ("length", "time"):
-                    for side in ("paper", "ours"):
-                        if side == "paper":
-                            va, vb = row.paper.get(a), row.paper.get(b)
-                        else:
-                            va = ours(summary, _label(protocol, a, view), row.scenario)
-                            vb = ours(summary, _label(protocol, b, view), row.scenario)
-                        x, y = _metric(va, what), _metric(vb, what)
-                        cells.append(f"{100 * (y - x) / y:.2f} %" if x is not None and y else "-")
-                lines.append("| " + " | ".join(cells) + " |")
-            lines.append("")
-    lines += ["## The paper's claims", "",
-              "| claim | in the paper's numbers | ours, `profile=paper` | ours, `profile=hybridnav` |",
-              "|---|---|---|---|"]
-    for c in claims:
-        lines.append(f"| {c['text']} | " + " | ".join(
-            f"{_word(c[v])} ({c[f'{v} detail']})" for v in VIEWS) + " |")
-    lines.append("")
+    lines += bounds_section(protocol, units_of)
+    lines += profile_sections(protocol, summary)
+    lines += claims_section(claims)
     names = list(dict.fromkeys(summary["planner"]))
     lines += ["## Every variant", "", "Including the ablations (default profile unless the "
               "label says `/paper`): mean time / length, median length, 95 % interval of the "
