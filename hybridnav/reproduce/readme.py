@@ -63,7 +63,8 @@ def render(folder: str | Path) -> str:
     """
     import dataclasses
 
-    from hybridnav.reproduce.report import check_claims, claims_section, profile_sections
+    from hybridnav.reproduce.report import (check_claims, claims_section, literature_line,
+                                            profile_sections, variants_section)
 
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
@@ -81,6 +82,10 @@ def render(folder: str | Path) -> str:
             "report.md).")
     lines = [how, ""]
     lines += profile_sections(protocol, summary, level=4)
+    if protocol.ablations:
+        lines += variants_section(protocol, summary, level=4,
+                                  only=[label for label, _, _ in protocol.ablations])
+    lines += literature_line(protocol)
     lines += claims_section(check_claims(protocol, summary), level=4)
     return "\n".join(lines)
 

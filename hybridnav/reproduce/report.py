@@ -20,8 +20,8 @@ from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
 __all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section",
-           "impossible_lengths", "length_bounds", "ours", "profile_sections", "straight_line_bound",
-           "write_report"]
+           "impossible_lengths", "length_bounds", "literature_line", "ours", "profile_sections",
+           "straight_line_bound", "variants_section", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
 
@@ -321,6 +321,40 @@ def claims_section(claims: Sequence[dict[str, Any]], level: int = 2) -> list[str
         + " |" for c in claims] + [""]
 
 
+def variants_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2,
+                     only: Sequence[str] | None = None) -> list[str]:
+    """Every variant (or those in ``only``) with median, 95 % interval and best run (markdown
+    lines; ``level``: of the heading)."""
+    units_of = dict(zip(summary["scenario"], summary["units"]))
+    names = [lb for lb in dict.fromkeys(summary["planner"]) if only is None or lb in only]
+    lines = [f"{'#' * level} Every variant" if only is None else f"{'#' * level} Ablations", "",
+             "Mean time / length over the reached runs, median length, 95 % interval of the "
+             "mean length, best run (length, its time); the default profile unless the label "
+             "says `/paper`.", "",
+             "| variant | scenario | time / length (reached) | median | 95 % interval | best |",
+             "|---|---|---|---|---|---|"]
+    for label in names:
+        for row in protocol.rows:
+            r = ours(summary, label, row.scenario)
+            if r is None:
+                continue
+            u = units_of.get(row.scenario, "")
+            lines.append(f"| `{label}` | `{row.scenario}` | {_cell(r, u)} | "
+                         f"{_fmt(r['path_length_median'])} | [{_fmt(r['path_length_ci95_lo'])}, "
+                         f"{_fmt(r['path_length_ci95_hi'])}] | {_fmt(r['best_path_length'])} {u}"
+                         f", {_fmt(r['best_time_to_goal'])} s |")
+    return lines + [""]
+
+
+def literature_line(protocol: Protocol) -> list[str]:
+    """The values the paper quotes from other work (markdown lines; none if it quotes none)."""
+    if not protocol.literature:
+        return []
+    return ["Values the paper quotes from other work (not run here): " + "; ".join(
+        f"{row}: " + ", ".join(f"{m} {v:g}" for m, v in vals.items())
+        for row, vals in protocol.literature.items()) + ".", ""]
+
+
 def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                  claims: Sequence[dict[str, Any]], *, runs: int, seed: int, version: str,
                  files: Sequence[str]) -> None:
@@ -357,27 +391,8 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     lines += bounds_section(protocol, units_of)
     lines += profile_sections(protocol, summary)
     lines += claims_section(claims)
-    names = list(dict.fromkeys(summary["planner"]))
-    lines += ["## Every variant", "", "Including the ablations (default profile unless the "
-              "label says `/paper`): mean time / length, median length, 95 % interval of the "
-              "mean length, best run (length, its time).", "",
-              "| variant | scenario | time / length (reached) | median | 95 % interval | best |",
-              "|---|---|---|---|---|---|"]
-    for label in names:
-        for row in protocol.rows:
-            r = ours(summary, label, row.scenario)
-            if r is None:
-                continue
-            u = units_of.get(row.scenario, "")
-            lines.append(f"| `{label}` | `{row.scenario}` | {_cell(r, u)} | "
-                         f"{_fmt(r['path_length_median'])} | [{_fmt(r['path_length_ci95_lo'])}, "
-                         f"{_fmt(r['path_length_ci95_hi'])}] | {_fmt(r['best_path_length'])} {u}"
-                         f", {_fmt(r['best_time_to_goal'])} s |")
-    lines.append("")
-    if protocol.literature:
-        lines += ["Values the paper quotes from other work (not run here): " + "; ".join(
-            f"{row}: " + ", ".join(f"{m} {v:g}" for m, v in vals.items())
-            for row, vals in protocol.literature.items()) + ".", ""]
+    lines += variants_section(protocol, summary)
+    lines += literature_line(protocol)
     figures = [f for f in files if f.endswith(".png")]
     if figures:
         lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
