@@ -78,7 +78,9 @@ def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     out = tmp_path / name
     assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "-o", str(out)]) == 0
     text = (out / "report.md").read_text()
-    assert "## The paper's claims" in text and "## Our runs, paper profile" in text
+    assert "## The paper's claims" in text and "## Our runs" in text
+    from hybridnav.reproduce.report import has_profiles
+    assert ("## Our runs, paper profile" in text) == has_profiles(PROTOCOLS[name])
     summary = pd.read_csv(out / "summary.csv")
     assert set(summary["scenario"]) == {scenario}
     assert set(summary["planner"]) == {label for label, _, _ in variants(PROTOCOLS[name])}
@@ -155,3 +157,52 @@ def test_the_alley_map_has_the_grid_optimum_of_the_papers_table_4():
     assert math.floor(best * 100) / 100 == 33.48                  # the paper truncates
     plan = planners.get("astar", margin=0.0).plans(s)[0]
     assert plan.length == pytest.approx(best, abs=1e-9)
+
+
+def test_readme_blocks_are_the_stored_full_runs():
+    """README's reproduce blocks are exactly what the stored runs in docs/reproductions render
+    to (no hand-copied number), every protocol has one, and each stored run ran the protocol as
+    it is now (same variants and scenarios), with the paper's number of runs unless the block
+    says fewer."""
+    import json
+    from pathlib import Path
+
+    from hybridnav.analysis.compare import PlannerSpec
+    from hybridnav.reproduce.readme import STORE, blocks, render
+
+    root = Path(__file__).resolve().parents[1]
+    found = blocks((root / "README.md").read_text())
+    assert set(found) == set(PROTOCOLS)
+    for name, body in found.items():
+        folder = root / STORE / name
+        assert body == render(folder) + "\n", f"README's {name} block is stale: run " \
+                                               "hybridnav reproduce --update-readme"
+        meta = json.loads((folder / "comparison.json").read_text())
+        p = PROTOCOLS[name]
+        assert meta["planners"] == [PlannerSpec(lb, n, params).format()
+                                    for lb, n, params in variants(p)], name
+        assert meta["scenarios"] == [row.scenario for row in p.rows], name
+        assert f"{meta['runs']} run(s) per planner and scenario (the paper: {p.runs})" in body
+        assert (folder / "report.md").exists()
+
+
+def test_update_readme_rewrites_the_blocks_and_refuses_a_missing_run(tmp_path):
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, update_readme
+
+    root = Path(__file__).resolve().parents[1]
+    readme = tmp_path / "README.md"
+    readme.write_text("intro\n<!-- reproduce:psoba-fig15 -->\nold numbers\n"
+                      "<!-- /reproduce:psoba-fig15 -->\nend\n")
+    assert update_readme(readme, root / STORE) == ["psoba-fig15"]
+    text = readme.read_text()
+    assert "old numbers" not in text and text.startswith("intro\n") and text.endswith("end\n")
+    assert "Measured by `hybridnav reproduce psoba-fig15`" in text
+    readme.write_text("<!-- reproduce:effc-table3 -->\n<!-- /reproduce:effc-table3 -->\n")
+    with pytest.raises(HybridnavError, match="expected a stored run of `hybridnav reproduce "
+                                             "effc-table3`"):
+        update_readme(readme, tmp_path / "nothing")
+    readme.write_text("no blocks\n")
+    with pytest.raises(HybridnavError, match="expected <!-- reproduce:NAME --> blocks"):
+        update_readme(readme, root / STORE)

@@ -63,8 +63,9 @@ def render(folder: str | Path) -> str:
     """
     import dataclasses
 
-    from hybridnav.reproduce.report import (check_claims, claims_section, literature_line,
-                                            profile_sections, variants_section)
+    from hybridnav.reproduce.report import (check_claims, claims_section, has_profiles,
+                                            literature_line, profile_sections,
+                                            variants_section)
 
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
@@ -86,7 +87,8 @@ def render(folder: str | Path) -> str:
         lines += variants_section(protocol, summary, level=4,
                                   only=[label for label, _, _ in protocol.ablations])
     lines += literature_line(protocol)
-    lines += claims_section(check_claims(protocol, summary), level=4)
+    lines += claims_section(check_claims(protocol, summary), level=4,
+                            profiles=has_profiles(protocol))
     return "\n".join(lines)
 
 

@@ -19,7 +19,7 @@ from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
-__all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section",
+__all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section", "has_profiles",
            "impossible_lengths", "length_bounds", "literature_line", "ours", "profile_sections",
            "straight_line_bound", "variants_section", "write_report"]
 
@@ -161,6 +161,10 @@ def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
         if claim.kind in ("shorter", "faster"):
             what = "length" if claim.kind == "shorter" else "time"
             a, b = _metric(va, what), _metric(vb, what)
+            if a is None and b is not None and _reached(va) == 0.0:
+                verdicts.append(False)          # never arriving is not shorter, nor faster
+                parts.append(f"{row.label}: {claim.a} reached none, {claim.b} {b:.4g}")
+                continue
             if a is None or b is None:
                 verdicts.append(None)
                 parts.append(f"{row.label}: no number")
@@ -275,8 +279,10 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
     ``level``: of the headings)."""
     lines: list[str] = []
     units_of = dict(zip(summary["scenario"], summary["units"]))
-    for view in ("paper profile", "hybridnav profile"):
-        lines += [f"{'#' * level} Our runs, {view}", ""]
+    both = has_profiles(protocol)
+    for view in ("paper profile", "hybridnav profile") if both else ("hybridnav profile",):
+        lines += [f"{'#' * level} Our runs, {view}" if both else
+                  f"{'#' * level} Our runs (no compared planner has profiles: one run each)", ""]
         head = ["row", "scenario"]
         for p in protocol.planners:
             head += [f"paper: {p}", f"ours: `{_label(protocol, p, view)}`"]
@@ -311,13 +317,22 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
     return lines
 
 
-def claims_section(claims: Sequence[dict[str, Any]], level: int = 2) -> list[str]:
+def has_profiles(protocol: Protocol) -> bool:
+    """Whether any compared planner has profiles (else one run serves both views)."""
+    from hybridnav import planners
+
+    return any(planners.PLANNERS[p].profiles for p in protocol.planners)
+
+
+def claims_section(claims: Sequence[dict[str, Any]], level: int = 2,
+                   profiles: bool = True) -> list[str]:
     """The paper's claims with their verdicts in its numbers and in ours (markdown lines;
-    ``level``: of the heading)."""
-    return [f"{'#' * level} The paper's claims", "",
-            "| claim | in the paper's numbers | ours, `profile=paper` | ours, "
-            "`profile=hybridnav` |", "|---|---|---|---|"] + [
-        f"| {c['text']} | " + " | ".join(f"{_word(c[v])} ({c[f'{v} detail']})" for v in VIEWS)
+    ``level``: of the heading; ``profiles``: a column per profile, else one for ours)."""
+    views = VIEWS if profiles else VIEWS[::2]
+    head = ("| claim | in the paper's numbers | ours, `profile=paper` | ours, "
+            "`profile=hybridnav` |" if profiles else "| claim | in the paper's numbers | ours |")
+    return [f"{'#' * level} The paper's claims", "", head, "|---" * (len(views) + 1) + "|"] + [
+        f"| {c['text']} | " + " | ".join(f"{_word(c[v])} ({c[f'{v} detail']})" for v in views)
         + " |" for c in claims] + [""]
 
 
@@ -386,11 +401,11 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
             for p, s in protocol.settings.items()) + ".", ""]
     if protocol.notes:
         lines += [protocol.notes, ""]
-    lines += ["Ours: mean time to goal / mean path length over the runs that reached it (reached "
-              "runs / runs).", ""]
+    lines += ["Ours: mean time to goal / mean path length over the robots' runs that reached "
+              "the goal (reached / robots x runs).", ""]
     lines += bounds_section(protocol, units_of)
     lines += profile_sections(protocol, summary)
-    lines += claims_section(claims)
+    lines += claims_section(claims, profiles=has_profiles(protocol))
     lines += variants_section(protocol, summary)
     lines += literature_line(protocol)
     figures = [f for f in files if f.endswith(".png")]
