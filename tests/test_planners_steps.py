@@ -85,6 +85,48 @@ def test_point_mass_feasibility_is_the_exact_swept_disk_test():
     assert np.array_equal(got[sure], ref[sure])
 
 
+def _feasible_by_brute_force(model, x0, P, world, steps, reach, margin):
+    """The definition of :func:`feasible_steps` for static obstacles, checked the slow way: the
+    whole rollout, and every piece of every footprint disk up to the move's end tested exactly."""
+    n = len(P)
+    traj = model.rollout(np.broadcast_to(x0, (n, model.nx)), P, steps)
+    out = np.zeros(n, dtype=bool)
+    for i in range(n):
+        d = np.hypot(traj[i, :, 0] - P[i, 0], traj[i, :, 1] - P[i, 1])
+        last = int(np.argmax(d <= reach)) if (d <= reach).any() else steps
+        end = traj[i, last, :2]
+        if world.segment_collides(end[None], P[i][None], radius=model.radius + margin)[0]:
+            continue
+        centres, radii = model.footprint(traj[i, :last + 1])
+        ok = True
+        for j, rad in enumerate(radii):
+            A, B = centres[:-1, j], centres[1:, j]
+            if len(A) and (world.segment_collides(A, B, radius=rad + margin).any()
+                           or (~world.inside_workspace(B, rad + margin)).any()):
+                ok = False
+        out[i] = ok
+    return out
+
+
+@pytest.mark.parametrize("name, x0", [("unicycle", [8.0, 10.0, 0.3]),
+                                      ("tractor_trailer", [8.0, 10.0, 0.3, 0.3])])
+def test_feasibility_of_curved_moves_is_the_piecewise_exact_test(name, x0):
+    """Unicycle and tractor-trailer moves curve: feasible_steps (blocked rollout that stops at
+    the move's end, stretches proven safe from their ends' clearance) must agree with testing
+    every piece of the whole rollout exactly."""
+    world = World((0, 50, 0, 50), (Circle((20, 20), 4), Circle((35, 30), 3),
+                                   Segment((10, 35), (25, 42))))
+    m = models.get(name, dt=0.5)
+    x0 = np.array(x0[:m.nx] + [0.0] * (m.nx - len(x0)))
+    env = Surroundings.at(world, 0.0, np.zeros((0, 2)), NO_ROBOTS)
+    rng = np.random.default_rng(4)
+    P = rng.uniform(2, 48, size=(150, 2))
+    got = feasible_steps(m, x0, P, env, steps=300, reach=1.0, margin=0.2)
+    ref = _feasible_by_brute_force(m, x0, P, world, 300, 1.0, 0.2)
+    assert got.any() and (~got).any()
+    assert np.array_equal(got, ref), np.flatnonzero(got != ref)
+
+
 def test_feasibility_sees_other_robots_and_moving_circles_at_their_times():
     world = World((0, 50, 0, 50))
     m = models.get("point_mass", dt=0.5, radius=0.5)

@@ -40,6 +40,9 @@ FloatArray = NDArray[np.float64]
 _BLOCK = 1 << 16
 # rollout pieces per stretch whose safety is first bounded from the clearance at its two ends
 _STRIDE = 8
+# control cycles integrated at a time: a candidate the robot has reached is not integrated
+# further (a multiple of _STRIDE, so every stretch a used piece lies in is computed)
+_ROLL_BLOCK = 8 * _STRIDE
 
 
 @dataclass(frozen=True)
@@ -109,6 +112,47 @@ def step_fitness(P: FloatArray, goal: FloatArray, env: Surroundings, a: float, b
     return f
 
 
+def rollout_until_reached(model, x0: FloatArray, P: FloatArray, steps: int,
+                          reach: float) -> FloatArray:
+    """``model.rollout`` from ``x0`` towards each candidate, integrated :data:`_ROLL_BLOCK`
+    cycles at a time and no further for a candidate once a sample is within ``reach`` of it.
+
+    What :func:`feasible_steps` reads is the same as the full rollout's, sample for sample:
+    everything up to the end of the block in which the move ends (the RK4 cycle is a function of
+    the state and the target alone). Later samples, which it does not read, repeat that last
+    state.
+
+    Parameters
+    ----------
+    model : Model
+    x0 : ndarray, shape (nx,)
+    P : ndarray, shape (N, 2)
+    steps : int
+    reach : float
+
+    Returns
+    -------
+    ndarray, shape (N, steps + 1, nx)
+    """
+    n = len(P)
+    traj = np.empty((n, steps + 1, model.nx))
+    traj[:, 0] = x0
+    active = np.flatnonzero(np.hypot(x0[0] - P[:, 0], x0[1] - P[:, 1]) > reach)
+    traj[np.setdiff1d(np.arange(n), active), 1:] = x0
+    k = 0
+    while k < steps and len(active):
+        b = min(_ROLL_BLOCK, steps - k)
+        part = model.rollout(traj[active, k], P[active], b)[:, 1:]       # (na, b, nx)
+        traj[active, k + 1:k + b + 1] = part
+        d = np.hypot(part[:, :, 0] - P[active, None, 0], part[:, :, 1] - P[active, None, 1])
+        done = (d <= reach).any(axis=1)
+        k += b
+        finished = active[done]
+        traj[finished, k + 1:] = traj[finished, k][:, None]
+        active = active[~done]
+    return traj
+
+
 def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, steps: int,
                    reach: float, margin: float,
                    end_margin: float | None = None) -> NDArray[np.bool_]:
@@ -147,7 +191,7 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
     ok = np.ones(n, dtype=bool)
     if n == 0:
         return ok
-    traj = model.rollout(np.broadcast_to(x0, (n, model.nx)), P, steps)     # (n, steps+1, nx)
+    traj = rollout_until_reached(model, x0, P, steps, reach)            # (n, steps+1, nx)
     # a move ends at its first sample within reach of the candidate
     dist = np.hypot(traj[:, :, 0] - P[:, None, 0], traj[:, :, 1] - P[:, None, 1])
     within = dist <= reach
@@ -167,13 +211,21 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
         ok &= ~np.any(dd < body + other_r[None], axis=1)
     if not used.any():
         return ok
-    centres, radii = model.footprint(traj.reshape(-1, model.nx))
-    centres = centres.reshape(n, steps + 1, len(radii), 2)
-    static, moving = env.static, env.moving
     coarse = np.arange(0, steps + 1, _STRIDE)
     if coarse[-1] != steps:
         coarse = np.append(coarse, steps)
     chunk_of = np.searchsorted(coarse, np.arange(steps), side="right") - 1  # piece -> stretch
+    # the last stretch a candidate's used pieces lie in, and the samples any of them needs:
+    # nothing after that is read, so the footprint and clearances stop there
+    top = np.where(last > 0, chunk_of[np.maximum(last, 1) - 1] + 1, 0)
+    horizon = int(coarse[top.max()])
+    if horizon < steps:
+        steps, traj, used = horizon, traj[:, :horizon + 1], used[:, :horizon]
+        coarse, chunk_of = coarse[:top.max() + 1], chunk_of[:horizon]
+    centres, radii = model.footprint(traj.reshape(-1, model.nx))
+    centres = centres.reshape(n, steps + 1, len(radii), 2)
+    static, moving = env.static, env.moving
+    needed = np.arange(len(coarse))[None, :] <= top[:, None]          # coarse samples read
     bad = np.zeros(n, dtype=bool)
 
     def frozen_clearance(Q: FloatArray) -> FloatArray:
@@ -195,11 +247,12 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
         # proven safe that way skip the exact swept-disk tests of their pieces.
         seg = np.hypot(*np.diff(C, axis=1).transpose(2, 0, 1))                  # (n, steps)
         arc = np.concatenate([np.zeros((n, 1)), np.cumsum(seg, axis=1)], axis=1)
-        pts = C[:, coarse].reshape(-1, 2)
-        clear = np.empty(len(pts))
+        pts = C[:, coarse][needed]
+        clear = np.full((n, len(coarse)), np.inf)              # inf: a stretch nobody uses
+        got = np.empty(len(pts))
         for lo in range(0, len(pts), _BLOCK):
-            clear[lo:lo + _BLOCK] = frozen_clearance(pts[lo:lo + _BLOCK])
-        clear = clear.reshape(n, len(coarse))
+            got[lo:lo + _BLOCK] = frozen_clearance(pts[lo:lo + _BLOCK])
+        clear[needed] = got
         bound = 0.5 * (clear[:, :-1] + clear[:, 1:] - np.diff(arc[:, coarse], axis=1))
         rows, ks = np.nonzero(used & (bound < need)[:, chunk_of])
         for lo in range(0, len(rows), _BLOCK):
