@@ -108,23 +108,31 @@ def _feasible_by_brute_force(model, x0, P, world, steps, reach, margin):
     return out
 
 
-@pytest.mark.parametrize("name, x0", [("unicycle", [8.0, 10.0, 0.3]),
-                                      ("tractor_trailer", [8.0, 10.0, 0.3, 0.3])])
-def test_feasibility_of_curved_moves_is_the_piecewise_exact_test(name, x0):
+@pytest.mark.parametrize("steps", [37, 300])
+@pytest.mark.parametrize("name, x0, dt", [("unicycle", [8.0, 10.0, 0.3], 0.1),
+                                          ("tractor_trailer", [8.0, 10.0, 0.3, 0.3], 0.5)])
+def test_feasibility_of_curved_moves_is_the_piecewise_exact_test(name, x0, dt, steps):
     """Unicycle and tractor-trailer moves curve: feasible_steps (blocked rollout that stops at
     the move's end, stretches proven safe from their ends' clearance) must agree with testing
-    every piece of the whole rollout exactly."""
+    every piece of the whole rollout exactly; with moves that end in the first, a later or no
+    rollout block (dt 0.1: the unicycle needs more than 64 cycles for the far candidates), a
+    horizon that is no multiple of the stretch length, and a candidate already within reach."""
     world = World((0, 50, 0, 50), (Circle((20, 20), 4), Circle((35, 30), 3),
                                    Segment((10, 35), (25, 42))))
-    m = models.get(name, dt=0.5)
+    m = models.get(name, dt=dt)
     x0 = np.array(x0[:m.nx] + [0.0] * (m.nx - len(x0)))
     env = Surroundings.at(world, 0.0, np.zeros((0, 2)), NO_ROBOTS)
     rng = np.random.default_rng(4)
-    P = rng.uniform(2, 48, size=(150, 2))
-    got = feasible_steps(m, x0, P, env, steps=300, reach=1.0, margin=0.2)
-    ref = _feasible_by_brute_force(m, x0, P, world, 300, 1.0, 0.2)
+    P = np.vstack([x0[:2] + [0.5, 0.2], rng.uniform(2, 48, size=(150, 2))])
+    got = feasible_steps(m, x0, P, env, steps=steps, reach=1.0, margin=0.2)
+    ref = _feasible_by_brute_force(m, x0, P, world, steps, 1.0, 0.2)
     assert got.any() and (~got).any()
     assert np.array_equal(got, ref), np.flatnonzero(got != ref)
+    if steps == 300:              # the cases the docstring names occur
+        traj = m.rollout(np.broadcast_to(x0, (len(P), m.nx)), P, steps)
+        reached = np.hypot(traj[..., 0] - P[:, None, 0], traj[..., 1] - P[:, None, 1]) <= 1.0
+        last = np.where(reached.any(axis=1), reached.argmax(axis=1), steps)
+        assert last[0] == 0 and (last > 64).any() and (last < 64).any()
 
 
 def test_feasibility_sees_other_robots_and_moving_circles_at_their_times():

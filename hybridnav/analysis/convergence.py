@@ -6,7 +6,8 @@ PSO (one search per run), PBPF's gain search (one) and the step planners' optimi
 per step). :func:`convergence_rows` flattens a run's records; :func:`plot_convergence` draws a
 scenario's curves, one panel per planner: the median over runs and the 10-90 % band of the best
 cost per iteration where a run is one search, and of each step's final best cost per step where
-a run is many.
+a run is many. A search with no feasible point yet counts as infinite cost (so a median is drawn
+only where at least half the runs have one).
 """
 
 from __future__ import annotations
@@ -44,9 +45,8 @@ def convergence_rows(result, label: str, run: int) -> pd.DataFrame:
         best = np.asarray(rec["best"], dtype=float)
         frames.append(pd.DataFrame({
             "planner": label, "scenario": result.scenario, "run": run, "robot": r.name,
-            "plan": np.asarray(rec["plan"], dtype=int), "iteration":
-            np.asarray(rec["iteration"], dtype=int), "best": np.where(np.isfinite(best), best,
-                                                                       np.nan)}))
+            "plan": np.asarray(rec["plan"], dtype=int),
+            "iteration": np.asarray(rec["iteration"], dtype=int), "best": best}))
     if not frames:
         return pd.DataFrame(columns=CONVERGENCE_COLUMNS)
     return pd.concat(frames, ignore_index=True)[CONVERGENCE_COLUMNS]
@@ -57,7 +57,7 @@ def _curves(rows: pd.DataFrame) -> tuple[str, pd.DataFrame]:
     each search's final best per step (rows: runs x robots, columns: x)."""
     if rows["plan"].max() == 0:
         wide = rows.pivot_table(index=["run", "robot"], columns="iteration", values="best",
-                                aggfunc="first")
+                                aggfunc="first", dropna=False)
         return "iteration", wide
     last = rows.sort_values("iteration").groupby(["run", "robot", "plan"]).last()["best"]
     return "step (one search each; its final best)", last.unstack("plan")
@@ -92,18 +92,19 @@ def plot_convergence(scenario: str, rows: pd.DataFrame,
     for ax, label in zip(axes, order):
         xlabel, wide = _curves(rows[rows["planner"] == label])
         x = np.asarray(wide.columns, dtype=float)
-        values = wide.to_numpy(dtype=float)
-        seen = np.isfinite(values)
-        keep = seen.any(axis=0)
-        x, values = x[keep], values[:, keep]
-        if not len(x):
-            ax.set_title(f"{label}: no feasible point")
+        values = wide.to_numpy(dtype=float)      # inf: no feasible point yet; nan: no such step
+        if not np.isfinite(values).any():
+            ax.set_title(f"{label}: no feasible point", fontsize=9)
             continue
         with np.errstate(all="ignore"):
             lo, med, hi = np.nanpercentile(values, [10, 50, 90], axis=0)
-        ax.fill_between(x, lo, hi, alpha=0.25, color="C0", linewidth=0,
+
+        def finite(v):
+            return np.where(np.isfinite(v), v, np.nan)     # drawn where finite only
+
+        ax.fill_between(x, finite(lo), finite(hi), alpha=0.25, color="C0", linewidth=0,
                         label="10-90 % of runs")
-        ax.plot(x, med, color="C0", label=f"median of {len(values)} run(s)")
+        ax.plot(x, finite(med), color="C0", label=f"median of {len(values)} run(s)")
         ax.set_xlabel(xlabel)
         ax.set_ylabel("best cost (the search's objective)")
         ax.set_title(label, fontsize=9)

@@ -25,8 +25,9 @@ __all__ = ["STORE", "blocks", "load_stored", "render", "update_readme"]
 #: where the full runs are kept, relative to the repository's root
 STORE = Path("docs") / "reproductions"
 
-_BLOCK = re.compile(r"<!-- reproduce:(?P<name>[\w-]+) -->\n(?P<body>.*?)<!-- /reproduce:(?P=name) -->",
-                    re.S)
+_BLOCK = re.compile(r"<!-- reproduce:(?P<name>[\w-]+) -->\r?\n(?P<body>.*?)"
+                    r"<!-- /reproduce:(?P=name) -->", re.S)
+_OPEN = re.compile(r"<!-- reproduce:([\w-]+) -->")
 
 
 def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
@@ -35,8 +36,9 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     Raises
     ------
     HybridnavError
-        A missing or unreadable ``summary.csv``/``comparison.json``, or a protocol that no
-        longer exists (naming the file and key).
+        A missing or unreadable ``summary.csv``/``comparison.json``, a protocol that no longer
+        exists, a bad key, or scenarios other than the protocol's rows now (naming the file and
+        key).
     """
     folder = Path(folder)
     meta_path = folder / "comparison.json"
@@ -49,6 +51,21 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     if name not in PROTOCOLS:
         raise HybridnavError(f"{meta_path}: protocol: expected one of "
                              f"{', '.join(sorted(PROTOCOLS))}, got {name!r}")
+    for key, ok, what in (("version", lambda v: isinstance(v, str), "a version string"),
+                          ("runs", lambda v: isinstance(v, int) and v >= 1,
+                           "a positive integer"),
+                          ("seed", lambda v: isinstance(v, int), "an integer"),
+                          ("elapsed_s", lambda v: v is None or isinstance(v, (int, float)),
+                           "a number of seconds"),
+                          ("scenarios", lambda v: isinstance(v, list), "a list of scenarios")):
+        if not ok(meta.get(key)):
+            raise HybridnavError(f"{meta_path}: {key}: expected {what}, got "
+                                 f"{meta.get(key)!r}")
+    rows = [row.scenario for row in PROTOCOLS[name].rows]
+    if meta["scenarios"] != rows:
+        raise HybridnavError(f"{meta_path}: scenarios: expected the protocol's "
+                             f"{', '.join(rows)} (run it again), got "
+                             f"{', '.join(map(str, meta['scenarios']))}")
     try:
         summary = pd.read_csv(folder / "summary.csv")
     except (OSError, ValueError) as exc:
@@ -61,17 +78,12 @@ def render(folder: str | Path) -> str:
     """The README block of the stored reproduction in ``folder``: how it was run, the paper's
     numbers beside ours per profile, and the paper's claims checked (as in its ``report.md``).
     """
-    import dataclasses
-
     from hybridnav.reproduce.report import (check_claims, claims_section, has_profiles,
                                             literature_line, profile_sections,
                                             variants_section)
 
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
-    scenarios = meta.get("scenarios") or [row.scenario for row in protocol.rows]
-    protocol = dataclasses.replace(protocol, rows=tuple(
-        row for row in protocol.rows if row.scenario in scenarios))
     how = (f"Measured by `hybridnav reproduce {name}` with hybridnav {meta.get('version')}: "
            f"{meta.get('runs')} run(s) per planner and scenario (the paper: {protocol.runs}), "
            f"seed {meta.get('seed')}")
@@ -92,9 +104,26 @@ def render(folder: str | Path) -> str:
     return "\n".join(lines)
 
 
-def blocks(text: str) -> dict[str, str]:
-    """The reproduce blocks of a README: ``{protocol name: body}``."""
-    return {m["name"]: m["body"] for m in _BLOCK.finditer(text)}
+def blocks(text: str, source: str = "README") -> dict[str, str]:
+    """The reproduce blocks of a README: ``{protocol name: body}``.
+
+    Raises
+    ------
+    HybridnavError
+        An opening marker without its closing one, or a protocol's block twice.
+    """
+    found = [(m["name"], m["body"]) for m in _BLOCK.finditer(text)]
+    names = [n for n, _ in found]
+    opened = _OPEN.findall(text)
+    if sorted(opened) != sorted(names):
+        bad = next(n for n in opened if opened.count(n) != names.count(n))
+        raise HybridnavError(f"{source}: reproduce:{bad}: expected one block closed by "
+                             f"<!-- /reproduce:{bad} -->")
+    if len(set(names)) != len(names):
+        bad = next(n for n in names if names.count(n) > 1)
+        raise HybridnavError(f"{source}: reproduce:{bad}: expected one block, found "
+                             f"{names.count(bad)}")
+    return dict(found)
 
 
 def update_readme(readme: str | Path, store: str | Path) -> list[str]:
@@ -107,12 +136,12 @@ def update_readme(readme: str | Path, store: str | Path) -> list[str]:
     """
     readme = Path(readme)
     text = readme.read_text()
-    found = blocks(text)
+    found = blocks(text, str(readme))
     if not found:
         raise HybridnavError(f"{readme}: expected <!-- reproduce:NAME --> blocks, found none")
     for name in found:
         if not (Path(store) / name / "summary.csv").exists():
-            raise HybridnavError(f"{Path(store) / name}: expected a stored run of "
+            raise HybridnavError(f"{Path(store) / name}: summary.csv: expected a stored run of "
                                  f"`hybridnav reproduce {name}` for README's block")
 
     def sub(m: re.Match) -> str:

@@ -1,8 +1,9 @@
 """``report.md`` of a reproduction: the paper's numbers beside ours, per profile, and its claims.
 
 Our figures are means over the runs that reached the goal (the success count beside them); a
-claim about two planners compares those means row by row, and says "cannot be checked" where one
-side has no reached run (or the paper gives no number). Each comparison also quotes the
+claim about two planners compares those means row by row. Where one side reached its goal in no
+run and the other did, the one that arrives is the shorter and the faster; where neither did
+(or the paper gives no number) the row "cannot be checked". Each comparison also quotes the
 Mann-Whitney U p-value of our runs (from ``summary.csv``).
 """
 
@@ -164,6 +165,10 @@ def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
             if a is None and b is not None and _reached(va) == 0.0:
                 verdicts.append(False)          # never arriving is not shorter, nor faster
                 parts.append(f"{row.label}: {claim.a} reached none, {claim.b} {b:.4g}")
+                continue
+            if b is None and a is not None and _reached(vb) == 0.0:
+                verdicts.append(True)           # arriving beats never arriving
+                parts.append(f"{row.label}: {claim.a} {a:.4g}, {claim.b} reached none")
                 continue
             if a is None or b is None:
                 verdicts.append(None)
