@@ -4,7 +4,8 @@ by hand.
 A full run of ``hybridnav reproduce NAME`` kept under ``docs/reproductions/NAME/`` (its
 ``summary.csv`` and ``comparison.json``) is what README's section on that protocol shows: the
 text between ``<!-- reproduce:NAME -->`` and ``<!-- /reproduce:NAME -->`` is :func:`render` of
-that folder, and ``hybridnav reproduce --update-readme`` rewrites every such block. A test
+that folder, and ``hybridnav reproduce --update-readme`` rewrites every such block (and each
+stored ``report.md``, so that the two agree). A test
 renders each block again from the stored files and compares it with README.
 """
 
@@ -20,7 +21,7 @@ from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import PROTOCOLS
 
-__all__ = ["STORE", "blocks", "load_stored", "render", "update_readme"]
+__all__ = ["STORE", "blocks", "load_stored", "render", "rewrite_report", "update_readme"]
 
 #: where the full runs are kept, relative to the repository's root
 STORE = Path("docs") / "reproductions"
@@ -104,6 +105,23 @@ def render(folder: str | Path) -> str:
     return "\n".join(lines)
 
 
+def rewrite_report(folder: str | Path) -> Path:
+    """Write the ``report.md`` of a stored reproduction again from its ``summary.csv`` and
+    ``comparison.json`` (after a change to how reports are written or claims are checked, no
+    run is needed); returns its path."""
+    from hybridnav.reproduce.report import check_claims, write_report
+
+    folder = Path(folder)
+    name, summary, meta = load_stored(folder)
+    protocol = PROTOCOLS[name]
+    order = ("runs.csv", "summary.csv", "comparison.json")
+    files = [f for f in order if (folder / f).exists()] + sorted(
+        f.name for f in folder.iterdir() if f.suffix in (".png", ".csv") and f.name not in order)
+    write_report(folder / "report.md", protocol, summary, check_claims(protocol, summary),
+                 runs=meta["runs"], seed=meta["seed"], version=meta["version"], files=files)
+    return folder / "report.md"
+
+
 def blocks(text: str, source: str = "README") -> dict[str, str]:
     """The reproduce blocks of a README: ``{protocol name: body}``.
 
@@ -127,7 +145,8 @@ def blocks(text: str, source: str = "README") -> dict[str, str]:
 
 
 def update_readme(readme: str | Path, store: str | Path) -> list[str]:
-    """Rewrite every reproduce block of ``readme`` from ``store/NAME``; returns the names.
+    """Rewrite every reproduce block of ``readme`` from ``store/NAME`` (and that run's
+    ``report.md``, with :func:`rewrite_report`); returns the names.
 
     Raises
     ------
@@ -143,6 +162,9 @@ def update_readme(readme: str | Path, store: str | Path) -> list[str]:
         if not (Path(store) / name / "summary.csv").exists():
             raise HybridnavError(f"{Path(store) / name}: summary.csv: expected a stored run of "
                                  f"`hybridnav reproduce {name}` for README's block")
+
+    for name in found:
+        rewrite_report(Path(store) / name)
 
     def sub(m: re.Match) -> str:
         body = render(Path(store) / m["name"])
