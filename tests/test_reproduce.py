@@ -256,3 +256,24 @@ def test_a_planner_that_never_arrives_is_neither_shorter_nor_faster():
         v["hybridnav profile detail"]
     v = verdict(summary(none, none), "EFFC reaches the goal in less time than HAPF")
     assert v["hybridnav profile"] is None
+
+
+def test_update_readme_from_the_cli(tmp_path, capsys):
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    readme = tmp_path / "R.md"
+    readme.write_text("<!-- reproduce:psoba-fig15 -->\n<!-- /reproduce:psoba-fig15 -->\n")
+    store = tmp_path / "store"
+    (store / "psoba-fig15").mkdir(parents=True)
+    for f in (root / STORE / "psoba-fig15").iterdir():
+        (store / "psoba-fig15" / f.name).write_bytes(f.read_bytes())
+    assert main(["reproduce", "--update-readme", "--readme", str(readme), "--reports",
+                 str(store)]) == 0
+    assert "rewrote the blocks of psoba-fig15" in capsys.readouterr().out
+    assert "#### The paper's claims" in readme.read_text()
+    assert main(["reproduce", "--update-readme", "--readme", str(readme), "--reports",
+                 str(tmp_path / "none")]) == 2
+    assert "summary.csv: expected a stored run" in capsys.readouterr().err
