@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from hybridnav.planners.base import Param
+from hybridnav.planners.base import Param, searches_table
 from hybridnav.planners.field.apf import APF, apf_force
 from hybridnav.planners.field.lockstep import lockstep_field
 
@@ -77,9 +77,7 @@ class PBPF(APF):
     def extras(self, scenario, state) -> dict[str, Any]:
         """Best fitness per generation of each robot's gain search (``swarm_best_<robot>``:
         ``plan`` 0, ``iteration`` the generation, ``best``), as every swarm search records it."""
-        return {f"swarm_best_{r.name}": {"plan": np.zeros(len(h), dtype=int),
-                                         "iteration": np.arange(len(h)),
-                                         "best": np.asarray(h, dtype=float)}
+        return {f"swarm_best_{r.name}": searches_table([np.asarray(h, dtype=float)])
                 for r, h in zip(scenario.robots, state.logs)}
 
     def diagnostics(self, scenario, result):

@@ -99,7 +99,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.base import Param, Planner, searches_table
 from hybridnav.planners.path.geometry import (
     PlannedPath,
     _cell_size,
@@ -551,7 +551,6 @@ def _plan_extras(scenario, plans: list[PlannedPath]) -> dict[str, Any]:
                 out[f"{name}_{r.name}"] = xy(p.info[key])
         opt = p.info.get("opt")
         if opt is not None:
-            best = np.asarray(opt.history.best, dtype=float)
-            out[f"swarm_best_{r.name}"] = {"plan": np.zeros(len(best), dtype=int),
-                                           "iteration": np.arange(len(best)), "best": best}
+            out[f"swarm_best_{r.name}"] = searches_table([np.asarray(opt.history.best,
+                                                                     dtype=float)])
     return out

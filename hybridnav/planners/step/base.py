@@ -162,9 +162,9 @@ class StepPlanner(Planner):
         best_dist = np.full(n, np.inf)
         stalled = np.zeros(n, dtype=int)
         plan_time = np.zeros(n)
-        plans = np.zeros(n, dtype=int)
         memories: list[dict] = [{} for _ in range(n)]
-        searches: list[list[np.ndarray]] = [[] for _ in range(n)]   # best per iteration, per plan
+        # per robot, each plan call's best cost per iteration (their number: planning_calls)
+        searches: list[list[np.ndarray]] = [[] for _ in range(n)]
 
         def discs(sim: Simulation, others: list[int]):
             cs_, rs_ = [], []
@@ -247,7 +247,6 @@ class StepPlanner(Planner):
             res = self.optimize(f, lower, upper, rng, init, memories[i])
             plan_time[i] += time.perf_counter() - tic
             searches[i].append(np.asarray(res.history.best, dtype=float))
-            plans[i] += 1
             if np.isfinite(res.fun):
                 wp[i] = res.x
                 to_goal[i] = bool(np.all(res.x == goal))
@@ -309,7 +308,7 @@ class StepPlanner(Planner):
                                     stuck_radius=v["stuck_radius"] * goal_r)
         for i, r in enumerate(robot_results):
             r.metrics["steps_planned"] = len(waypoints[r.name])
-            r.metrics["planning_calls"] = int(plans[i])
+            r.metrics["planning_calls"] = len(searches[i])
             r.metrics["planning_time"] = float(plan_time[i])
         tables = _step_tables(sim_models, robot_results, {k: np.array(x) for k, x in
                                                           trace.items()})
@@ -378,4 +377,3 @@ def _step_tables(sim_models, robot_results, trace) -> dict[str, dict[str, np.nda
                                         dtype=str),
                        "xdot": xdot[0], "ydot": xdot[1]}
     return out
-
