@@ -19,6 +19,7 @@ import pandas as pd
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
+from hybridnav.params import Param
 from hybridnav.reproduce.protocols import PROTOCOLS
 
 __all__ = ["STORE", "blocks", "load_stored", "render", "rewrite_report", "update_readme"]
@@ -29,6 +30,11 @@ STORE = Path("docs") / "reproductions"
 _BLOCK = re.compile(r"<!-- reproduce:(?P<name>[\w-]+) -->\r?\n(?P<body>.*?)"
                     r"<!-- /reproduce:(?P=name) -->", re.S)
 _OPEN = re.compile(r"<!-- reproduce:([\w-]+) -->")
+
+#: the keys of a stored run's comparison.json that the README and the report read
+_STORED = {"version": Param("", "package version"), "runs": Param(1, "runs", lo=1),
+           "seed": Param(0, "base seed"), "elapsed_s": Param(0.0, "wall time (s)", lo=0.0),
+           "scenarios": Param([], "the protocol's scenarios")}
 
 
 def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
@@ -52,16 +58,9 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     if name not in PROTOCOLS:
         raise HybridnavError(f"{meta_path}: protocol: expected one of "
                              f"{', '.join(sorted(PROTOCOLS))}, got {name!r}")
-    for key, ok, what in (("version", lambda v: isinstance(v, str), "a version string"),
-                          ("runs", lambda v: isinstance(v, int) and v >= 1,
-                           "a positive integer"),
-                          ("seed", lambda v: isinstance(v, int), "an integer"),
-                          ("elapsed_s", lambda v: v is None or isinstance(v, (int, float)),
-                           "a number of seconds"),
-                          ("scenarios", lambda v: isinstance(v, list), "a list of scenarios")):
-        if not ok(meta.get(key)):
-            raise HybridnavError(f"{meta_path}: {key}: expected {what}, got "
-                                 f"{meta.get(key)!r}")
+    for key, param in _STORED.items():
+        if key in meta or key != "elapsed_s":            # elapsed_s: optional
+            meta[key] = param.check(key, meta.get(key), f"{meta_path}: ")
     rows = [row.scenario for row in PROTOCOLS[name].rows]
     if meta["scenarios"] != rows:
         raise HybridnavError(f"{meta_path}: scenarios: expected the protocol's "
@@ -85,9 +84,9 @@ def render(folder: str | Path) -> str:
 
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
-    how = (f"Measured by `hybridnav reproduce {name}` with hybridnav {meta.get('version')}: "
-           f"{meta.get('runs')} run(s) per planner and scenario (the paper: {protocol.runs}), "
-           f"seed {meta.get('seed')}")
+    how = (f"Measured by `hybridnav reproduce {name}` with hybridnav {meta['version']}: "
+           f"{meta['runs']} run(s) per planner and scenario (the paper: {protocol.runs}), "
+           f"seed {meta['seed']}")
     if meta.get("elapsed_s") is not None:
         how += (f", {meta['elapsed_s'] / 60:.1f} min with {meta.get('workers', 1)} worker(s) "
                 f"(load {meta.get('load', '?')})")
@@ -114,11 +113,9 @@ def rewrite_report(folder: str | Path) -> Path:
     folder = Path(folder)
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
-    order = ("runs.csv", "summary.csv", "comparison.json")
-    files = [f for f in order if (folder / f).exists()] + sorted(
-        f.name for f in folder.iterdir() if f.suffix in (".png", ".csv") and f.name not in order)
     write_report(folder / "report.md", protocol, summary, check_claims(protocol, summary),
-                 runs=meta["runs"], seed=meta["seed"], version=meta["version"], files=files)
+                 runs=meta["runs"], seed=meta["seed"], version=meta["version"],
+                 files=[f.name for f in folder.iterdir()])
     return folder / "report.md"
 
 

@@ -413,7 +413,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     lines += claims_section(claims, profiles=has_profiles(protocol))
     lines += variants_section(protocol, summary)
     lines += literature_line(protocol)
-    figures = [f for f in files if f.endswith(".png")]
+    figures = sorted(f for f in files if f.endswith(".png"))   # the same order however found
     if figures:
         lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
     atomic_write_text(path, "\n".join(lines))
