@@ -16,13 +16,14 @@ from typing import Any
 
 import pandas as pd
 
+from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
-__all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section", "has_profiles",
-           "impossible_lengths", "length_bounds", "literature_line", "ours", "profile_sections",
-           "straight_line_bound", "variants_section", "write_report"]
+__all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section",
+           "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
+           "profile_sections", "straight_line_bound", "variants_section", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
 
@@ -61,8 +62,6 @@ def astar_bound(scenario) -> float | None:
     Near the true shortest path of the layout, not a proof of it (None: A* finds no path, or
     the robot is not a disk the grid search plans for)."""
     from hybridnav import planners
-
-    from hybridnav.errors import HybridnavError
 
     astar = planners.get("astar", shorten=True, margin=0.0)
     try:
@@ -249,6 +248,11 @@ def _paper_cell(v: Value | None, units: str) -> str:
     return " / ".join(p for p in parts if p) or "reached"
 
 
+def _units(summary: pd.DataFrame) -> dict[str, str]:
+    """``{scenario: its units}`` of a summary."""
+    return dict(zip(summary["scenario"], summary["units"]))
+
+
 def _fmt(x: float) -> str:
     """A number to 4 significant digits, NaN as ``-``."""
     return "-" if x != x else f"{x:.4g}"
@@ -283,7 +287,7 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
     """Per profile: the paper's values beside ours, and the enhancement percentages (markdown;
     ``level``: of the headings)."""
     lines: list[str] = []
-    units_of = dict(zip(summary["scenario"], summary["units"]))
+    units_of = _units(summary)
     both = has_profiles(protocol)
     for view in ("paper profile", "hybridnav profile") if both else ("hybridnav profile",):
         lines += [f"{'#' * level} Our runs, {view}" if both else
@@ -345,7 +349,7 @@ def variants_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2,
                      only: Sequence[str] | None = None) -> list[str]:
     """Every variant (or those in ``only``) with median, 95 % interval and best run (markdown
     lines; ``level``: of the heading)."""
-    units_of = dict(zip(summary["scenario"], summary["units"]))
+    units_of = _units(summary)
     names = [lb for lb in dict.fromkeys(summary["planner"]) if only is None or lb in only]
     lines = [f"{'#' * level} Every variant" if only is None else f"{'#' * level} Ablations", "",
              "Mean time / length over the reached runs, median length, 95 % interval of the "
@@ -394,7 +398,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     files : sequence of str
         The comparison's files in the same folder (figures are linked).
     """
-    units_of = dict(zip(summary["scenario"], summary["units"]))
+    units_of = _units(summary)
     lines = [f"# `{protocol.name}`: {protocol.paper}", "",
              f"Reproduces {protocol.source}. hybridnav {version}; {runs} run(s) per planner and "
              f"scenario (the paper: {protocol.runs}), seed {seed}. Every planner with profiles "
