@@ -321,7 +321,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     if not args.resume and not args.force and (out / "checkpoint.json").exists():
         raise HybridnavError(f"{out}: holds a tuning run (checkpoint.json); --resume continues it, "
                              "--force starts over and overwrites it, or choose another --out")
-    total = job["ga"]["generations"] + 1
+    total = (job.optimizer().generations + 1) * max(1, job["validation"]["kfold"])
     bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
     evals = {"n": 0, "t": 0.0}
 
@@ -331,18 +331,21 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         extra = {"val": f"{row['val_best']:.4g}"} if row.get("val_best") is not None else {}
         bar.set_postfix(gen=row["gen"], best=f"{row['min']:.4g}", mean=f"{row['mean']:.4g}",
                         **extra, evals_s=f"{rate:.0f}")
-        bar.update(row["gen"] + 1 - bar.n)
+        bar.update(1)
 
     try:
-        result, files = run_job(job, args.out, resume=args.resume, progress=progress)
+        result = run_job(job, args.out, resume=args.resume, progress=progress)
     finally:
         bar.close()
-    best = result.best.fitness.values[0]
-    print(f"{job.name}: training fitness start {result.start_fitness:.4f} -> returned {best:.4f} "
+    print(f"{job.name}: training objective ({result.objective_names[0]}) start "
+          f"{result.start_objectives[0]:.4f} -> returned {result.objectives[0]:.4f} "
           f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
           f"{result.best_generation})")
-    _print_verdict(job, args.out)
-    print(f"wrote {args.out}/: {', '.join(files)}")
+    for which in ("validation", "test"):
+        v = result.verdicts.get(which)
+        if v and v["checks"]:
+            print(f"{which}: {v['headline']} (see report.md)")
+    print(f"wrote {args.out}/: {', '.join(result.files)}")
     return 0
 
 
@@ -368,30 +371,6 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     print(f"wrote {count} solvable worlds (seed {seed}) to {out}/: {gen.name}-{seed}-000.toml"
           + (f" ... {gen.name}-{seed}-{count - 1:03d}.toml" if count > 1 else ""))
     return 0
-
-
-def _print_verdict(job, out) -> None:
-    """The held-out verdict lines of a finished tuning job."""
-    from pathlib import Path
-
-    import pandas as pd
-
-    from hybridnav.tuner.heldout import verdict
-
-    path = Path(out) / "heldout_summary.csv"
-    if not path.exists():
-        return
-    summary = pd.read_csv(path)
-    radius = job.scenarios("train")[0].robots[0].radius
-    for which in ("validation", "test"):
-        s = summary[summary.set == which].set_index("system")
-        if not {"start", "tuned"} <= set(s.index):
-            continue
-        v = verdict(summary, which, radius)
-        counts = ", ".join(f"{k} {int(s.loc[k, 'reached'])}/{int(s.loc[k, 'worlds'])}"
-                           for k in s.index)
-        print(f"{which}: tuned is {'better' if v['better'] else 'NOT better'} than its start "
-              f"(reached: {counts}; see report.md)")
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -566,8 +545,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 
-    p = add_command("tune", help="tune a fuzzy system with the GA (default: the built-in EFFC "
-                                    "job)")
+    p = add_command("tune", help="tune a fuzzy system: a navigation controller, a system fitted to "
+                                    "data or to your own cost; GA, CMA-ES, PSO or NSGA-II "
+                                    "(default: the built-in EFFC job)")
     p.add_argument("job", nargs="?", help="job file (TOML); omitted: the built-in EFFC job")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for the tuned system, "
                                                               "report, plots and checkpoint")

@@ -3,7 +3,6 @@ replays exactly with the planner, and is reproducible from its seed."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -11,7 +10,6 @@ import pytest
 
 from hybridnav import planners
 from hybridnav.tuner.falsify import bounds, falsify, world_from_vector
-from hybridnav.tuner.genome import GenomeSpace
 from hybridnav.tuner.job import load_job
 from hybridnav.worldgen import WorldGenerator, solvable
 
@@ -29,19 +27,13 @@ def job(tmp_path_factory):
     return load_job(p)
 
 
-def _jj(job):
-    return json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
-
-
 def test_finds_reproducible_failures_that_replay_with_the_planner(job):
-    space = GenomeSpace(job.start_system(), job["free"])
-    g = space.encode()
-    a = falsify(_jj(job), g, budget=90, population=30, keep=3, seed=4)
-    b = falsify(_jj(job), g, budget=90, population=30, keep=3, seed=4)
+    fis = job.start_system()
+    a = falsify(job.cost("train"), fis, budget=90, population=30, keep=3, seed=4)
+    b = falsify(job.cost("train"), fis, budget=90, population=30, keep=3, seed=4)
     assert a.evaluations == 90 and 0 < a.valid <= 90 and a.failures >= 1
     assert [w.name for w in a.worlds] == [w.name for w in b.worlds] and a.costs == b.costs
     assert a.costs == sorted(a.costs, reverse=True)
-    fis = space.system(g)
     gen = WorldGenerator(resolution=0.05)
     for w, outcome, clear in zip(a.worlds, a.outcomes, a.clearances):
         r = w.robots[0]

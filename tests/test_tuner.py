@@ -16,8 +16,8 @@ import pytest
 from hybridnav import HybridnavError, fuzzy, planners
 from hybridnav.fuzzy.family import SystemFamily
 from hybridnav.tuner.backends import DaskBackend, ProcessBackend, SerialBackend
-from hybridnav.tuner.evaluate import evaluate_chunk
-from hybridnav.tuner.ga import tune
+from hybridnav.tuner import tune as tune_objects
+from hybridnav.tuner.costs.base import Candidates, Context, evaluate_chunk
 from hybridnav.tuner.genome import GenomeSpace
 from hybridnav.tuner.job import load_job, validate_job
 
@@ -46,8 +46,17 @@ def small_job(tmp_path, extra=""):
     return load_job(p)
 
 
-def job_json(job):
-    return json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
+def assess(job, X, generation=0, indices=None, which="train"):
+    """One chunk of a job's cost, as the tuner evaluates it."""
+    ctx = Context(job.seed, "train" if which == "train" else "validation", generation,
+                  None if indices is None else tuple(indices))
+    return evaluate_chunk(job.cost(which), job.tunable(), np.atleast_2d(X), ctx)
+
+
+def tune(job, out, **kw):
+    """The tuning a job means (without its outputs), checkpointing into ``out``."""
+    return tune_objects(job.start_system(), job.cost("train"), checkpoint=out, judge=False,
+                        **{**job.tune_kwargs(), **kw})
 
 
 def variants(template, n, rng):
@@ -181,10 +190,10 @@ def _uncovered_reference(system, grid):
 def test_chunk_reward_equals_the_planner_run(tmp_path):
     job = small_job(tmp_path)
     start = job.start_system()
-    space = GenomeSpace(start, job["free"])
-    rec = evaluate_chunk(job_json(job), space.encode()[None], 0, [0])[0]
+    space = job.tunable()
+    ev = assess(job, space.to_vector())
     costs = []
-    for s, env in zip(job.scenarios(), rec["envs"]):
+    for s, env in zip(job.scenarios(), ev.details[0]):
         r = planners.get("effc", fis=start).run(s).robots[0]
         assert env["outcome"] == r.outcome
         assert env["length"] == pytest.approx(r.path_length, rel=1e-9)
@@ -196,19 +205,18 @@ def test_chunk_reward_equals_the_planner_run(tmp_path):
         assert env["reward"] == pytest.approx(costs[-1], rel=1e-9)
     unc = _uncovered_reference(start, 41)
     assert unc == pytest.approx(0.11, abs=0.01)      # alpha high and dtheta low: no rule fires
-    assert rec["uncovered"] == pytest.approx(unc, abs=1e-12)
-    assert rec["cost"] == pytest.approx(np.mean(costs), rel=1e-9)
-    assert rec["fitness"] == pytest.approx(np.mean(costs) + 100.0 * unc, rel=1e-9)
+    assert ev.info[0]["uncovered"] == pytest.approx(unc, abs=1e-12)
+    assert ev.info[0]["reward"] == pytest.approx(np.mean(costs), rel=1e-9)
+    assert ev.objectives[0, 0] == pytest.approx(np.mean(costs) + 100.0 * unc, rel=1e-9)
+    assert not ev.feasible[0]                    # 11 % uncovered > the allowed 0
 
 
 def test_coverage_matches_scikit_fuzzy_on_random_genomes(tmp_path):
     job = small_job(tmp_path)
-    space = GenomeSpace(job.start_system(), job["free"])
+    space = job.tunable()
     X = space.random(12, np.random.default_rng(3))
-    from hybridnav.tuner.evaluate import uncovered_fraction
-
-    got = uncovered_fraction(job_json(job), X)
-    ref = [_uncovered_reference(space.system(x), 41) for x in X]
+    got = Candidates(space, X).uncovered(41)
+    ref = [_uncovered_reference(space.to_system(x), 41) for x in X]
     assert np.allclose(got, ref, atol=1e-12)
     assert 0 < sum(np.asarray(ref) == 0) < len(ref)    # some cover everything, some do not
 
@@ -226,7 +234,7 @@ def test_deploy_cost_orders_outcomes(tmp_path):
                          time=np.full((1, n), 40.0),
                          min_clearance=np.array([[0.5, 0.02, 0.0, 0.3, 0.3, -0.01, 0.1]]),
                          final_distance=np.array([[0.05, 0.05, 0.05, 0.0, 5.0, 2, 2]]))
-    c = run_costs(job, scen, res)[0]
+    c = run_costs(job["reward"], job["planner"]["speed"], scen, res)[0]
     D = np.hypot(3, 3) - 0.1
     assert c[0] == pytest.approx(4.0 / D)
     assert c[1] == pytest.approx(4.0 / D + 2.0 * 0.8)          # 2 cm from a 10 cm robot
@@ -238,39 +246,39 @@ def test_deploy_cost_orders_outcomes(tmp_path):
 
 def test_penalty_and_the_maximize_convention(tmp_path):
     job = small_job(tmp_path, '[reward]\nsense = "maximize"\npenalty = 7.0\n')
-    space = GenomeSpace(job.start_system(), job["free"])
-    x = space.encode()
+    space = job.tunable()
+    x = space.to_vector()
     x[space.labels.index("w.high.smf[0]")] = 0.0          # always repel: the robot backs off
     x[space.labels.index("w.high.smf[1]")] = 0.01
     x[space.labels.index("w.low.zmf[0]")] = 0.99
     x[space.labels.index("w.low.zmf[1]")] = 1.0
-    rec = evaluate_chunk(job_json(job), space.repair(x[None]), 0, [0])[0]
-    for env in rec["envs"]:
+    ev = assess(job, space.repair(x[None]))
+    for env in ev.details[0]:
         assert env["reward"] == (env["length"] if env["outcome"] == "reached" else -7.0)
     assert job["reward"]["kind"] == "paper"         # an old job file's sense chooses the kind
-    unc = rec["uncovered"]
-    total = sum(e["reward"] for e in rec["envs"])
-    assert rec["fitness"] == pytest.approx(total - 100.0 * unc)
+    unc = ev.info[0]["uncovered"]
+    total = sum(e["reward"] for e in ev.details[0])
+    assert ev.info[0]["fitness"] == pytest.approx(total - 100.0 * unc)
+    assert ev.objectives[0, 0] == pytest.approx(-(total - 100.0 * unc))    # minimized
 
 
 def test_noise_does_not_depend_on_the_chunking(tmp_path):
     job = small_job(tmp_path, "[reward]\nheading_noise = 0.05\nrepeats = 2\n")
-    space = GenomeSpace(job.start_system(), job["free"])
-    X = space.random(4, np.random.default_rng(5))
-    whole = evaluate_chunk(job_json(job), X, 2, [0, 1, 2, 3])
-    parts = evaluate_chunk(job_json(job), X[:1], 2, [0]) + evaluate_chunk(job_json(job), X[1:], 2,
-                                                                          [1, 2, 3])
-    assert [r["fitness"] for r in whole] == [r["fitness"] for r in parts]
-    quiet = evaluate_chunk(job_json(small_job(tmp_path)), X, 2, [0, 1, 2, 3])
-    assert [r["fitness"] for r in whole] != [r["fitness"] for r in quiet]
+    X = job.tunable().random(4, np.random.default_rng(5))
+    whole = assess(job, X, 2, [0, 1, 2, 3]).objectives[:, 0].tolist()
+    parts = (assess(job, X[:1], 2, [0]).objectives[:, 0].tolist()
+             + assess(job, X[1:], 2, [1, 2, 3]).objectives[:, 0].tolist())
+    assert whole == parts
+    quiet = assess(small_job(tmp_path), X, 2, [0, 1, 2, 3]).objectives[:, 0].tolist()
+    assert whole != quiet
 
 
 @pytest.mark.parametrize("extra, key, text", [
     ("[ga]\npopulation = 2\nelite = 2\n", "ga.elite", "expected fewer elites"),
     ("[ga]\ncrossover = \"uniform\"\n", "ga.crossover", "expected one of sbx, blend"),
     ("[gaa]\n", "gaa", "unknown key"),
-    ("[free]\nmf = [\"speed\"]\n", "free.mf", "expected variable names"),
-    ("[free.bounds]\nalpha = [1.0, 0.5]\n", "free.bounds.alpha", "expected [lo, hi]"),
+    ("[free]\nmf = [\"speed\"]\n", "free", "expected a variable of 'effc-5rule'"),
+    ("[free.bounds]\nalpha = [1.0, 0.5]\n", "free", "bounds.alpha: expected [lo, hi]"),
     ("[system]\nstart = \"missing.json\"\n", "system.start", "cannot read"),
     ("[scenarios]\ntrain = [\"aco-three-robots\"]\n", "scenarios.train[0]", "exactly one"),
     ("[reward]\nrepeats = 3\n", "reward.repeats", "alpha_noise > 0"),
@@ -309,7 +317,7 @@ def test_bad_jobs_fail_before_any_work(tmp_path, extra, key, text):
 
 
 def _strip(logbook):
-    return [{k: v for k, v in row.items() if k != "wall_time"} for row in logbook]
+    return logbook.drop(columns="wall_time").to_dict("records")
 
 
 def test_checkpoint_resume_equals_an_uninterrupted_run(tmp_path):
@@ -317,13 +325,14 @@ def test_checkpoint_resume_equals_an_uninterrupted_run(tmp_path):
     full = tune(job, tmp_path / "full")
     tune(job, tmp_path / "part", stop_after=1)
     state = json.loads((tmp_path / "part" / "checkpoint.json").read_text())
-    assert state["generation"] == 2                 # the next generation, not the saved one
+    assert state["optimizer"]["generation"] == 2     # the next generation, not the saved one
     resumed = tune(job, tmp_path / "part", resume=True)
-    assert list(resumed.best) == list(full.best)
+    assert list(resumed.x) == list(full.x)
     assert _strip(resumed.logbook) == _strip(full.logbook)
+    assert resumed.records.equals(full.records)
     other = job.with_seed(4)
     with pytest.raises(HybridnavError, match="config_hash: this checkpoint was written by a "
-                                             "different job configuration"):
+                                             "different configuration"):
         tune(other, tmp_path / "part", resume=True)
 
 
@@ -332,7 +341,7 @@ def test_two_local_processes_give_the_same_run(tmp_path):
     serial = tune(job, tmp_path / "s", backend=SerialBackend())
     with ProcessBackend(2) as be:
         par = tune(job, tmp_path / "p", backend=be)
-    assert list(par.best) == list(serial.best) and _strip(par.logbook) == _strip(serial.logbook)
+    assert list(par.x) == list(serial.x) and _strip(par.logbook) == _strip(serial.logbook)
 
 
 @pytest.mark.slow
@@ -353,7 +362,7 @@ def test_dask_local_cluster_and_a_killed_worker_give_the_same_run(tmp_path):
         again = tune(job, tmp_path / "k", backend=be, progress=kill_soon)
         timer.join()
         assert victim not in be.client.run(os.getpid).values()   # that worker really died
-    assert list(again.best) == list(serial.best)
+    assert list(again.x) == list(serial.x)
     assert _strip(again.logbook) == _strip(serial.logbook)
 
 
@@ -371,12 +380,12 @@ def test_sigkill_and_resume_from_the_command_line(tmp_path):
     ckpt = out / "checkpoint.json"
     deadline = time.time() + 120
     while time.time() < deadline:
-        if ckpt.exists() and json.loads(ckpt.read_text())["generation"] >= 2:
+        if ckpt.exists() and json.loads(ckpt.read_text())["optimizer"]["generation"] >= 2:
             break
         time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    gen = json.loads(ckpt.read_text())["generation"]
+    gen = json.loads(ckpt.read_text())["optimizer"]["generation"]
     assert 2 <= gen <= 5
     done = subprocess.run(cmd + [str(out), "--resume"], capture_output=True, text=True,
                           timeout=300)
@@ -409,7 +418,8 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
     tuned = fuzzy.load(str(tmp_path / "o" / "fis.json"))
     assert tuned.input_names == ("dtheta", "alpha")
     report = (tmp_path / "o" / "report.md").read_text()
-    assert "Training fitness: start" in report and "Verdict on the test set" in report
+    assert "Training objective (deploy reward, minimized): start" in report
+    assert "**Verdict: on the test set (2 worlds) the tuned system is" in report
     assert "Returned system: the best on **validation**" in report
     summary = pd.read_csv(tmp_path / "o" / "heldout_summary.csv")
     assert set(summary.system) == {"start", "tuned", "apf"}
@@ -489,16 +499,15 @@ def test_early_stop_returns_the_best_on_validation_and_resume_is_a_no_op(tmp_pat
     job_file.write_text(EARLY)
     job = load_job(job_file)
     res = tune(job, tmp_path / "e")
-    stopped = res.validation["stopped"]
+    stopped = res.stopped
     assert stopped is not None and stopped < 6                  # stopped before the end
     assert len(res.logbook) == stopped + 1
-    cands = res.validation["candidates"]
-    best = min(cands, key=lambda c: c["score"])
-    assert list(res.best) == best["genes"] and res.best_generation == best["generation"]
-    assert res.validation["best_score"] == best["score"]
-    before = (tmp_path / "e" / "checkpoint.json").read_text()
+    cands = res.validation
+    best = cands.loc[cands.score.idxmin()]
+    assert res.best_generation == best.generation and res.validation_score == best.score
     again = tune(job, tmp_path / "e", resume=True)
-    assert list(again.best) == list(res.best) and _strip(again.logbook) == _strip(res.logbook)
+    before = (tmp_path / "e" / "checkpoint.json").read_text()
+    assert list(again.x) == list(res.x) and _strip(again.logbook) == _strip(res.logbook)
     assert json.loads(before)["stopped"] == stopped
 
 
@@ -516,12 +525,14 @@ def test_kfold_runs_one_stage_per_fold_and_resumes_exactly(tmp_path):
     job_file = tmp_path / "job.toml"
     job_file.write_text(KFOLD)
     job = load_job(job_file)
-    folds = job.folds()
+    from hybridnav.tuner.costs.base import fold_of
+
+    folds = list(fold_of(len(job.scenarios("train")), 2, job.seed))
     assert sorted(folds) == [0, 0, 1, 1]
     full = tune(job, tmp_path / "full")
-    assert [r["stage"] for r in full.logbook] == [0, 0, 1, 1]
-    assert [f["fold"] for f in full.validation["folds"]] == ["fold0", "fold1"]
-    ev = pd_read(full.records)
+    assert list(full.logbook.stage) == [0, 0, 1, 1]
+    assert [f["fold"] for f in full.folds] == [0, 1]
+    ev = full.records
     names = {s.name for s in job.scenarios("train")}
     for stage in (0, 1):          # each stage trains on the worlds outside its fold only
         trained = set(ev[ev.stage == stage].scenario)
@@ -529,14 +540,8 @@ def test_kfold_runs_one_stage_per_fold_and_resumes_exactly(tmp_path):
         assert trained == names - held
     tune(job, tmp_path / "part", stop_after=2)                 # inside stage 1
     resumed = tune(job, tmp_path / "part", resume=True)
-    assert list(resumed.best) == list(full.best)
+    assert list(resumed.x) == list(full.x)
     assert _strip(resumed.logbook) == _strip(full.logbook)
-
-
-def pd_read(records):
-    import pandas as pd
-
-    return pd.DataFrame(records)
 
 
 def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
@@ -547,7 +552,7 @@ def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
                                       'validation = []'))
     assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
     report = (tmp_path / "o" / "report.md").read_text()
-    assert "k-fold over the training worlds (2 folds" in report
+    assert "k-fold over the training data (2 folds" in report
     assert "Cross-validation estimate" in report
     assert "the last k-fold stage's best on its own fold (fold 1" in report
     job_file.write_text(KFOLD)

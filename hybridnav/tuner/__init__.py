@@ -1,13 +1,33 @@
-"""Offline GA tuning of the EFFC fuzzy force weight (DEAP), on one machine or a Dask cluster.
+"""Tune any Mamdani fuzzy system: a problem (:class:`TunableSettings`), a cost
+(:class:`NavigationCost`, :class:`DataCost`, :class:`FunctionCost`) and an optimizer
+(:class:`GA`, :class:`CMAES`, :class:`PSO`, :class:`NSGA2`), on one machine or a Dask cluster.
 
-``load_job(path)`` reads and validates a job file (``None``: the built-in job), ``run_job(job,
-out)`` tunes and writes every output (what ``hybridnav tune`` runs), ``tune(job, out)`` only
-tunes (checkpointing in ``out``) and returns a :class:`TuneResult`.
+>>> from hybridnav.tuner import tune, DataCost, CMAES            # doctest: +SKIP
+>>> result = tune(start, DataCost(X, y), optimizer=CMAES(), seed=3)
+>>> result.system, result.logbook, result.front
+
+Tuning jobs (TOML files, ``hybridnav tune``) are a thin front over the same objects:
+``load_job(path)`` reads and validates one (``None``: the built-in EFFC job) and
+``run_job(job, out)`` tunes and writes every output.
 """
 
-from hybridnav.tuner.ga import TuneResult, tune
+from hybridnav.tuner.core import KFold, select_member, tune
+from hybridnav.tuner.costs import (
+    Candidates,
+    Context,
+    Cost,
+    DataCost,
+    Evaluation,
+    FunctionCost,
+    NavigationCost,
+)
 from hybridnav.tuner.job import DEFAULT_JOB, Job, load_job, quick
+from hybridnav.tuner.optimizers import CMAES, GA, NSGA2, PSO, SBX, Blend, Gaussian, Polynomial
+from hybridnav.tuner.result import Member, TuningResult
 from hybridnav.tuner.run import run_job, write_outputs
+from hybridnav.tuner.settings import TunableSettings
 
-__all__ = ["DEFAULT_JOB", "Job", "TuneResult", "load_job", "quick", "run_job", "tune",
-           "write_outputs"]
+__all__ = ["CMAES", "DEFAULT_JOB", "GA", "NSGA2", "PSO", "SBX", "Blend", "Candidates",
+           "Context", "Cost", "DataCost", "Evaluation", "FunctionCost", "Gaussian", "Job",
+           "KFold", "Member", "NavigationCost", "Polynomial", "TunableSettings", "TuningResult",
+           "load_job", "quick", "run_job", "select_member", "tune", "write_outputs"]

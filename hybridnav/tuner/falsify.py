@@ -4,7 +4,7 @@ A world of the generator's class is a vector ``x = (sx, sy, gx, gy, theta, (cx, 
 start, goal, initial heading (an offset from the goal direction, within the generator's
 ``heading_jitter``) and ``n`` circles. :func:`falsify` minimizes, with one of the
 project's swarm optimizers (:mod:`hybridnav.planners.swarm`; PSO by default), *minus* the
-deploy cost of the system in that world (:func:`hybridnav.tuner.evaluate.run_costs`: a collision
+deploy cost of the system in that world (:meth:`NavigationCost.run_costs`: a collision
 costs more than getting stuck, which costs more than any detour) — so the search climbs towards
 collisions, then traps. Every candidate world obeys the generator's rules: circles that would
 overlap the start or goal footprint (plus ``margin``) or leave a gap narrower than ``min_gap``
@@ -101,17 +101,17 @@ def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
     return scen if solvable(scen, gen.resolution) else None
 
 
-def falsify(job_json: str, genome: np.ndarray, *, budget: int = 600, population: int = 30,
+def falsify(cost, system, *, budget: int = 600, population: int = 30,
             obstacles: int = 6, keep: int = 5, optimizer: str = "pso",
             generator: WorldGenerator | None = None, seed: int = 0,
             progress=None) -> FalsifyResult:
-    """Search worlds where ``genome`` (of the job's genome space) fails.
+    """Search worlds where ``system`` fails.
 
     Parameters
     ----------
-    job_json : str
-        The job (its planner settings and reward define the cost).
-    genome : ndarray
+    cost : NavigationCost
+        Its planner, planner settings and reward define the search's cost.
+    system : FuzzySystem
     budget : int
         Candidate worlds to try in all (the swarm's ``max_evals``).
     population : int
@@ -130,10 +130,11 @@ def falsify(job_json: str, genome: np.ndarray, *, budget: int = 600, population:
     progress : callable, optional
         ``progress(evaluated, budget)`` after each swarm iteration.
     """
+    from hybridnav.fuzzy.family import SystemFamily
     from hybridnav.planners.swarm import minimize
-    from hybridnav.tuner.evaluate import _context, run_costs, scenario_set, simulate_on
 
-    job = _context(job_json)[0]
+    family = SystemFamily(system)
+    tables = family.tables_of([system])
     gen = generator or WorldGenerator(resolution=0.05)
     lo, hi = bounds(gen, obstacles)
     seen: list[tuple[float, Any, str, float]] = []
@@ -149,12 +150,12 @@ def falsify(job_json: str, genome: np.ndarray, *, budget: int = 600, population:
                 rows.append(i)
         count["evals"] += len(X)
         if worlds:
-            res, _ = simulate_on(job_json, scenario_set(worlds), np.asarray(genome)[None],
-                                 noise=False)
-            cost = run_costs(job, worlds, res)[:, 0]
-            out[rows] = -cost
+            on = cost.with_scenarios(worlds, "falsification")
+            res, _ = on.simulate(family, tables, None, noise=False)
+            value = on.run_costs(res)[:, 0]
+            out[rows] = -value
             count["valid"] += len(worlds)
-            for w, c, o, cl in zip(worlds, cost, res.outcome[:, 0], res.min_clearance[:, 0]):
+            for w, c, o, cl in zip(worlds, value, res.outcome[:, 0], res.min_clearance[:, 0]):
                 if o != "reached":
                     count["fail"] += 1
                     seen.append((float(c), w, str(o), float(cl)))

@@ -1,8 +1,8 @@
 """Judging a tuned system as a user would: start vs tuned vs ``apf`` on worlds tuning never used.
 
-:func:`compare_systems` runs the starting system, the tuned system (both nominal: no noise, in
-one lockstep batch per set) and the plain ``apf`` planner (through the backend) on the job's
-validation and test sets; :func:`summarize` gives per set and system the success rate with a
+:meth:`hybridnav.tuner.NavigationCost.judge` runs the starting system, the tuned system (both
+nominal: no noise) and the plain ``apf`` planner (through the backend) on a set of worlds;
+:func:`run_systems` does it for any systems; :func:`summarize` gives per set and system the success rate with a
 95 % Wilson interval, the collisions and other failures, and the mean path length and clearance
 on the worlds that *every* system reached (so that lengths compare like with like), and
 :func:`verdict` checks the acceptance conditions one by one.
@@ -14,10 +14,9 @@ import json
 import math
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
-__all__ = ["compare_systems", "run_systems", "summarize", "verdict", "wilson"]
+__all__ = ["planner_rows", "run_systems", "summarize", "uniform", "verdict", "wilson"]
 
 COLUMNS = ["set", "scenario", "system", "outcome", "path_length", "time", "min_clearance"]
 
@@ -65,35 +64,6 @@ def _apf_rows(scenario_json: str, params: dict[str, Any]) -> dict[str, Any]:
             "min_clearance": r.min_clearance}
 
 
-def compare_systems(job, job_json: str, genomes: dict[str, np.ndarray], backend,
-                    sets: tuple[str, ...] = ("validation", "test")) -> pd.DataFrame:
-    """One row per (set, scenario, system): outcome, path length, time, minimum clearance.
-
-    ``genomes`` maps system labels (``start``, ``tuned``) to genomes of the job's genome space;
-    ``apf`` runs with the job's planner speed and turn limit.
-    """
-    from hybridnav.tuner.evaluate import simulate_genomes
-    from hybridnav.world import scenario_to_dict
-
-    rows = []
-    labels = list(genomes)
-    for which in sets:
-        scen = job.scenarios(which)
-        if not scen:
-            continue
-        G = np.array([genomes[k] for k in labels])
-        if _uniform(scen):
-            res, _ = simulate_genomes(job_json, which, G, noise=False)
-            rows += _lockstep_rows(which, scen, labels, res)
-        else:                               # robots of different models: one run at a time
-            rows += _planner_runs(job, which, scen, genomes)
-        args = [(json.dumps(scenario_to_dict(s)), dict(job["planner"])) for s in scen]
-        for s, r in zip(scen, backend.map(_apf_rows, args)):
-            rows.append({"set": which, "scenario": s.name, "system": "apf", **r,
-                         "time": math.nan if r["time"] is None else r["time"]})
-    return pd.DataFrame(rows, columns=COLUMNS)
-
-
 def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
                 max_turn: float = math.pi / 4, stuck_window: float = 10.0,
                 stuck_radius: float = 2.0, apf: bool = True, set_name: str = "test"
@@ -120,21 +90,23 @@ def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
-def _uniform(scen) -> bool:
+def uniform(scen) -> bool:
+    """Whether the lockstep simulation can run these scenarios together (one unicycle robot
+    with a goal, one robot model)."""
     keys = {(s.dt, len(s.robots), s.robots[0].model, s.robots[0].goal is None,
              s.robots[0].radius, tuple(sorted(s.robots[0].params.items()))) for s in scen}
     return len(keys) == 1 and next(iter(keys))[1:4] == (1, "unicycle", False)
 
 
-def _planner_runs(job, which, scen, genomes):
+def planner_rows(which: str, scen, systems: dict[str, Any], planner: str,
+                 params: dict[str, Any]) -> list[dict[str, Any]]:
+    """Rows of the planner run by run (scenarios the lockstep simulation cannot batch)."""
     from hybridnav import planners
-    from hybridnav.tuner.genome import GenomeSpace
 
-    space = GenomeSpace(job.start_system(), job["free"])
     rows = []
     for s in scen:
-        for label, g in genomes.items():
-            p = planners.get("effc", fis=space.system(np.asarray(g)), **job["planner"])
+        for label, system in systems.items():
+            p = planners.get(planner, fis=system, **params)
             rows += [_robot_row(which, s.name, label, r) for r in p.run(s).robots]
     return rows
 

@@ -29,9 +29,11 @@ from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.plotting import plot_result, save_figure
-from hybridnav.tuner.ga import TuneResult, _job_json, tune
-from hybridnav.tuner.heldout import compare_systems, summarize, verdict
+from hybridnav.tuner.core import tune
+from hybridnav.tuner.costs import NavigationCost
+from hybridnav.tuner.heldout import summarize
 from hybridnav.tuner.job import Job
+from hybridnav.tuner.result import TuningResult
 
 log = logging.getLogger(__name__)
 
@@ -43,9 +45,12 @@ C_BASENAME = "effc"
 
 def run_job(job: Job, out: str | Path, *, resume: bool = False,
             progress: Callable[[dict[str, Any]], None] | None = None,
-            dask_client: Any = None) -> tuple[TuneResult, list[str]]:
-    """Run ``job`` on its backend, write every output into ``out``; returns the result and the
-    names of the files written.
+            dask_client: Any = None, stop_after: int | None = None) -> TuningResult:
+    """Run ``job`` on its backend and write every output into ``out``.
+
+    The job's objects (:meth:`Job.tunable`, :meth:`Job.cost`, :meth:`Job.optimizer`) go to
+    :func:`hybridnav.tuner.tune`; the returned :class:`TuningResult` carries the verdicts and
+    the names of the files written (``result.files``).
 
     Parameters
     ----------
@@ -56,66 +61,57 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
     resume : bool
         Continue from the checkpoint in ``out`` (refused when the job changed).
     progress : callable, optional
-        ``progress(info)`` after each generation (``info``: generation, best, mean, ...).
+        ``progress(row)`` after each generation with its logbook row.
     dask_client : distributed.Client, optional
         Run on this client instead of the job's backend settings.
+    stop_after : int, optional
+        Stop after this many generations, before writing outputs (tests of interruption).
     """
     out = Path(out)
     be = job["backend"]
-    backend = make_backend(be["workers"], dask_client or be["dask"])
-    with backend:
-        result = tune(job, out, backend=backend, resume=resume, progress=progress)
-        files = write_outputs(job, result, out, backend=backend)
-    return result, files
+    with make_backend(be["workers"], dask_client or be["dask"]) as backend:
+        result = tune(job.start_system(), job.cost("train"), backend=backend, checkpoint=out,
+                      progress=progress, resume=resume, stop_after=stop_after,
+                      **job.tune_kwargs())
+        if stop_after is not None and not _finished(out):
+            return result
+        result.files = write_outputs(job, result, out, backend=backend)
+    return result
 
 
-def write_outputs(job: Job, result: TuneResult, out: Path,
+def _finished(out: Path) -> bool:
+    import json
+
+    try:
+        return bool(json.loads((out / "checkpoint.json").read_text())["finished"])
+    except (OSError, ValueError, KeyError):
+        return False
+
+
+def write_outputs(job: Job, result: TuningResult, out: Path,
                   backend: Backend | None = None) -> list[str]:
-    """Judge the result on the validation and test sets; write the systems, tables, plots,
-    exports and ``report.md``.
+    """Write the result (:meth:`TuningResult.save`), its plots, the deployment exports and
+    ``report.md``; for a navigation job also the held-out summary, the falsification search,
+    the coverage and path figures and the software-in-the-loop check of the C export.
 
     Parameters
     ----------
     job : Job
-    result : TuneResult
-        From :func:`tune`.
+    result : TuningResult
+        From :func:`hybridnav.tuner.tune`.
     out : Path
         The output folder.
     backend : Backend, optional
-        Runs the judging simulations (default: the job's).
+        Runs the falsification's ``apf`` runs (default: this process).
     """
-    from hybridnav import planners
     from hybridnav.fuzzy import plots
-    from hybridnav.tuner.evaluate import uncovered_fraction
 
     backend = backend or SerialBackend()
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    files = []
-    start = job.start_system()
-    result.system.save(out / "fis.json")
-    start.save(out / "start.json")
-    files += ["fis.json", "start.json"]
-    atomic_write_text(out / "logbook.csv", pd.DataFrame(result.logbook).to_csv(index=False))
-    atomic_write_text(out / "evaluations.csv", pd.DataFrame(result.records).to_csv(index=False))
-    files += ["logbook.csv", "evaluations.csv"]
-    if result.validation.get("candidates"):
-        vrows = [dict(e, generation=c["generation"], score=c["score"], uncovered=c["uncovered"])
-                 for c in result.validation["candidates"] for e in c["envs"]]
-        atomic_write_text(out / "validation.csv", pd.DataFrame(vrows).to_csv(index=False))
-        files.append("validation.csv")
-    # start, tuned and apf on the worlds tuning never trained on
-    jj = _job_json(job)
-    genomes = {"start": np.array(result.start_genome), "tuned": np.array(result.best)}
-    table = compare_systems(job, jj, genomes, backend)
-    summary = summarize(table)
-    atomic_write_text(out / "heldout.csv", table.to_csv(index=False))
-    atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
-    files += ["heldout.csv", "heldout_summary.csv"]
-    unc = uncovered_fraction(jj, np.vstack([genomes["start"], genomes["tuned"]]))
-    falsified = _falsify(job, jj, genomes, backend, out)
-    if falsified is not None:
-        files += falsified["files"]
-    save_figure(_convergence(result.logbook, job, result), out / "convergence.png")
+    files = result.save(out)
+    start = result.start
+    save_figure(_convergence(result), out / "convergence.png")
     fig = Figure(figsize=(11, 7), layout="constrained")
     left, right = fig.subfigures(1, 2)
     plots.plot_memberships(start, fig=left)
@@ -123,40 +119,63 @@ def write_outputs(job: Job, result: TuneResult, out: Path,
     plots.plot_memberships(result.system, fig=right)
     right.suptitle(f"tuned: {result.system.name}")
     save_figure(fig, out / "mfs.png")
-    plots.save_surface_png(result.system, out / "surface.png")
-    save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
-                out / "coverage.png")
-    files += ["convergence.png", "mfs.png", "surface.png", "coverage.png"]
-    # paths: the paper's worlds and a few generated test worlds
-    shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
-    test = job.scenarios("test")
-    shown += [("test", s) for s in test if not s.name.startswith("gen-")]
-    shown += [("test", s) for s in test if s.name.startswith("gen-")][:4]
-    if shown:
-        fig = Figure(figsize=(8.5, 4.0 * len(shown)), layout="constrained")
-        axes = fig.subplots(len(shown), 2, squeeze=False)
-        for row, (kind, s) in enumerate(shown):
-            for col, (label, system) in enumerate((("start", start),
-                                                   ("tuned", result.system))):
-                res = planners.get("effc", fis=system, **job["planner"]).run(s)
-                plot_result(s, res, ax=axes[row, col])
-                axes[row, col].set_title(f"{s.name} ({kind}): {label}", fontsize=9)
-        save_figure(fig, out / "paths.png")
-        files.append("paths.png")
+    files += ["convergence.png", "mfs.png"]
+    if len(start.inputs) == 2:
+        plots.save_surface_png(result.system, out / "surface.png")
+        files.append("surface.png")
+    nav = job["cost"]["kind"] == "navigation"
+    summary, unc, falsified = None, None, None
+    if nav:
+        cost = job.cost("train")
+        summary = summarize(result.heldout) if result.heldout is not None else pd.DataFrame()
+        atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
+        files.append("heldout_summary.csv")
+        from hybridnav.tuner.costs.base import Candidates
+
+        unc = Candidates(result.settings, np.vstack([result.x_start, result.x])).uncovered(
+            job["coverage"]["grid"])
+        falsified = _falsify(job, cost, result, backend, out)
+        if falsified is not None:
+            files += falsified["files"]
+        save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
+                    out / "coverage.png")
+        files.append("coverage.png")
+        files += _paths(job, result, out)
     files += _exports(result.system, out)
-    sil = _sil_lines(job, result.system, out) if f"{C_BASENAME}.c" in files else []
-    radius = job.scenarios("train")[0].robots[0].radius
-    atomic_write_text(out / "report.md", _report(job, result, summary, unc, radius, files,
-                                                 falsified, sil))
+    sil = _sil_lines(job, result.system, out) if nav and f"{C_BASENAME}.c" in files else []
+    atomic_write_text(out / "report.md", _report(job, result, summary, unc, files, falsified,
+                                                 sil))
     files.append("report.md")
     return files
 
 
-def _falsify(job: Job, jj: str, genomes: dict[str, np.ndarray], backend: Backend,
+def _paths(job: Job, result: TuningResult, out: Path) -> list[str]:
+    """The paper's worlds and a few generated test worlds, start vs tuned."""
+    from hybridnav import planners
+
+    shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
+    test = job.scenarios("test")
+    shown += [("test", s) for s in test if not s.name.startswith("gen-")]
+    shown += [("test", s) for s in test if s.name.startswith("gen-")][:4]
+    if not shown:
+        return []
+    fig = Figure(figsize=(8.5, 4.0 * len(shown)), layout="constrained")
+    axes = fig.subplots(len(shown), 2, squeeze=False)
+    for row, (kind, s) in enumerate(shown):
+        for col, (label, system) in enumerate((("start", result.start),
+                                               ("tuned", result.system))):
+            res = planners.get(job["cost"]["planner"], fis=system, **job["planner"]).run(s)
+            plot_result(s, res, ax=axes[row, col])
+            axes[row, col].set_title(f"{s.name} ({kind}): {label}", fontsize=9)
+    save_figure(fig, out / "paths.png")
+    return ["paths.png"]
+
+
+def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Backend,
              out: Path) -> dict[str, Any] | None:
     """The falsification search against the tuned system; its worst worlds as TOML files and
     how start and ``apf`` do there."""
-    from hybridnav.tuner.evaluate import scenario_set, simulate_on
+    from hybridnav.fuzzy.family import SystemFamily
     from hybridnav.tuner.falsify import falsify
     from hybridnav.tuner.heldout import _apf_rows
     from hybridnav.world import save_scenario, scenario_to_dict
@@ -165,14 +184,16 @@ def _falsify(job: Job, jj: str, genomes: dict[str, np.ndarray], backend: Backend
     if cfg["budget"] == 0:
         return None
     seed = int(np.random.SeedSequence(job.seed, spawn_key=(13,)).generate_state(1)[0])
-    res = falsify(jj, genomes["tuned"], budget=cfg["budget"], population=cfg["population"],
+    res = falsify(cost, result.system, budget=cfg["budget"], population=cfg["population"],
                   obstacles=cfg["obstacles"], keep=cfg["keep"], optimizer=cfg["optimizer"],
                   seed=seed)
     rows, files = [], []
     if res.worlds:
         folder = out / "falsified"
         folder.mkdir(exist_ok=True)
-        sim, _ = simulate_on(jj, scenario_set(res.worlds), genomes["start"][None], noise=False)
+        fam = SystemFamily(result.start)
+        sim, _ = cost.with_scenarios(res.worlds, "falsified").simulate(
+            fam, fam.tables_of([result.start]), None, noise=False)
         apf = backend.map(_apf_rows, [(json.dumps(scenario_to_dict(w)), dict(job["planner"]))
                                       for w in res.worlds])
         for i, w in enumerate(res.worlds):
@@ -209,23 +230,24 @@ def _exports(system, out: Path) -> list[str]:
     return names
 
 
-def _convergence(logbook: list[dict[str, Any]], job: Job, result: TuneResult) -> Figure:
-    df = pd.DataFrame(logbook)
+def _convergence(result: TuningResult) -> Figure:
+    df = result.logbook
     fig = Figure(figsize=(6.8, 4.2), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(df["gen"], df["min"], marker="o", markersize=3, label="training: best")
-    ax.plot(df["gen"], df["mean"], linewidth=0.8, label="training: mean")
+    x = np.arange(len(df)) if "stage" in df else df["gen"]
+    ax.plot(x, df["min"], marker="o", markersize=3, label="training: best")
+    ax.plot(x, df["mean"], linewidth=0.8, label="training: mean")
     if "val_gen" in df:
-        ax.plot(df["gen"], df["val_gen"], marker="s", markersize=3,
+        ax.plot(x, df["val_gen"], marker="s", markersize=3,
                 label="validation: best of generation")
-        ax.plot(df["gen"], df["val_best"], linestyle="--", label="validation: best so far")
-        ax.axvline(result.best_generation, color="0.5", linewidth=0.8)
-    sense = job["reward"]["sense"]
-    if sense == "minimize" and (df["min"] > 0).all():
+        ax.plot(x, df["val_best"], linestyle="--", label="validation: best so far")
+        if "stage" not in df:
+            ax.axvline(result.best_generation, color="0.5", linewidth=0.8)
+    if (df["min"] > 0).all():
         ax.set_yscale("log")
-    ax.set_xlabel("generation")
-    ax.set_ylabel(f"fitness ({sense}d; {job['reward']['kind']} reward)")
-    ax.set_title(f"{job.name}: training and validation")
+    ax.set_xlabel("generation" + (" (all k-fold stages)" if "stage" in df else ""))
+    ax.set_ylabel(f"{result.objective_names[0]} (minimized)")
+    ax.set_title(f"{result.system.name}: training and validation")
     ax.legend(fontsize=8)
     return fig
 
@@ -286,91 +308,98 @@ def _sil_lines(job: Job, system, out: Path) -> list[str]:
     return lines
 
 
-def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray,
-            radius: float, files: list[str], falsified: dict[str, Any] | None = None,
+def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
+            unc: np.ndarray | None, files: list[str], falsified: dict[str, Any] | None = None,
             sil: list[str] | None = None) -> str:
-    rw, ga = job["reward"], job["ga"]
-    sense = rw["sense"]
-    n = {k: len(job.scenarios(k)) for k in ("train", "validation", "test")}
+    nav = job["cost"]["kind"] == "navigation"
+    opt = result.optimizer
+    size = opt.get("population", opt.get("n", opt.get("lambda_")))
     lines = [
         f"# Tuning report: {job.name}", "",
-        f"Seed {job.seed}; population {ga['population']}, {ga['generations']} generations; "
-        f"starting system `{job['system']['start']}`; free: {job['free']['mf']} MF parameters"
-        + (", rule switches" if job["free"]["rule_switches"] else "")
-        + (", rule weights" if job["free"]["rule_weights"] else "")
-        + (", rule consequents" if job["free"]["rule_consequents"] else "") + ".",
-        f"Worlds: {n['train']} for training, {n['validation']} for validation (choosing the "
-        f"returned system), {n['test']} for the final test (used only for this report).", "",
-        _reward_text(job), "",
+        f"Seed {result.seed}; optimizer {opt['kind']}"
+        + (f" (population {size}" if size else " (")
+        + f"{', ' if size else ''}{opt['generations']} generations); starting system "
+          f"`{job['system']['start']}`; {result.settings.size} free numbers.",
+        f"Cost: {result.cost}.",
     ]
+    if nav:
+        n = {k: len(job.scenarios(k)) for k in ("train", "validation", "test")}
+        lines += [f"Worlds: {n['train']} for training, {n['validation']} for validation "
+                  f"(choosing the returned system), {n['test']} for the final test (used only "
+                  "for this report).", "", _reward_text(job)]
+    lines.append("")
     # the verdict first: what a user deploys
     for which in ("test", "validation"):
-        v = verdict(summary, which, radius)
-        if not v["checks"]:
+        v = result.verdicts.get(which)
+        if not v or not v["checks"]:
             continue
-        word = "better" if v["better"] else "NOT better"
-        lines += [f"**Verdict on the {which} set ({n[which]} worlds): the tuned system is "
-                  f"{word} than its start.**", ""]
+        lines += [f"**Verdict: {v['headline']}.**", ""]
         lines += [f"- {'pass' if ok else 'FAIL'}: {text}" for text, ok in v["checks"]]
         lines.append("")
-    val = result.validation
-    if "best_score" in val:
-        vs, ss = val["best_score"], val["start_score"]
-        beat = ss is None or (vs < ss if sense == "minimize" else vs > ss)
+    vs, ss = result.validation_score, result.start_validation_score
+    if result.selected_by == "validation" and vs is not None:
         lines += [f"Returned system: the best on **validation**, from generation "
                   f"{result.best_generation}"
-                  + (f" of k-fold stage {result.best_stage}" if val.get("folds") else "")
-                  + f" (validation score {vs:.4f}"
+                  + (f" of k-fold stage {result.best_stage}" if result.folds else "")
+                  + f" (validation objective {vs:.4f}"
                   + (f"; start {ss:.4f})." if ss is not None else ").")]
-        if not beat:
+        if ss is not None and not vs < ss:
             lines += ["", "**WARNING: the returned system does not score better than its "
                           "starting system on the validation set. Both are written: `fis.json` "
                           "(returned) and `start.json` (start).**"]
-        if not val.get("folds"):
-            stopped = val["stopped"]
+        if not result.folds:
+            stopped = result.stopped
             lines += ["", "Early stopping: "
                           + (f"stopped at generation {stopped}" if stopped else "not triggered")
                           + f" (patience {job['validation']['patience']}, tolerance "
                             f"{job['validation']['tolerance']:g})."]
-    elif val.get("folds"):
+    elif result.folds:
         lines += [f"No validation set: the returned system is the last k-fold stage's best on "
                   f"its own fold ({result.selected_by}, generation {result.best_generation})."]
     else:
         lines += ["No validation set: the returned system is the best on training (generation "
                   f"{result.best_generation}); nothing checks that it generalizes."]
-    if val.get("folds"):
-        k = len(val["folds"])
-        scores = [f["score"] for f in val["folds"]]
-        lines += ["", f"k-fold over the training worlds ({k} folds; each stage trained on the "
-                      "other folds and was scored on its own):", "",
+    if result.folds:
+        scores = [f["score"] for f in result.folds if "score" in f]
+        lines += ["", f"k-fold over the training data ({len(result.folds)} folds; each stage "
+                      "trained on the other folds and was scored on its own):", "",
                   "| stage | fold | best score on it | generation | early stop |",
                   "|---|---|---|---|---|"]
-        for f in val["folds"]:
-            lines.append(f"| {f['stage']} | {f['fold']} | {f['score']:.4f} | {f['generation']} "
+        for f in result.folds:
+            lines.append(f"| {f['stage']} | {f['fold']} | {_fmt(f.get('score'), '.4f')} | "
+                         f"{f.get('generation', '-')} "
                          f"| {f['stopped'] if f['stopped'] is not None else '-'} |")
-        lines += ["", f"Cross-validation estimate (mean of the fold scores): "
-                      f"{float(np.mean(scores)):.4f} (std {float(np.std(scores)):.4f})."]
-    best = result.best.fitness.values[0]
-    lines += ["", f"Training fitness: start {result.start_fitness:.4f}, returned {best:.4f}.",
+        if scores:
+            lines += ["", f"Cross-validation estimate (mean of the fold scores): "
+                          f"{float(np.mean(scores)):.4f} (std {float(np.std(scores)):.4f})."]
+    lines += ["", f"Training objective ({result.objective_names[0]}, minimized): start "
+                  f"{result.start_objectives[0]:.4f}, returned {result.objectives[0]:.4f}.",
               f"The tuned system keeps {len(result.system.rules)} of "
-              f"{len(job.start_system().rules)} rules:", "",
-              *(f"- {r.sentence(result.system.output.name)}" for r in result.system.rules), "",
-              f"Coverage (grid {job['coverage']['grid']} x {job['coverage']['grid']} over the "
-              f"input ranges): no rule fires on {100 * unc[0]:.1f} % for the start, "
-              f"{100 * unc[1]:.1f} % for the tuned system (allowed: "
-              f"{100 * job['coverage']['max_uncovered']:.1f} %; see coverage.png).", "",
-              "## Start vs tuned vs apf on held-out worlds", "",
-              "Nominal runs (no noise). Length and clearance: means over the worlds every system "
-              "reached; 'min clearance' is the smallest over the worlds that system reached.", "",
-              "| set | system | reached | 95 % interval | collided | stuck | timeout | "
-              "out of bounds | common worlds | length | clearance | min clearance |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in summary.itertuples():
-        lines.append(f"| {r.set} | {r.system} | {r.reached}/{r.worlds} | "
-                     f"{_fmt(r.ci_low, '.2f')}-{_fmt(r.ci_high, '.2f')} | {r.collided} | "
-                     f"{r.stuck} | {r.timeout} | {r.out_of_bounds} | {r.common_worlds} | "
-                     f"{_fmt(r.common_length)} | {_fmt(r.common_clearance)} | "
-                     f"{_fmt(r.min_clearance_reached)} |")
+              f"{len(result.start.rules)} rules:", "",
+              *(f"- {r.sentence(result.system.output.name)}" for r in result.system.rules), ""]
+    if nav and unc is not None:
+        lines += [f"Coverage (grid {job['coverage']['grid']} per axis over the input ranges): no "
+                  f"rule fires on {100 * unc[0]:.1f} % for the start, {100 * unc[1]:.1f} % for "
+                  f"the tuned system (allowed: {100 * job['coverage']['max_uncovered']:.1f} %; "
+                  "see coverage.png).", ""]
+    if nav and summary is not None and len(summary):
+        lines += ["## Start vs tuned vs apf on held-out worlds", "",
+                  "Nominal runs (no noise). Length and clearance: means over the worlds every "
+                  "system reached; 'min clearance' is the smallest over the worlds that system "
+                  "reached.", "",
+                  "| set | system | reached | 95 % interval | collided | stuck | timeout | "
+                  "out of bounds | common worlds | length | clearance | min clearance |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in summary.itertuples():
+            lines.append(f"| {r.set} | {r.system} | {r.reached}/{r.worlds} | "
+                         f"{_fmt(r.ci_low, '.2f')}-{_fmt(r.ci_high, '.2f')} | {r.collided} | "
+                         f"{r.stuck} | {r.timeout} | {r.out_of_bounds} | {r.common_worlds} | "
+                         f"{_fmt(r.common_length)} | {_fmt(r.common_clearance)} | "
+                         f"{_fmt(r.min_clearance_reached)} |")
+    elif result.heldout is not None:
+        lines += ["## Start vs tuned on held-out data", "",
+                  result.heldout.to_markdown(index=False) if _has_tabulate()
+                  else "```\n" + result.heldout.to_string(index=False) + "\n```"]
     if falsified is not None:
         fr, cfg = falsified["result"], falsified["config"]
         lines += ["", "## Falsification: worlds where the tuned system fails", "",
@@ -388,11 +417,15 @@ def _report(job: Job, result: TuneResult, summary: pd.DataFrame, unc: np.ndarray
         else:
             lines += ["", "No failure found within the budget."]
     lines += sil or []
-    last = result.logbook[-1]
-    lines += ["", f"Wall time {last['wall_time']:.1f} s for "
-                  f"{sum(r['evals'] for r in result.logbook)} evaluations (tuning only).", "",
-              "Files: " + ", ".join(files), ""]
+    lines += ["", f"Wall time {result.wall_time:.1f} s for {result.evaluations} evaluations "
+                  "(tuning only).", "", "Files: " + ", ".join(files + ["report.md"]), ""]
     return "\n".join(lines)
+
+
+def _has_tabulate() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("tabulate") is not None
 
 
 def _reward_text(job: Job) -> str:
@@ -402,7 +435,8 @@ def _reward_text(job: Job) -> str:
                 f"{rw['penalty']:g} otherwise, summed over the training worlds.")
     if rw["kind"] == "paper":
         return (f"Reward (paper, maximized): path length when the target is reached, "
-                f"-{rw['penalty']:g} otherwise, summed over the training worlds.")
+                f"-{rw['penalty']:g} otherwise, summed over the training worlds (the objectives "
+                "above and in logbook.csv are its negative: every objective is minimized).")
     noise = ", ".join(f"{k} {rw[k]:g}" for k in ("heading_noise", "dtheta_noise", "alpha_noise")
                       if rw[k] > 0)
     return (f"Reward (deploy, minimized; mean over the training worlds): reached: "

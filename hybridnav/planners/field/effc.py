@@ -26,9 +26,10 @@ import numpy as np
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param
 from hybridnav.planners.field.base import COMMON, FieldPlanner
+from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field
 from hybridnav.planners.simulate import Simulation
 
-__all__ = ["EFFC", "effc_inputs", "effc_inputs_from", "effc_force"]
+__all__ = ["EFFC", "effc_inputs", "effc_inputs_from", "effc_force", "effc_lockstep"]
 
 
 def effc_inputs(world, P: np.ndarray, goals: np.ndarray, radius, t: float):
@@ -78,6 +79,48 @@ def effc_force(w: np.ndarray, f_att: np.ndarray, f_rep: np.ndarray) -> np.ndarra
     return w * f_rep + (1.0 - w) * f_att
 
 
+def effc_lockstep(st, family, tables, n_members: int,
+                  planner: dict[str, Any], *, repeats: int = 1, noise: np.ndarray | None = None,
+                  record_paths: bool = False) -> LockstepResult:
+    """``n_members`` EFFC controllers on every world of ``st``, in one lockstep batch.
+
+    ``st`` holds ``scenarios``, their packed obstacles ``stack``
+    (:class:`~hybridnav.planners.field.worldstack.WorldStack`) and robot ``radius`` per world.
+
+    Member ``m`` uses the fuzzy system ``m // repeats`` of ``tables`` (a ``family`` table set);
+    ``noise`` (``(3, E, n_members, steps)``: heading, ``dtheta``, relative ``alpha``) perturbs
+    each cycle. ``planner`` holds ``speed``, ``max_turn``, ``stuck_window`` and
+    ``stuck_radius``. Without noise this is exactly what the ``effc`` planner does, run by run.
+    """
+    scenarios = st.scenarios
+    dt = scenarios[0].dt
+    radius = st.radius
+    last = None if noise is None else noise.shape[3] - 1
+
+    def field(env, members, P, goals, t):
+        clear, near = st.stack.nearest(P, env, t)
+        dtheta, alpha, f_att, f_rep = effc_inputs_from(P, goals, clear, near, radius[env])
+        if noise is not None:
+            i = min(int(round(t / dt)), last)
+            dtheta = dtheta + noise[1, env, members, i]
+            alpha = np.maximum(alpha * (1.0 + noise[2, env, members, i]), 0.0)
+        w = family.evaluate(tables, members // repeats, {"dtheta": dtheta, "alpha": alpha})
+        F = effc_force(w, f_att, f_rep)
+        F = np.where(np.isinf(clear)[:, None], f_att, F)     # no obstacle: go to the goal
+        if noise is not None:
+            ang = noise[0, env, members, i]
+            c, s_ = np.cos(ang), np.sin(ang)
+            F = np.stack([c * F[:, 0] - s_ * F[:, 1], s_ * F[:, 0] + c * F[:, 1]], axis=1)
+        return F
+
+    overrides = {"controller": "heading", "speed": planner["speed"],
+                 "max_turn": planner["max_turn"]}
+    return lockstep_field(scenarios, n_members, field, model_overrides=overrides,
+                          speed=planner["speed"], stuck_window=planner["stuck_window"],
+                          stuck_radius=planner["stuck_radius"], record_paths=record_paths,
+                          stack=st.stack)
+
+
 class EFFC(FieldPlanner):
     """Potential field whose repulsive/attractive blend weight comes from a fuzzy system."""
 
@@ -109,6 +152,11 @@ class EFFC(FieldPlanner):
                 f"planner effc: fis: expected a fuzzy system with the inputs dtheta and alpha, "
                 f"{system.name!r} has {', '.join(system.input_names)}")
         self.fis = system
+
+    #: the fuzzy inputs this planner provides (what a tuned system must take)
+    fuzzy_inputs: ClassVar[tuple[str, ...]] = ("dtheta", "alpha")
+    #: many controllers on many worlds in one batch (what the tuner simulates)
+    lockstep = staticmethod(effc_lockstep)
 
     def velocity(self, state, sim: Simulation, idx, P, goals):
         radius = np.array([sim.models[i].radius for i in idx])

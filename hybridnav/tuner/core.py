@@ -1,0 +1,611 @@
+"""``tune(system, cost, ...)``: the one tuning loop, for every optimizer and every cost.
+
+Each generation the optimizer is asked for vectors; they are evaluated in chunks on the backend
+(the cost object and the settings travel to the workers as objects; each chunk's context carries
+the generation and the candidates' indices, so results do not depend on chunking or workers); the
+optimizer is told the objectives. Written once here for all optimizers:
+
+**Validation and early stopping** (one objective). After every generation the ``top`` best
+distinct candidates by training objective (in the first generation the start too) are scored on
+the validation cost (scores cached per vector). The returned system is the best on
+**validation** — never a candidate the cost calls infeasible over a feasible one — and the run
+stops early when that score has not improved by more than ``tolerance`` for ``patience``
+generations (0: never). Without validation the best on training is returned.
+
+**k-fold** (``validation=KFold(k)`` or an int ``k >= 2``): the training cost is split into ``k``
+folds (:meth:`Cost.folds`) and the optimizer runs ``k`` stages of its generations: stage ``j``
+trains on the other folds, scores its best candidates on fold ``j`` (early stopping on that
+score) and hands its population to stage ``j + 1`` (as MATLAB's ``tunefis`` with
+``KFoldValue``). The returned system is the last stage's best on its own fold.
+
+**Several objectives** (NSGA2): the Pareto front is the first non-dominated front of the final
+population; every member is scored on the validation cost and ``select`` (default
+:func:`select_member`: the member with the smallest first validation objective among those the
+cost calls feasible) picks the returned system.
+
+**Checkpoints.** With ``checkpoint=DIR`` the state (optimizer state with its random generators,
+validation trackers, logbook, position) is written atomically to ``DIR/checkpoint.json`` after
+every generation, compactly; the per-candidate evaluation rows are appended to
+``DIR/evaluations.jsonl``. ``resume=True`` continues from them — refusing a checkpoint of another
+configuration (``config_hash``) — and ends with exactly the result an uninterrupted run gives.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hybridnav import __version__
+from hybridnav.backends import Backend, SerialBackend
+from hybridnav.errors import HybridnavError
+from hybridnav.fileio import atomic_write_text
+from hybridnav.tuner.costs.base import Context, Cost, Evaluation, evaluate_chunk
+from hybridnav.tuner.optimizers import GA, Optimizer, Problem, non_dominated
+from hybridnav.tuner.result import Member, TuningResult
+from hybridnav.tuner.settings import TunableSettings
+
+log = logging.getLogger(__name__)
+
+__all__ = ["CHECKPOINT_FORMAT", "KFold", "select_member", "tune"]
+
+CHECKPOINT_FORMAT = "hybridnav-tune-checkpoint/3"
+
+
+@dataclass(frozen=True)
+class KFold:
+    """Cross-validation over the training cost's data in ``k`` folds; ``validation``
+    (optional) a separate validation cost that picks the returned system."""
+
+    k: int
+    validation: Any = None
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.k, int) and not isinstance(self.k, bool) and self.k >= 2):
+            raise HybridnavError(f"KFold: k: expected an integer >= 2, got {self.k!r}")
+
+
+def select_member(front: pd.DataFrame) -> int:
+    """The default rule for which front member is returned: among the members the cost calls
+    feasible on validation (all, when none is), the smallest first validation objective (the
+    first training objective without validation); ties go to the smaller second objective."""
+    df = front
+    col = "validation_0" if "validation_0" in df and df["validation_0"].notna().any() \
+        else "objective_0"
+    ok = df["validation_feasible"] if "validation_feasible" in df else \
+        pd.Series(True, index=df.index)
+    cand = df[ok] if ok.any() else df
+    keys = [col] + [c for c in cand.columns if c.startswith(col.split("_")[0] + "_")
+                    and c != col]
+    return int(cand.sort_values(keys, kind="stable").index[0])
+
+
+def _key(x: np.ndarray) -> bytes:
+    return np.asarray(x, dtype=float).tobytes()
+
+
+class _Track:
+    """The best candidate on one validation cost, with its cache of scores."""
+
+    def __init__(self) -> None:
+        self.cache: dict[bytes, dict[str, Any]] = {}
+        self.best: dict[str, Any] | None = None
+        self.last_improvement = 0
+        self.gen_best: float | None = None
+
+    def dump(self) -> dict[str, Any]:
+        return {"cache": list(self.cache.values()), "best": self.best,
+                "last_improvement": self.last_improvement, "gen_best": self.gen_best}
+
+    @classmethod
+    def load(cls, d: dict[str, Any]) -> _Track:
+        t = cls()
+        t.cache = {_key(e["x"]): e for e in d["cache"]}
+        t.best, t.last_improvement, t.gen_best = d["best"], d["last_improvement"], d["gen_best"]
+        return t
+
+
+class _Run:
+    """The state of one tuning run and the steps of its loop."""
+
+    def __init__(self, settings: TunableSettings, cost: Cost, optimizer: Optimizer,
+                 validation: Cost | None, stages: list[tuple[Cost, Cost | None]], seed: int,
+                 backend: Backend, chunk: int, top: int, patience: int, tolerance: float,
+                 checkpoint: Path | None, progress: Callable | None) -> None:
+        self.settings, self.cost, self.opt = settings, cost, optimizer
+        self.validation, self.stages, self.seed = validation, stages, seed
+        self.backend, self.chunk = backend, chunk
+        self.top, self.patience, self.tolerance = top, patience, tolerance
+        self.dir, self.progress = checkpoint, progress
+        self.mo = cost.n_objectives > 1
+        self.kfold = len(stages) > 1
+        self.x0 = settings.to_vector()
+        self.stage = 0
+        self.logbook: list[dict[str, Any]] = []
+        self.records: list[dict[str, Any]] = []
+        self.start_objectives: list[float] | None = None
+        self.elapsed = 0.0
+        self.evaluations = 0
+        self.val, self.fold = _Track(), _Track()
+        self.stopped: int | None = None
+        self.folds_done: list[dict[str, Any]] = []
+        self.best_train: dict[str, Any] | None = None
+
+    # ---- evaluation ------------------------------------------------------------------------
+
+    def evaluate(self, cost: Cost, X: np.ndarray, context: Context) -> Evaluation:
+        """``cost.assess`` of ``X`` in chunks on the backend."""
+        if len(X) == 0:
+            return Evaluation(np.zeros((0, cost.n_objectives)))
+        args = []
+        for s in range(0, len(X), self.chunk):
+            idx = tuple(range(s, min(s + self.chunk, len(X))))
+            ctx = Context(context.seed, context.role, context.generation, idx)
+            args.append((cost, self.settings, X[s:s + self.chunk], ctx))
+        return Evaluation.concat(self.backend.map(evaluate_chunk, args))
+
+    # ---- validation ------------------------------------------------------------------------
+
+    def candidates(self, X: np.ndarray, F: np.ndarray, first: bool) -> list[np.ndarray]:
+        order = np.argsort(F[:, 0], kind="stable")
+        out, seen = [], set()
+        for i in order:
+            k = _key(X[i])
+            if k not in seen:
+                seen.add(k)
+                out.append(X[i])
+            if len(out) == self.top:
+                break
+        if first and _key(self.x0) not in seen:
+            out.append(self.x0)
+        return out
+
+    def score(self, cost: Cost, role: str, cands: list[np.ndarray], train: dict[bytes, float],
+              generation: int, track: _Track) -> None:
+        todo = list({_key(x): x for x in cands if _key(x) not in track.cache}.values())
+        if todo:
+            ev = self.evaluate(cost, np.array(todo), Context(self.seed, role, generation))
+            for x, f, ok, info, det in zip(todo, ev.objectives, ev.feasible, ev.info,
+                                           ev.details):
+                track.cache[_key(x)] = {
+                    "x": np.asarray(x, dtype=float).tolist(), "score": float(f[0]),
+                    "objectives": f.tolist(), "feasible": bool(ok), "info": info,
+                    "train": train[_key(x)], "stage": self.stage, "generation": generation,
+                    "details": det}
+        scores = [track.cache[_key(x)]["score"] for x in cands]
+        track.gen_best = float(min(scores))
+        for x in cands:
+            entry = track.cache[_key(x)]
+            ok = entry["feasible"]
+            best_ok = track.best is not None and track.best["feasible"]
+            if ok != best_ok and track.best is not None:        # feasibility first
+                if not ok:
+                    continue
+                track.best = dict(entry, stage=self.stage, generation=generation)
+                track.last_improvement = generation
+                continue
+            if track.best is None or entry["score"] < track.best["score"]:
+                improved = (track.best is None
+                            or abs(entry["score"] - track.best["score"]) > self.tolerance)
+                track.best = dict(entry, stage=self.stage, generation=generation)
+                if improved:
+                    track.last_improvement = generation
+
+    def after_generation(self, gen: int, X: np.ndarray, F: np.ndarray, ev_X: np.ndarray,
+                         ev: Evaluation) -> None:
+        train = {_key(x): float(f[0]) for x, f in zip(X, F)}
+        train.update({_key(x): float(f[0]) for x, f in zip(ev_X, ev.objectives)})
+        if self.mo:
+            return
+        cands = self.candidates(X, F, gen == 0 and self.stage == 0)
+        fold_cost = self.stages[self.stage][1]
+        if fold_cost is not None:
+            self.score(fold_cost, "fold", cands, train, gen, self.fold)
+        if self.validation is not None:
+            self.score(self.validation, "validation", cands, train, gen, self.val)
+        watch = self.fold if fold_cost is not None else (self.val if self.validation else None)
+        if watch is not None and self.patience and \
+                gen - watch.last_improvement >= self.patience and gen < self.opt.generations:
+            self.stopped = gen
+            log.info("early stop in stage %d at generation %d: no improvement since %d",
+                     self.stage, gen, watch.last_improvement)
+
+    # ---- one generation --------------------------------------------------------------------
+
+    def step(self) -> None:
+        tic = time.perf_counter()
+        gen = self.opt.generation
+        key = self.stage * (self.opt.generations + 1) + gen      # distinct noise per stage
+        X = self.opt.ask()
+        train_cost = self.stages[self.stage][0]
+        ev = self.evaluate(train_cost, X, Context(self.seed, "train", key))
+        self.opt.tell(X, ev.objectives)
+        self.evaluations += len(X)
+        if self.start_objectives is None:
+            at = [i for i, x in enumerate(X) if _key(x) == _key(self.x0)]
+            if at:
+                self.start_objectives = ev.objectives[at[0]].tolist()
+            else:
+                e0 = self.evaluate(train_cost, self.x0[None], Context(self.seed, "train", key))
+                self.start_objectives = e0.objectives[0].tolist()
+        rows = self._rows(X, ev, gen)
+        self.records += rows
+        for x, f, ok in zip(X, ev.objectives, ev.feasible):
+            better = self.best_train is None or (
+                (bool(ok), -f[0]) > (self.best_train["feasible"], -self.best_train["score"]))
+            if better:
+                self.best_train = {"x": x.tolist(), "score": float(f[0]), "feasible": bool(ok),
+                                   "stage": self.stage, "generation": gen}
+        PX, PF = self.opt.population()
+        self.after_generation(gen, PX, PF, X, ev)
+        self.elapsed += time.perf_counter() - tic
+        row = self._logrow(gen, len(X), PF)
+        self.logbook.append(row)
+        self.save(rows)
+        if self.progress:
+            self.progress(row)
+
+    def _rows(self, X: np.ndarray, ev: Evaluation, gen: int) -> list[dict[str, Any]]:
+        rows = []
+        base = {"stage": self.stage, "generation": gen, "set": self.stages[self.stage][0]
+                .__dict__.get("name", "train")}
+        for i, (f, info, det) in enumerate(zip(ev.objectives, ev.info, ev.details)):
+            head = {**base, "individual": i}
+            objs = {f"objective_{j}": float(v) for j, v in enumerate(f)}
+            if det:
+                rows += [{**d, **head, **info} for d in det]
+            else:
+                rows.append({**head, **objs, **info})
+        return rows
+
+    def _logrow(self, gen: int, nevals: int, F: np.ndarray) -> dict[str, Any]:
+        row: dict[str, Any] = {}
+        if self.kfold:
+            row["stage"] = self.stage
+        row["gen"] = gen
+        row["evals"] = nevals
+        f = F[:, 0] if len(F) else np.array([np.nan])
+        fin = f[np.isfinite(f)]
+        row.update({"min": float(f.min()), "mean": float(fin.mean()) if len(fin) else np.inf,
+                    "max": float(f.max()), "std": float(fin.std()) if len(fin) else np.nan})
+        if self.mo:
+            for j in range(1, F.shape[1]):
+                row[f"min_{j}"] = float(F[:, j].min())
+            row["front"] = int(non_dominated(F).sum())
+        if self.validation is not None and not self.mo:
+            row["val_gen"] = self.val.gen_best
+            row["val_best"] = self.val.best["score"] if self.val.best else None
+        if self.kfold:
+            row["fold_gen"] = self.fold.gen_best
+            row["fold_best"] = self.fold.best["score"] if self.fold.best else None
+        row["wall_time"] = self.elapsed
+        return row
+
+    # ---- loop ------------------------------------------------------------------------------
+
+    def run(self, stop_after: int | None) -> None:
+        done = len(self.logbook)
+        while self.stage < len(self.stages):
+            while not self.opt.done and self.stopped is None:
+                if stop_after is not None and done > stop_after:
+                    return
+                self.step()
+                done += 1
+            if self.kfold:
+                self.folds_done.append({"stage": self.stage, "fold": self.stage,
+                                        "stopped": self.stopped, **(self.fold.best or {})})
+                self.fold = _Track()
+            if self.stage + 1 < len(self.stages):
+                self.stage += 1
+                self.stopped = None
+                self.opt.new_stage()
+                self.save([])
+            else:
+                self.save([], finished=True)
+                return
+
+    # ---- checkpoints -----------------------------------------------------------------------
+
+    def state(self, finished: bool) -> dict[str, Any]:
+        return {"stage": self.stage, "finished": finished, "optimizer": self.opt.state(),
+                "logbook": self.logbook, "start_objectives": self.start_objectives,
+                "elapsed": self.elapsed, "evaluations": self.evaluations,
+                "validation": self.val.dump(), "fold": self.fold.dump(),
+                "stopped": self.stopped, "folds_done": self.folds_done,
+                "best_train": self.best_train}
+
+    def save(self, rows: list[dict[str, Any]], finished: bool = False) -> None:
+        if self.dir is None:
+            return
+        if rows:
+            with open(self.dir / "evaluations.jsonl", "a", encoding="utf-8") as fh:
+                fh.write("".join(json.dumps(r) + "\n" for r in rows))
+        state = {"format": CHECKPOINT_FORMAT, "version": __version__,
+                 "config_hash": self.config_hash, **self.state(finished)}
+        atomic_write_text(self.dir / "checkpoint.json", json.dumps(state))
+
+    def restore(self, state: dict[str, Any]) -> None:
+        self.stage = int(state["stage"])
+        self.opt.set_state(state["optimizer"])
+        self.logbook = state["logbook"]
+        self.start_objectives = state["start_objectives"]
+        self.elapsed, self.evaluations = state["elapsed"], state["evaluations"]
+        self.val, self.fold = _Track.load(state["validation"]), _Track.load(state["fold"])
+        self.stopped, self.folds_done = state["stopped"], state["folds_done"]
+        self.best_train = state["best_train"]
+        pos = (self.stage, self.opt.generation)
+        self.records = [r for r in _read_jsonl(self.dir / "evaluations.jsonl")
+                        if (r["stage"], r["generation"]) < pos]
+        # the rows of a generation after the checkpoint were never part of this run
+        atomic_write_text(self.dir / "evaluations.jsonl",
+                          "".join(json.dumps(r) + "\n" for r in self.records))
+
+
+def _read_jsonl(path: Path) -> list[dict[str, Any]]:
+    out = []
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        return out
+    for line in lines:
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:          # a line cut by a kill: the generation is redone
+            break
+    return out
+
+
+def _load_checkpoint(path: Path, chash: str) -> dict[str, Any]:
+    try:
+        state = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HybridnavError(f"{path}: no checkpoint to resume from (run without --resume "
+                             "first)") from None
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise HybridnavError(f"{path}: unreadable checkpoint ({exc})") from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise HybridnavError(f"{path}: format: expected {CHECKPOINT_FORMAT!r}, got "
+                             f"{state.get('format') if isinstance(state, dict) else state!r}")
+    if state.get("config_hash") != chash:
+        raise HybridnavError(
+            f"{path}: config_hash: this checkpoint was written by a different configuration "
+            f"(checkpoint {str(state.get('config_hash'))[:12]}, this run {chash[:12]}); resume "
+            "with the same job and seed, or start a new run in another folder")
+    return state
+
+
+def _config_hash(parts: dict[str, Any]) -> str:
+    text = json.dumps(parts, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
+         optimizer: Optimizer | None = None, validation: Cost | float | int | KFold | None = None,
+         test: Cost | None = None, seed: int = 0, backend: Backend | None = None,
+         checkpoint: str | Path | None = None, progress: Callable | None = None,
+         resume: bool = False, chunk: int = 50, top: int = 3, patience: int = 10,
+         tolerance: float = 0.0, select: Callable[[pd.DataFrame], int] | None = None,
+         name: str | None = None, judge: bool = True,
+         stop_after: int | None = None) -> TuningResult:
+    """Tune ``system`` to minimize ``cost``.
+
+    Parameters
+    ----------
+    system : FuzzySystem
+        The starting system (its structure is kept).
+    cost : Cost
+        :class:`NavigationCost`, :class:`DataCost`, :class:`FunctionCost` or your own.
+    settings : TunableSettings, optional
+        What is free (default: every membership-function parameter of ``system``).
+    optimizer : Optimizer, optional
+        :class:`GA` (default), :class:`CMAES`, :class:`PSO` or :class:`NSGA2` (several
+        objectives; the default when the cost has several).
+    validation : Cost, float, int or KFold, optional
+        A validation cost (the returned system is the best on it), a fraction of the cost's
+        data held out for validation (``cost.split``), or ``k``/``KFold(k)`` for k-fold
+        cross-validation (``cost.folds``).
+    test : Cost, optional
+        Data only reported: start and tuned are judged on it (and on validation) after tuning.
+    seed : int
+        All randomness (optimizer, noise streams, splits) derives from it.
+    backend : Backend, optional
+        Where chunks of a generation are evaluated (default: this process); see
+        :func:`hybridnav.backends.make_backend`.
+    checkpoint : path, optional
+        Folder for ``checkpoint.json`` and ``evaluations.jsonl`` (created).
+    progress : callable, optional
+        ``progress(row)`` after every generation with its logbook row.
+    resume : bool
+        Continue from ``checkpoint``.
+    chunk : int
+        Candidates per unit of parallel work.
+    top, patience, tolerance :
+        Validation: candidates scored per generation, generations without improvement before
+        stopping (0: never), and the improvement that counts.
+    select : callable, optional
+        Several objectives: ``select(front) -> index`` of the returned member (default
+        :func:`select_member`).
+    name : str, optional
+        The tuned system's name (default ``<start>-tuned``).
+    judge : bool
+        Judge start and tuned on the validation and test costs after tuning.
+    stop_after : int, optional
+        Stop after this many generations (tests of interruption; the checkpoint stays).
+
+    Returns
+    -------
+    TuningResult
+
+    Examples
+    --------
+    >>> from hybridnav.tuner import tune, DataCost, CMAES           # doctest: +SKIP
+    >>> result = tune(start, DataCost(X, y), optimizer=CMAES(), seed=3)
+    >>> result.system.save("tuned.json")
+    """
+    from hybridnav.fuzzy import FuzzySystem
+
+    if not isinstance(system, FuzzySystem):
+        raise HybridnavError(f"system: expected a FuzzySystem, got {type(system).__name__}")
+    if not isinstance(cost, Cost):
+        raise HybridnavError(f"cost: expected a Cost (NavigationCost, DataCost, FunctionCost or "
+                             f"a subclass of hybridnav.tuner.Cost), got {type(cost).__name__}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise HybridnavError(f"seed: expected a non-negative integer, got {seed!r}")
+    seed = int(seed)
+    settings = settings if settings is not None else TunableSettings(system)
+    if settings.template != system:
+        raise HybridnavError("settings: built from another system than the one tuned; build "
+                             "them with TunableSettings(system)")
+    if settings.size == 0:
+        raise HybridnavError("settings: nothing is free (free a variable, term or rule setting)")
+    if optimizer is None:
+        from hybridnav.tuner.optimizers import NSGA2
+
+        optimizer = NSGA2() if cost.n_objectives > 1 else GA()
+    if not isinstance(optimizer, Optimizer):
+        raise HybridnavError(f"optimizer: expected GA, CMAES, PSO or NSGA2, got "
+                             f"{type(optimizer).__name__}")
+    cost.check(settings)
+    stages: list[tuple[Cost, Cost | None]] = [(cost, None)]
+    val_cost: Cost | None = None
+    if isinstance(validation, int) and not isinstance(validation, bool):
+        validation = KFold(validation)
+    if isinstance(validation, KFold):
+        stages = [(a, b) for a, b in cost.folds(validation.k, seed)]
+        val_cost = validation.validation
+    elif isinstance(validation, float):
+        cost, val_cost = cost.split(validation, seed)
+        stages = [(cost, None)]
+    elif isinstance(validation, Cost):
+        val_cost = validation
+    elif validation is not None:
+        raise HybridnavError(f"validation: expected a Cost, a fraction, k or KFold(k), got "
+                             f"{validation!r}")
+    for what, c in (("validation", val_cost), ("test", test)):
+        if c is not None:
+            if not isinstance(c, Cost):
+                raise HybridnavError(f"{what}: expected a Cost, got {type(c).__name__}")
+            c.check(settings)
+    for k, v, lo in (("chunk", chunk, 1), ("top", top, 1), ("patience", patience, 0)):
+        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+            raise HybridnavError(f"{k}: expected an integer >= {lo}, got {v!r}")
+    problem = Problem(settings.lower, settings.upper, settings.to_vector(), settings.repair,
+                      cost.n_objectives)
+    optimizer.setup(problem, seed)
+    run = _Run(settings, cost, optimizer, val_cost, stages, seed, backend or SerialBackend(),
+               chunk, top, patience, float(tolerance), None, progress)
+    run.config_hash = _config_hash({
+        "settings": settings.key(), "cost": cost.config(),
+        "validation": val_cost.config() if val_cost else None,
+        "kfold": len(stages) if len(stages) > 1 else 0, "optimizer": optimizer.config(),
+        "seed": seed, "top": top, "patience": patience, "tolerance": tolerance})
+    if checkpoint is not None:
+        run.dir = Path(checkpoint)
+        run.dir.mkdir(parents=True, exist_ok=True)
+        if resume:
+            run.restore(_load_checkpoint(run.dir / "checkpoint.json", run.config_hash))
+            log.info("resuming at stage %d, generation %d", run.stage, optimizer.generation)
+        else:
+            (run.dir / "evaluations.jsonl").unlink(missing_ok=True)
+    elif resume:
+        raise HybridnavError("resume: expected a checkpoint folder to resume from")
+    run.run(stop_after)
+    return _result(run, system, settings, select, name, judge, test, backend)
+
+
+def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bool,
+            test: Cost | None, backend) -> TuningResult:
+    opt = run.opt
+    cost = run.cost
+    X, F = opt.population()
+    members: list[Member] = []
+    selected_by = "training"
+    stage = run.stage
+    front = pd.DataFrame()
+    if run.mo:
+        nd = non_dominated(F)
+        fX, fF = X[nd], F[nd]
+        _, uniq = np.unique(fX, axis=0, return_index=True)
+        uniq = np.sort(uniq)
+        fX, fF = fX[uniq], fF[uniq]
+        front = pd.DataFrame(fF, columns=[f"objective_{i}" for i in range(fF.shape[1])])
+        if run.validation is not None:
+            ev = run.evaluate(run.validation, fX, Context(run.seed, "validation", 0))
+            for i in range(ev.objectives.shape[1]):
+                front[f"validation_{i}"] = ev.objectives[:, i]
+            front["validation_feasible"] = ev.feasible
+            selected_by = "validation"
+        pick = (select or select_member)(front)
+        chosen_x, best_gen = fX[pick], opt.generation - 1
+        for i, (x, f) in enumerate(zip(fX, fF)):
+            members.append(Member(settings.to_system(x, name=f"{start.name}-front-{i}"),
+                                  f, x, front.iloc[i].to_dict()))
+        front.insert(0, "member", range(len(front)))
+        front["returned"] = front.index == pick
+        chosen_F = fF[pick]
+    else:
+        if run.validation is not None and run.val.best is not None:
+            chosen, selected_by = run.val.best, "validation"
+        elif run.kfold and run.folds_done:
+            chosen, selected_by = run.folds_done[-1], f"fold {run.folds_done[-1]['fold']}"
+        else:
+            chosen = run.best_train
+        chosen_x = np.array(chosen["x"], dtype=float)
+        best_gen, stage = chosen["generation"], chosen.get("stage", stage)
+        chosen_F = np.array([chosen.get("train", chosen["score"])])
+        front = pd.DataFrame({"member": [0], "objective_0": chosen_F})
+        members = [Member(None, chosen_F, chosen_x, {})]
+    tuned_name = name or f"{start.name}-tuned"
+    description = (f"Tuned by hybridnav {__version__} from {start.name!r} ({cost.describe()}; "
+                   f"optimizer {opt.name}, seed {run.seed}): generation {best_gen}"
+                   + (f" of stage {stage}" if run.kfold else "")
+                   + f", chosen by its {selected_by} score.")
+    system = settings.to_system(chosen_x, name=tuned_name, description=description)
+    if not run.mo:
+        members[0].system = system
+    validation = pd.DataFrame([
+        {k: v for k, v in c.items() if k not in ("x", "details", "info", "objectives")}
+        | c.get("info", {}) for c in run.val.cache.values()])
+    vdetails = pd.DataFrame([dict(d, generation=c["generation"], score=c["score"])
+                             for c in run.val.cache.values() for d in c["details"]])
+    start_val = run.val.cache.get(_key(run.x0))
+    result = TuningResult(
+        system=system, start=start, settings=settings, x=chosen_x, x_start=run.x0,
+        objectives=np.asarray(chosen_F, dtype=float),
+        start_objectives=np.asarray(run.start_objectives, dtype=float),
+        objective_names=tuple(cost.objective_names), front=front, members=members,
+        logbook=pd.DataFrame(run.logbook), validation=validation,
+        validation_details=vdetails, records=pd.DataFrame(run.records),
+        selected_by=selected_by, best_generation=int(best_gen), best_stage=int(stage),
+        stopped=run.stopped if not run.kfold else None, folds=run.folds_done,
+        validation_score=(run.val.best or {}).get("score"),
+        start_validation_score=start_val["score"] if start_val else None,
+        optimizer=opt.config(), cost=cost.describe(), seed=run.seed,
+        wall_time=run.elapsed, evaluations=run.evaluations, config_hash=run.config_hash)
+    if judge:
+        systems = {"start": start, "tuned": system}
+        tables = []
+        for role, c in (("validation", run.validation), ("test", test)):
+            if c is None:
+                continue
+            kw = {"backend": backend} if "backend" in _params(c.judge) else {}
+            t = c.judge(systems, role, **kw)
+            tables.append(t)
+            result.verdicts[role] = c.verdict(t, role)
+        if tables:
+            result.heldout = pd.concat(tables, ignore_index=True)
+    return result
+
+
+def _params(fn) -> set[str]:
+    import inspect
+
+    return set(inspect.signature(fn).parameters)

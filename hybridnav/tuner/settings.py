@@ -1,0 +1,493 @@
+"""What of a fuzzy system a tuner may change: :class:`TunableSettings` (MATLAB's
+``getTunableSettings``).
+
+A :class:`TunableSettings` is built from a system. Per variable, term and membership-function
+parameter it says whether the number is free and within which bounds; per rule whether the rule may
+be switched off, whether its weight and its consequent are free. It maps a system to a bounded real
+vector (:meth:`~TunableSettings.to_vector`) and a vector back to a system
+(:meth:`~TunableSettings.to_system`), a whole population of vectors to the sampled tables one
+batched evaluation needs (:meth:`~TunableSettings.tables`), repairs invalid vectors
+(:meth:`~TunableSettings.repair`) and prints as a table.
+
+Genes, in this order:
+
+* ``mf``: each free parameter of each term of each variable (inputs in order, then the output).
+  Positions are bounded by the variable's range widened by ``margin`` times its width on each side
+  (or by the bounds given with :meth:`~TunableSettings.bound`) — a Z or S curve can then reach past
+  the range end, so that a rule can fire on the whole input range; widths and slopes (``gaussmf``
+  sigma, ``gbellmf`` a and b, ``sigmf`` slope) get their own positive bounds;
+* per rule, when free: ``switch`` (in [0, 1]; the rule is on when >= 0.5, and at least one rule
+  always stays on: the one with the largest gene), ``weight`` (in [0, 1]), ``consequent`` (in
+  [0, T), the output term ``floor(gene)``).
+
+Real-valued switches and consequents let the same real-coded operators act on every gene.
+:meth:`~TunableSettings.repair` clips to the bounds and keeps each term's parameters valid
+(``zmf``/``smf`` a < b, ``trimf`` a <= b <= c, ``trapmf`` a <= b <= c <= d).
+
+Settings are immutable: :meth:`~TunableSettings.free`, :meth:`~TunableSettings.fix`,
+:meth:`~TunableSettings.bound` and :meth:`~TunableSettings.rules` return new settings::
+
+    s = TunableSettings(fis).fix("tip").bound("service", 0, 12).rules(weights=True)
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hybridnav.errors import HybridnavError
+
+__all__ = ["Gene", "TunableSettings"]
+
+_ORDERED = ("zmf", "smf", "trimf", "trapmf")
+_RULE_KINDS = ("switch", "weight", "consequent")
+_PATH = re.compile(r"^(?P<var>[^.\[\]]+)(?:\.(?P<term>[^.\[\]]+))?(?:\[(?P<param>\d+)\])?$")
+
+
+@dataclass(frozen=True)
+class Gene:
+    """One free number: what it is, where it goes, its bounds."""
+
+    kind: str            # "mf", "switch", "weight", "consequent"
+    var: int             # variable index (inputs first, then the output) for "mf"; else -1
+    term: int            # term index for "mf"; rule index otherwise
+    param: int           # parameter index for "mf"; else -1
+    lower: float
+    upper: float
+    label: str
+
+
+class TunableSettings:
+    """The free numbers of a fuzzy system and their bounds.
+
+    Parameters
+    ----------
+    system : FuzzySystem
+        The system to tune (the template: its structure is kept, its numbers are the start).
+    mf : bool or iterable of str, optional
+        Which membership-function parameters are free: True (default) every parameter of every
+        variable, False none, or paths ``"var"``, ``"var.term"`` or ``"var.term[i]"``.
+    rule_switches, rule_weights, rule_consequents : bool, optional
+        Whether every rule may be switched off, whether the rule weights and the rules' output
+        terms are free (default: none of them).
+    margin : float, optional
+        Term positions may pass a variable's range ends by this times its width (default 0.25).
+    bounds : mapping of str to (lo, hi), optional
+        Per variable name, the bounds of its term positions (replaces range and margin).
+
+    Attributes
+    ----------
+    template : FuzzySystem
+    genes : list of Gene
+    lower, upper : ndarray
+        The bounds of the vector.
+    labels : list of str
+        Per gene ``var.term.mf[i]``, ``rule3.on``, ``rule3.weight`` or ``rule3.then``.
+
+    Examples
+    --------
+    >>> from hybridnav import fuzzy
+    >>> s = TunableSettings(fuzzy.builtin("effc-2rule"), mf=["alpha"], rule_weights=True)
+    >>> s.size
+    6
+    >>> s.to_system(s.to_vector()) == s.to_system(s.to_vector())
+    True
+    """
+
+    def __init__(self, system, *, mf: bool | Iterable[str] = True, rule_switches: bool = False,
+                 rule_weights: bool = False, rule_consequents: bool = False,
+                 margin: float = 0.25, bounds: Mapping[str, Sequence[float]] | None = None
+                 ) -> None:
+        from hybridnav.fuzzy import FuzzySystem
+
+        if not isinstance(system, FuzzySystem):
+            raise HybridnavError(f"system: expected a FuzzySystem, got {type(system).__name__}")
+        self.template = system
+        self.variables = list(system.inputs) + [system.output]
+        self._names = [v.name for v in self.variables]
+        if not (isinstance(margin, (int, float)) and not isinstance(margin, bool)
+                and math.isfinite(margin) and margin >= 0):
+            raise HybridnavError(f"margin: expected a non-negative number, got {margin!r}")
+        self.margin = float(margin)
+        self._free: set[tuple[int, int, int]] = set()
+        self._bounds: dict[int, tuple[float, float]] = {}
+        n_rules = len(system.rules)
+        self._rule = {k: [False] * n_rules for k in _RULE_KINDS}
+        if mf is True:
+            self._free = set(self._mf_paths(None))
+        elif mf is not False:
+            if isinstance(mf, str):
+                mf = [mf]
+            for path in mf:
+                self._free |= set(self._mf_paths(path))
+        for kind, on in zip(_RULE_KINDS, (rule_switches, rule_weights, rule_consequents)):
+            if not isinstance(on, bool):
+                raise HybridnavError(f"rule_{kind}s: expected true or false, got {on!r}")
+            self._rule[kind] = [on] * n_rules
+        for name, b in (bounds or {}).items():
+            self._set_bounds(name, b)
+        self._build()
+
+    # ---- construction --------------------------------------------------------------------
+
+    @classmethod
+    def from_table(cls, system, table: Mapping[str, Any], where: str = "") -> TunableSettings:
+        """Settings from a job file's ``[settings]`` (or old ``[free]``) table.
+
+        Keys: ``mf`` (variable, term or parameter paths that are free; the old name) or
+        ``free``, ``fixed`` (paths fixed again), ``rule_switches``, ``rule_weights``,
+        ``rule_consequents``, ``margin``, ``bounds`` (``{var = [lo, hi]}``).
+        """
+        t = dict(table)
+        free = t.get("free", t.get("mf", True))
+        try:
+            s = cls(system, mf=free, rule_switches=t.get("rule_switches", False),
+                    rule_weights=t.get("rule_weights", False),
+                    rule_consequents=t.get("rule_consequents", False),
+                    margin=t.get("margin", 0.25), bounds=t.get("bounds") or {})
+            for path in t.get("fixed", []):
+                s = s.fix(path)
+        except HybridnavError as exc:
+            raise HybridnavError(f"{where}{exc}") from None
+        return s
+
+    def _copy(self) -> TunableSettings:
+        new = copy.copy(self)
+        new._free = set(self._free)
+        new._bounds = dict(self._bounds)
+        new._rule = {k: list(v) for k, v in self._rule.items()}
+        return new
+
+    def _mf_paths(self, path: str | None) -> list[tuple[int, int, int]]:
+        """The (var, term, param) triples a path names (None: all)."""
+        if path is None:
+            return [(vi, ti, pi) for vi, v in enumerate(self.variables)
+                    for ti, t in enumerate(v.terms) for pi in range(len(t.params))]
+        m = _PATH.match(path) if isinstance(path, str) else None
+        if m is None or m["var"] not in self._names:
+            raise HybridnavError(f"{path!r}: expected a variable of {self.template.name!r} "
+                                 f"({', '.join(self._names)}), optionally .term and [index]")
+        vi = self._names.index(m["var"])
+        v = self.variables[vi]
+        terms = list(range(len(v.terms)))
+        if m["term"] is not None:
+            if m["term"] not in v.term_names():
+                raise HybridnavError(f"{path!r}: {v.name} has no term {m['term']!r} (terms: "
+                                     f"{', '.join(v.term_names())})")
+            terms = [v.term_names().index(m["term"])]
+        out = []
+        for ti in terms:
+            n = len(v.terms[ti].params)
+            params = range(n)
+            if m["param"] is not None:
+                if m["term"] is None or int(m["param"]) >= n:
+                    raise HybridnavError(f"{path!r}: a parameter index needs a term and must be "
+                                         f"below its number of parameters ({n})")
+                params = [int(m["param"])]
+            out += [(vi, ti, pi) for pi in params]
+        return out
+
+    def _set_bounds(self, name: str, b: Any) -> None:
+        if name not in self._names:
+            raise HybridnavError(f"bounds.{name}: not a variable of {self.template.name!r} "
+                                 f"({', '.join(self._names)})")
+        ok = (isinstance(b, (list, tuple)) and len(b) == 2
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in b))
+        if ok:
+            try:
+                lo, hi = float(b[0]), float(b[1])
+            except OverflowError:
+                ok = False
+            else:
+                ok = math.isfinite(lo) and math.isfinite(hi) and lo < hi
+        if not ok:
+            raise HybridnavError(f"bounds.{name}: expected [lo, hi] with finite lo < hi, got "
+                                 f"{b!r}")
+        self._bounds[self._names.index(name)] = (lo, hi)
+
+    def free(self, *paths: str) -> TunableSettings:
+        """New settings with the parameters of ``paths`` (``var``, ``var.term``,
+        ``var.term[i]``) free."""
+        new = self._copy()
+        for p in paths:
+            new._free |= set(new._mf_paths(p))
+        new._build()
+        return new
+
+    def fix(self, *paths: str) -> TunableSettings:
+        """New settings with the parameters of ``paths`` fixed at the template's values."""
+        new = self._copy()
+        for p in paths:
+            new._free -= set(new._mf_paths(p))
+        new._build()
+        return new
+
+    def bound(self, variable: str, lo: float, hi: float) -> TunableSettings:
+        """New settings whose term positions of ``variable`` lie in ``[lo, hi]``."""
+        new = self._copy()
+        new._set_bounds(variable, [lo, hi])
+        new._build()
+        return new
+
+    def rules(self, *, switches: bool | None = None, weights: bool | None = None,
+              consequents: bool | None = None, which: Iterable[int] | None = None
+              ) -> TunableSettings:
+        """New settings in which the rules ``which`` (0-based; default all) may be switched off
+        (``switches``), and have free weights / consequents; None leaves a setting as it is."""
+        new = self._copy()
+        n = len(self.template.rules)
+        idx = range(n) if which is None else list(which)
+        for i in idx:
+            if not (isinstance(i, int) and 0 <= i < n):
+                raise HybridnavError(f"which: expected rule indices in [0, {n - 1}], got {i!r}")
+        for kind, on in zip(_RULE_KINDS, (switches, weights, consequents)):
+            if on is None:
+                continue
+            for i in idx:
+                new._rule[kind][i] = bool(on)
+        new._build()
+        return new
+
+    def _build(self) -> None:
+        genes: list[Gene] = []
+        for vi, v in enumerate(self.variables):
+            if vi in self._bounds:
+                lo, hi = self._bounds[vi]
+            else:
+                pad = self.margin * (v.range[1] - v.range[0])
+                lo, hi = v.range[0] - pad, v.range[1] + pad
+            width = hi - lo
+            for ti, t in enumerate(v.terms):
+                for pi, _ in enumerate(t.params):
+                    if (vi, ti, pi) not in self._free:
+                        continue
+                    b = _param_bounds(t.mf, pi, lo, hi, width)
+                    genes.append(Gene("mf", vi, ti, pi, b[0], b[1],
+                                      f"{v.name}.{t.name}.{t.mf}[{pi}]"))
+        n_terms = len(self.template.output.terms)
+        for ri, _ in enumerate(self.template.rules):
+            if self._rule["switch"][ri]:
+                genes.append(Gene("switch", -1, ri, -1, 0.0, 1.0, f"rule{ri + 1}.on"))
+            if self._rule["weight"][ri]:
+                genes.append(Gene("weight", -1, ri, -1, 0.0, 1.0, f"rule{ri + 1}.weight"))
+            if self._rule["consequent"][ri]:
+                genes.append(Gene("consequent", -1, ri, -1, 0.0, n_terms - 1e-9,
+                                  f"rule{ri + 1}.then"))
+        self.genes = genes
+        self.lower = np.array([g.lower for g in genes], dtype=float)
+        self.upper = np.array([g.upper for g in genes], dtype=float)
+        self.labels = [g.label for g in genes]
+        self._out_index = {t.name: j for j, t in enumerate(self.template.output.terms)}
+        groups: dict[tuple[int, int], list[int]] = {}
+        for k, g in enumerate(genes):
+            if g.kind == "mf":
+                groups.setdefault((g.var, g.term), []).append(k)
+        self._groups = groups
+        self._switch_cols = [k for k, g in enumerate(genes) if g.kind == "switch"]
+        self._family = None
+
+    # ---- views ----------------------------------------------------------------------------
+
+    @property
+    def size(self) -> int:
+        """The number of free numbers (the vector's length)."""
+        return len(self.genes)
+
+    def key(self) -> dict[str, Any]:
+        """Everything that determines the vector space (for configuration hashes)."""
+        return {"system": self.template.to_dict(), "labels": self.labels,
+                "lower": self.lower.tolist(), "upper": self.upper.tolist()}
+
+    def table(self):
+        """One row per gene: label, kind, lower and upper bound, and the template's value.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        import pandas as pd
+
+        x0 = self.to_vector()
+        return pd.DataFrame({"gene": self.labels, "kind": [g.kind for g in self.genes],
+                             "lower": self.lower, "upper": self.upper, "start": x0})
+
+    def __str__(self) -> str:
+        head = (f"TunableSettings of {self.template.name!r}: {self.size} free numbers "
+                f"({sum(g.kind == 'mf' for g in self.genes)} MF parameters, "
+                f"{sum(g.kind != 'mf' for g in self.genes)} rule genes)")
+        return head + ("\n" + self.table().to_string(index=False) if self.size else "")
+
+    def __repr__(self) -> str:
+        return (f"<TunableSettings of {self.template.name!r}: {self.size} free numbers>")
+
+    def __getstate__(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d["_family"] = None                    # rebuilt where it is used
+        return d
+
+    # ---- encode / repair / decode -----------------------------------------------------------
+
+    def to_vector(self, system=None) -> np.ndarray:
+        """The vector of ``system`` (default: the template), clipped to the bounds and repaired.
+
+        ``system`` must be shaped like the template (same variables, terms and rules).
+        """
+        s = system or self.template
+        variables = list(s.inputs) + [s.output]
+        x = np.empty(self.size)
+        for k, g in enumerate(self.genes):
+            if g.kind == "mf":
+                x[k] = variables[g.var].terms[g.term].params[g.param]
+            elif g.kind == "switch":
+                x[k] = 1.0
+            elif g.kind == "weight":
+                x[k] = s.rules[g.term].weight
+            else:
+                x[k] = self._out_index[s.rules[g.term].then] + 0.5
+        return self.repair(x[None])[0]
+
+    def _matrix(self, X) -> np.ndarray:
+        X = np.array(X, dtype=float, ndmin=2)
+        if X.ndim != 2 or X.shape[1] != self.size:
+            raise HybridnavError(f"X: expected vectors of {self.size} numbers (shape (n, "
+                                 f"{self.size})), got shape {X.shape}")
+        return X
+
+    def random(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` vectors drawn uniformly within the bounds, repaired."""
+        return self.repair(self.lower + (self.upper - self.lower) * rng.random((n, self.size)))
+
+    def repair(self, X: np.ndarray) -> np.ndarray:
+        """Clip to the bounds and restore each term's parameter order (rows of ``X``)."""
+        X = np.clip(self._matrix(X), self.lower, self.upper)
+        for (vi, ti), cols in self._groups.items():
+            mf = self.variables[vi].terms[ti].mf
+            if mf not in _ORDERED:
+                continue
+            full = len(self.variables[vi].terms[ti].params)
+            if len(cols) < full:               # some fixed: keep the order with the fixed ones
+                X[:, cols] = self._order_partial(X[:, cols], vi, ti, cols)
+                continue
+            X[:, cols] = np.sort(X[:, cols], axis=1)
+            if mf in ("zmf", "smf"):            # strictly a < b
+                a, b = cols
+                width = self.upper[b] - self.lower[a]
+                eps = 1e-6 * width
+                tight = X[:, b] - X[:, a] < eps
+                X[tight, b] = np.minimum(X[tight, a] + eps, self.upper[b])
+                X[tight, a] = X[tight, b] - eps
+        return X
+
+    def _order_partial(self, Xc: np.ndarray, vi: int, ti: int, cols: list[int]) -> np.ndarray:
+        """Keep a term's free parameters between its fixed neighbours."""
+        fixed = list(self.variables[vi].terms[ti].params)
+        pis = [self.genes[c].param for c in cols]
+        out = Xc.copy()
+        for j, pi in enumerate(pis):
+            lo = max([fixed[p] for p in range(pi) if p not in pis], default=-np.inf)
+            hi = min([fixed[p] for p in range(pi + 1, len(fixed)) if p not in pis],
+                     default=np.inf)
+            out[:, j] = np.clip(out[:, j], lo, hi)
+        return np.sort(out, axis=1)
+
+    def arrays(self, X: np.ndarray):
+        """Per member: input MF parameters, output MF parameters, rule weights, consequents and
+        switches (what :meth:`hybridnav.fuzzy.family.SystemFamily.tables` takes)."""
+        X = self._matrix(X)
+        K = len(X)
+        base = [[list(t.params) for t in v.terms] for v in self.variables]
+        params = [[[list(p) for p in v] for v in base] for _ in range(K)]
+        weights = np.tile([r.weight for r in self.template.rules], (K, 1)).astype(float)
+        cons = np.tile([self._out_index[r.then] for r in self.template.rules], (K, 1))
+        switches = np.ones_like(weights, dtype=bool)
+        n_terms = len(self.template.output.terms)
+        for k, g in enumerate(self.genes):
+            col = X[:, k]
+            if g.kind == "mf":
+                for m in range(K):
+                    params[m][g.var][g.term][g.param] = float(col[m])
+            elif g.kind == "switch":
+                switches[:, g.term] = col >= 0.5
+            elif g.kind == "weight":
+                weights[:, g.term] = col
+            else:
+                cons[:, g.term] = np.clip(col.astype(int), 0, n_terms - 1)
+        if self._switch_cols:                  # at least one rule on: the largest switch gene
+            none = ~switches.any(axis=1)
+            if none.any():
+                best = np.argmax(X[np.ix_(none, self._switch_cols)], axis=1)
+                rules = [self.genes[self._switch_cols[b]].term for b in best]
+                switches[np.flatnonzero(none), rules] = True
+        weights = np.where(switches, weights, 0.0)
+        n_in = len(self.template.inputs)
+        return ([p[:n_in] for p in params], [p[n_in] for p in params], weights, cons, switches)
+
+    @property
+    def family(self):
+        """The :class:`~hybridnav.fuzzy.family.SystemFamily` of the template (built once)."""
+        if self._family is None:
+            from hybridnav.fuzzy.family import SystemFamily
+
+            self._family = SystemFamily(self.template)
+        return self._family
+
+    def tables(self, X: np.ndarray):
+        """The sampled tables of every row of ``X``, for one batched
+        :meth:`~hybridnav.fuzzy.family.SystemFamily.evaluate` of the whole population."""
+        inp, out, weights, cons, _ = self.arrays(X)
+        return self.family.tables(inp, out, weights, cons)
+
+    def to_system(self, x: np.ndarray, name: str | None = None,
+                  description: str | None = None):
+        """The fuzzy system of one vector (switched-off rules removed)."""
+        x = np.asarray(x, dtype=float)
+        if x.size != self.size:
+            raise HybridnavError(f"x: expected a vector of {self.size} numbers, got shape "
+                                 f"{x.shape}")
+        inp, out, weights, cons, switches = self.arrays(x.reshape(1, -1))
+        d = copy.deepcopy(self.template.to_dict())
+        if name:
+            d["name"] = name
+        if description is not None:
+            d["description"] = description
+        for vi, v in enumerate(d["inputs"]):
+            for ti, t in enumerate(v["terms"]):
+                t["params"] = [float(p) for p in inp[0][vi][ti]]
+        for ti, t in enumerate(d["output"]["terms"]):
+            t["params"] = [float(p) for p in out[0][ti]]
+        terms = [t["name"] for t in d["output"]["terms"]]
+        rules = []
+        for ri, r in enumerate(d["rules"]):
+            if not switches[0, ri]:
+                continue
+            r = dict(r)
+            r["then"] = terms[int(cons[0, ri])]
+            r["weight"] = float(weights[0, ri])
+            rules.append(r)
+        d["rules"] = rules
+        from hybridnav.fuzzy import FuzzySystem
+
+        return FuzzySystem.from_dict(d)
+
+    def systems(self, X: np.ndarray) -> list:
+        """:meth:`to_system` of every row of ``X``."""
+        return [self.to_system(x) for x in np.array(X, dtype=float, ndmin=2)]
+
+
+def _param_bounds(mf: str, index: int, lo: float, hi: float, width: float) -> tuple[float, float]:
+    """Bounds of one MF parameter: positions within [lo, hi], widths and slopes positive."""
+    if mf == "gaussmf" and index == 1:
+        return 1e-3 * width, width
+    if mf == "gbellmf" and index == 0:
+        return 1e-3 * width, width
+    if mf == "gbellmf" and index == 1:
+        return 0.1, 10.0
+    if mf == "sigmf" and index == 1:
+        return -50.0 / width, 50.0 / width
+    return lo, hi
