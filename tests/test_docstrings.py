@@ -170,6 +170,10 @@ def _kwargs_calls():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
     for name, cls in planners.PLANNERS.items():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
+    from hybridnav.tuner.optimizers import OPTIMIZERS
+
+    for name, cls in OPTIMIZERS.items():
+        calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
     return calls
 
 
@@ -179,6 +183,8 @@ EXEMPT = {
     "hybridnav.planners.field.base.FieldPlanner.trace": "signal names are free",
     "hybridnav.models.base.Model": "abstract; every registered model is called above",
     "hybridnav.planners.base.Planner": "abstract; every registered planner is called above",
+    "hybridnav.tuner.optimizers.base.Optimizer": "abstract; every registered optimizer is "
+                                                 "called above",
 }
 if not _CC:
     EXEMPT.update(dict.fromkeys(("hybridnav.fuzzy.export.sil.CompiledFIS.evaluate",

@@ -175,16 +175,18 @@ class Job:
 
     def resolve(self, spec: str) -> str:
         """A file reference relative to the job file (built-in names are left alone)."""
-        if spec.endswith((".json", ".toml")) or "/" in spec or os.sep in spec:
+        if spec.endswith((".json", ".toml", ".fis", ".fll", ".csv")) or "/" in spec \
+                or os.sep in spec:
             p = Path(spec)
             return str(p if p.is_absolute() else self.base / p)
         return spec
 
     def start_system(self):
-        """The starting fuzzy system."""
+        """The starting fuzzy system (a built-in name, or a ``.json``, ``.fll`` or MATLAB
+        ``.fis`` file)."""
         from hybridnav import fuzzy
 
-        return fuzzy.load(self.resolve(self.data["system"]["start"]))
+        return fuzzy.load_any(self.resolve(self.data["system"]["start"]))
 
     def scenarios(self, which: str = "train") -> list:
         """The scenarios of a set (``train``, ``validation`` or ``test``), loaded or generated."""
@@ -333,9 +335,10 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
         return HybridnavError(f"{where}{key}: {msg}")
 
     data = copy.deepcopy(DEFAULT_JOB)
-    unknown = sorted(set(raw) - set(data))
+    allowed = set(data) | set(_OPTIONAL)
+    unknown = sorted(set(raw) - allowed)
     if unknown:
-        raise fail(unknown[0], f"unknown key; expected one of: {', '.join(sorted(data))}")
+        raise fail(unknown[0], f"unknown key; expected one of: {', '.join(sorted(allowed))}")
     for key in ("name",):
         if key in raw:
             if not isinstance(raw[key], str) or not raw[key].strip():
@@ -389,9 +392,21 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                                      "repeat is identical)")
     job = Job(data, source, base)
     try:
-        job.start_system()
+        system = job.start_system()
     except HybridnavError as exc:
         raise fail("system.start", str(exc)) from None
+    if data["cost"]["kind"] == "navigation":     # the planner's inputs first: the clearest error
+        from hybridnav import planners
+
+        cls = planners.PLANNERS.get(data["cost"]["planner"])
+        wanted = getattr(cls, "fuzzy_inputs", None)
+        if wanted is None:
+            raise fail("cost.planner", "expected a planner that takes a fuzzy system (effc), "
+                                       f"got {data['cost']['planner']!r}")
+        if set(system.input_names) != set(wanted):
+            raise fail("system.start", f"the {data['cost']['planner']} planner provides the "
+                                       f"fuzzy inputs {', '.join(wanted)}; {system.name!r} has "
+                                       f"{', '.join(system.input_names)}")
     try:
         settings = job.tunable()
     except HybridnavError as exc:

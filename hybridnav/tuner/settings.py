@@ -47,7 +47,8 @@ __all__ = ["Gene", "TunableSettings"]
 
 _ORDERED = ("zmf", "smf", "trimf", "trapmf")
 _RULE_KINDS = ("switch", "weight", "consequent")
-_PATH = re.compile(r"^(?P<var>[^.\[\]]+)(?:\.(?P<term>[^.\[\]]+))?(?:\[(?P<param>\d+)\])?$")
+_PATH = re.compile(r"^(?P<var>[^.\[\]]+)(?:\.(?P<term>[^.\[\]]+)(?:\.(?P<mf>[^.\[\]]+))?)?"
+                   r"(?:\[(?P<param>\d+)\])?$")
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,8 @@ class TunableSettings:
         The system to tune (the template: its structure is kept, its numbers are the start).
     mf : bool or iterable of str, optional
         Which membership-function parameters are free: True (default) every parameter of every
-        variable, False none, or paths ``"var"``, ``"var.term"`` or ``"var.term[i]"``.
+        variable, False none, or paths ``"var"``, ``"var.term"`` or ``"var.term[i]"`` (also
+        ``"var.term.mf[i]"``, as the table's labels write them).
     rule_switches, rule_weights, rule_consequents : bool, optional
         Whether every rule may be switched off, whether the rule weights and the rules' output
         terms are free (default: none of them).
@@ -181,6 +183,9 @@ class TunableSettings:
                 raise HybridnavError(f"{path!r}: {v.name} has no term {m['term']!r} (terms: "
                                      f"{', '.join(v.term_names())})")
             terms = [v.term_names().index(m["term"])]
+            if m["mf"] is not None and m["mf"] != v.terms[terms[0]].mf:
+                raise HybridnavError(f"{path!r}: {v.name}.{m['term']} is a "
+                                     f"{v.terms[terms[0]].mf}, not a {m['mf']}")
         out = []
         for ti in terms:
             n = len(v.terms[ti].params)
@@ -324,7 +329,8 @@ class TunableSettings:
         return head + ("\n" + self.table().to_string(index=False) if self.size else "")
 
     def __repr__(self) -> str:
-        return (f"<TunableSettings of {self.template.name!r}: {self.size} free numbers>")
+        return (f"<TunableSettings of {self.template.name!r}: "
+                f"{len(getattr(self, 'genes', []))} free numbers>")
 
     def __getstate__(self) -> dict[str, Any]:
         d = dict(self.__dict__)
@@ -386,12 +392,16 @@ class TunableSettings:
 
     def _order_partial(self, Xc: np.ndarray, vi: int, ti: int, cols: list[int]) -> np.ndarray:
         """Keep a term's free parameters between its fixed neighbours."""
-        fixed = list(self.variables[vi].terms[ti].params)
+        term = self.variables[vi].terms[ti]
+        fixed = list(term.params)
         pis = [self.genes[c].param for c in cols]
+        # zmf/smf need a < b strictly: keep a small gap from a fixed neighbour
+        gap = 1e-6 * (self.upper[cols[0]] - self.lower[cols[0]]) \
+            if term.mf in ("zmf", "smf") else 0.0
         out = Xc.copy()
         for j, pi in enumerate(pis):
-            lo = max([fixed[p] for p in range(pi) if p not in pis], default=-np.inf)
-            hi = min([fixed[p] for p in range(pi + 1, len(fixed)) if p not in pis],
+            lo = max([fixed[p] + gap for p in range(pi) if p not in pis], default=-np.inf)
+            hi = min([fixed[p] - gap for p in range(pi + 1, len(fixed)) if p not in pis],
                      default=np.inf)
             out[:, j] = np.clip(out[:, j], lo, hi)
         return np.sort(out, axis=1)

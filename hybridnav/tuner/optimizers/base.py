@@ -156,16 +156,19 @@ def rng_state(rng: np.random.Generator) -> dict[str, Any]:
 
 
 def set_rng_state(state: dict[str, Any]) -> np.random.Generator:
+    """A NumPy generator in the state :func:`rng_state` returned."""
     rng = np.random.default_rng()
     rng.bit_generator.state = state
     return rng
 
 
 def random_state(rnd: random.Random) -> list:
+    """A ``random.Random``'s state, JSON-ready."""
     return list(rnd.getstate())
 
 
 def set_random_state(state) -> random.Random:
+    """A ``random.Random`` in the state :func:`random_state` returned."""
     def tup(o):
         return tuple(tup(v) for v in o) if isinstance(o, list) else o
 
@@ -174,5 +177,3 @@ def set_random_state(state) -> random.Random:
     return rnd
 
 
-def matrix(X) -> list[list[float]]:
-    return np.asarray(X, dtype=float).tolist()

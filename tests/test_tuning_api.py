@@ -1,0 +1,359 @@
+"""The general tuner: any fuzzy system, any cost (data, navigation, a user's function), any
+optimizer (GA, CMA-ES, PSO, NSGA-II), through ``tune(system, cost, ...)`` and job files."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hybridnav import HybridnavError, fuzzy
+from hybridnav.backends import DaskBackend, ProcessBackend
+from hybridnav.fuzzy.export._common import normalize
+from hybridnav.tuner import (
+    CMAES,
+    GA,
+    NSGA2,
+    PSO,
+    DataCost,
+    FunctionCost,
+    KFold,
+    NavigationCost,
+    TunableSettings,
+    TuningResult,
+    load_job,
+    tune,
+)
+from hybridnav.tuner.optimizers import non_dominated
+
+TIPPER = """[System]
+Name='tipper'
+Type='mamdani'
+Version=2.0
+NumInputs=2
+NumOutputs=1
+NumRules=3
+AndMethod='min'
+OrMethod='max'
+ImpMethod='min'
+AggMethod='max'
+DefuzzMethod='centroid'
+
+[Input1]
+Name='service'
+Range=[0 10]
+NumMFs=3
+MF1='poor':'gaussmf',[1.5 0]
+MF2='good':'gaussmf',[1.5 5]
+MF3='excellent':'gaussmf',[1.5 10]
+
+[Input2]
+Name='food'
+Range=[0 10]
+NumMFs=2
+MF1='rancid':'trapmf',[0 0 1 3]
+MF2='delicious':'trapmf',[7 9 10 10]
+
+[Output1]
+Name='tip'
+Range=[0 30]
+NumMFs=3
+MF1='cheap':'trimf',[0 5 10]
+MF2='average':'trimf',[10 15 20]
+MF3='generous':'trimf',[20 25 30]
+
+[Rules]
+1 1, 1 (1) : 2
+2 0, 2 (1) : 1
+3 2, 3 (1) : 2
+"""
+
+
+def perturbed(system, frac, rng):
+    """``system`` with every MF parameter moved by up to ``frac`` of its variable's range."""
+    d = system.to_dict()
+    for v in d["inputs"] + [d["output"]]:
+        w = v["range"][1] - v["range"][0]
+        for t in v["terms"]:
+            p = np.array(t["params"]) + rng.uniform(-frac, frac, len(t["params"])) * w
+            if t["mf"] in ("trimf", "trapmf", "zmf", "smf"):
+                p = np.sort(p)
+            if t["mf"] == "gaussmf":
+                p[1] = abs(p[1]) + 0.05 * w
+            t["params"] = p.tolist()
+    return fuzzy.FuzzySystem.from_dict(d)
+
+
+def samples(system, n, seed):
+    rng = np.random.default_rng(seed)
+    X = np.column_stack([rng.uniform(*v.range, n) for v in system.inputs])
+    y = system.evaluate(**{v.name: X[:, i] for i, v in enumerate(system.inputs)})
+    return X, y
+
+
+@pytest.fixture(scope="module")
+def target():
+    return fuzzy.builtin("effc-5rule")
+
+
+def test_data_tuning_recovers_a_known_system_on_held_out_samples(target):
+    """500 samples of a known system; the start has every MF parameter perturbed; the tuned
+    system's RMSE on 2,000 other samples is below 1 % of the output range."""
+    start = perturbed(target, 0.08, np.random.default_rng(1))
+    X, y = samples(target, 500, 2)
+    Xt, yt = samples(target, 2000, 3)
+    test = DataCost(Xt, yt)
+    res = tune(start, DataCost(X, y), optimizer=PSO(), validation=0.2, test=test, seed=3)
+    assert isinstance(res, TuningResult) and res.selected_by == "validation"
+    width = target.output.range[1] - target.output.range[0]
+    err = test.judge({"tuned": res.system, "start": start})
+    rmse = dict(zip(err.system, err.objective_0))
+    assert rmse["start"] > 0.05 * width                 # the start is far off
+    assert rmse["tuned"] < 0.01 * width                  # the acceptance bound
+    # the judged table and verdict in the result are the same numbers
+    held = res.heldout[res.heldout.set == "test"].set_index("system")
+    assert held.loc["tuned", "objective_0"] == pytest.approx(rmse["tuned"], rel=1e-12)
+    assert res.verdicts["test"]["better"]
+    # the logbook's best never gets worse for an elitist search and matches the records
+    assert list(res.logbook.columns[:3]) == ["gen", "evals", "min"]
+    assert res.evaluations == int(res.logbook.evals.sum())
+
+
+def test_tipper_fis_round_trip_through_data_tuning(tmp_path):
+    """A MATLAB .fis read, tuned on data, written as .fis and read back equals the tuned
+    system."""
+    tipper = fuzzy.read_fis(TIPPER, "tipper.fis")
+    rng = np.random.default_rng(5)
+    X, y = samples(perturbed(tipper, 0.05, rng), 300, 6)
+    settings = TunableSettings(tipper).fix("tip")          # tune the inputs' terms only
+    assert settings.size == 3 * 2 + 2 * 4
+    res = tune(tipper, DataCost(pd.DataFrame({"food": X[:, 1], "service": X[:, 0]}), y),
+               settings=settings, optimizer=CMAES(generations=30), seed=2)
+    assert res.objectives[0] < res.start_objectives[0]
+    for t0, t1 in zip(tipper.output.terms, res.system.output.terms):
+        assert t0.params == t1.params                       # fixed stays fixed
+    path = tmp_path / "tuned.fis"
+    fuzzy.export_to_file(res.system, "fis", path)
+    back = fuzzy.load_any(str(path))
+    assert back == normalize(res.system, flat=True)
+    Xg, _ = samples(tipper, 200, 9)
+    a = back.evaluate(service=Xg[:, 0], food=Xg[:, 1])
+    b = res.system.evaluate(service=Xg[:, 0], food=Xg[:, 1])
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("optimizer, tol", [
+    (GA(population=30, generations=40), 2e-3),
+    (CMAES(generations=60), 1e-4),
+    (PSO(n=20, generations=60), 1e-4),
+])
+def test_each_optimizer_reaches_a_known_optimum(target, optimizer, tol):
+    """Two free numbers (effc-5rule's dtheta term 'high' moved off): the optimum is the target's
+    own parameters, RMSE 0."""
+    d = target.to_dict()
+    d["inputs"][0]["terms"][1]["params"] = [0.6, 1.5]
+    start = fuzzy.FuzzySystem.from_dict(d)
+    settings = TunableSettings(start, mf=["dtheta.high"])
+    X, y = samples(target, 200, 4)
+    res = tune(start, DataCost(X, y), settings=settings, optimizer=optimizer, seed=1,
+               patience=0)
+    assert res.start_objectives[0] > 0.02 and res.objectives[0] < tol
+    assert np.all((settings.lower <= res.x) & (res.x <= settings.upper))
+
+
+def _two_objectives(candidates, context):
+    """(a, (1 - a)^2) of the first free number a: the front is a in [0, 1]."""
+    a = candidates.X[:, 0]
+    return np.column_stack([a, (1.0 - a) ** 2])
+
+
+def test_nsga2_front_is_non_dominated_and_covers_the_trade_off(target):
+    settings = TunableSettings(target, mf=["w.high.smf[1]"])      # b of smf(0.3, b)
+    cost = FunctionCost(_two_objectives, batch=True, objectives=["a", "b"])
+    res = tune(target, cost, settings=settings, optimizer=NSGA2(population=40, generations=30),
+               seed=2)
+    F = res.front[["objective_0", "objective_1"]].to_numpy()
+    assert non_dominated(F).all() and len(F) >= 10
+    a = F[:, 0]
+    assert a.min() < 0.35 and a.max() > 0.95              # the whole trade-off b in (0.3, 1]
+    np.testing.assert_allclose(F[:, 1], (1 - a) ** 2, atol=1e-12)
+    assert res.front.returned.sum() == 1 and len(res.members) == len(F)
+    for m, row in zip(res.members, F):
+        assert m.system.output.terms[1].params[1] == pytest.approx(row[0], abs=1e-12)
+
+
+def test_results_do_not_depend_on_the_backend_and_resume_exactly(tmp_path, target):
+    start = perturbed(target, 0.05, np.random.default_rng(7))
+    X, y = samples(target, 200, 8)
+    cost = DataCost(X, y)
+    kw = dict(optimizer=CMAES(generations=6), validation=KFold(2), seed=4, chunk=3)
+    serial = tune(start, cost, **kw)
+    with ProcessBackend(2) as be:
+        par = tune(start, cost, backend=be, **kw)
+    assert np.array_equal(par.x, serial.x)
+    pd.testing.assert_frame_equal(par.logbook.drop(columns="wall_time"),
+                                  serial.logbook.drop(columns="wall_time"))
+    tune(start, cost, checkpoint=tmp_path, stop_after=9, **kw)      # inside stage 1
+    resumed = tune(start, cost, checkpoint=tmp_path, resume=True, **kw)
+    assert np.array_equal(resumed.x, serial.x)
+    pd.testing.assert_frame_equal(resumed.logbook.drop(columns="wall_time"),
+                                  serial.logbook.drop(columns="wall_time"))
+    pd.testing.assert_frame_equal(resumed.records, serial.records)
+    with pytest.raises(HybridnavError, match="different configuration"):
+        tune(start, cost, checkpoint=tmp_path, resume=True, **{**kw, "seed": 5})
+
+
+MODULE = '''
+import numpy as np
+
+def cost(system):
+    """Squared distance of the output at three points from 0.25."""
+    w = system.evaluate(dtheta=[0.1, 0.8, 1.4], alpha=[0.1, 1.0, 1.9])
+    return float(np.sum((w - 0.25) ** 2))
+'''
+
+
+@pytest.mark.slow
+def test_function_cost_from_a_module_runs_on_local_workers_and_dask(tmp_path, target):
+    (tmp_path / "mycost.py").write_text(MODULE)
+    cost = FunctionCost("mycost:cost", path=tmp_path)
+    kw = dict(optimizer=PSO(n=8, generations=3), seed=6, chunk=3)
+    serial = tune(target, cost, **kw)
+    assert serial.objectives[0] < serial.start_objectives[0]
+    with ProcessBackend(2) as be:
+        par = tune(target, cost, backend=be, **kw)
+    with DaskBackend("", workers=2) as be:
+        dask = tune(target, cost, backend=be, **kw)
+    assert np.array_equal(par.x, serial.x) and np.array_equal(dask.x, serial.x)
+
+
+def test_navigation_cost_needs_the_planners_inputs():
+    tipper = fuzzy.read_fis(TIPPER, "tipper.fis")
+    from hybridnav.world import load_scenario
+
+    cost = NavigationCost([load_scenario("effc-train-1")])
+    with pytest.raises(HybridnavError, match="the effc planner provides the fuzzy inputs "
+                                             "dtheta, alpha; 'tipper' has service, food"):
+        tune(tipper, cost)
+    with pytest.raises(HybridnavError, match="planner: expected a planner that takes a fuzzy "
+                                             "system"):
+        NavigationCost([load_scenario("effc-train-1")], planner="apf")
+
+
+@pytest.mark.parametrize("call, text", [
+    (lambda t: GA(population=1), "ga: population: expected an integer in [2, 100000], got 1"),
+    (lambda t: GA(crossover="uniform"), "ga: crossover: expected a crossover operator"),
+    (lambda t: NSGA2(population=10), "expected a multiple of 4"),
+    (lambda t: CMAES(sigma=0), "cmaes: sigma: expected a number in (0, 10]"),
+    (lambda t: PSO(speed=1), "pso: speed: unknown setting"),
+    (lambda t: tune(t, DataCost(np.ones((3, 3)), np.ones(3))),
+     "inputs: expected 2 columns (the system's inputs dtheta, alpha), got 3"),
+    (lambda t: tune(t, DataCost(pd.DataFrame({"dtheta": [1.0], "beta": [1.0]}), [0.5])),
+     "alpha: expected a column for every input"),
+    (lambda t: DataCost([[1, np.nan]], [1.0]), "row 0: expected finite numbers"),
+    (lambda t: tune(t, FunctionCost(lambda s: 1.0), optimizer=GA(), seed=-1),
+     "seed: expected a non-negative integer"),
+    (lambda t: tune(t, FunctionCost(lambda s: [1.0, 2.0]), optimizer=GA(population=4,
+                                                                        generations=0)),
+     "expected objectives of shape (4, 1), got (4, 2)"),
+    (lambda t: tune(t, FunctionCost(lambda s: [1.0, 2.0], objectives=2), optimizer=GA()),
+     "the cost has 2 objectives; expected one (use NSGA2 for several)"),
+    (lambda t: FunctionCost("nosuchmodule:f"), "cannot import module 'nosuchmodule'"),
+    (lambda t: TunableSettings(t).fix("w.middle"), "w has no term 'middle'"),
+    (lambda t: TunableSettings(t, mf=False).rules(), "nothing"),
+])
+def test_bad_calls_fail_with_the_exact_error(target, call, text):
+    with pytest.raises(HybridnavError) as info:
+        r = call(target)
+        if isinstance(r, TunableSettings):
+            tune(target, FunctionCost(lambda s: 0.0), settings=r)
+    assert text in str(info.value)
+
+
+def test_settings_map_a_system_to_a_bounded_vector_and_back(target):
+    s = TunableSettings(target).rules(switches=True, weights=True, which=[0, 2])
+    assert s.size == 12 + 4
+    x = s.to_vector()
+    assert np.all((s.lower <= x) & (x <= s.upper))
+    back = s.to_system(x)
+    assert back.to_dict()["inputs"] == target.to_dict()["inputs"]
+    table = s.table()
+    assert list(table.gene[-4:]) == ["rule1.on", "rule1.weight", "rule3.on", "rule3.weight"]
+    assert "TunableSettings of 'effc-5rule': 16 free numbers" in str(s)
+    # repair restores order and clips; fixed neighbours bound a partly free term
+    part = TunableSettings(target, mf=["w.high.smf[0]"])
+    b = target.output.terms[1].params[1]
+    assert b - 1e-5 < part.repair([[5.0]])[0, 0] < b           # a < b kept strictly
+
+
+DATA_JOB = """
+name = "tipper-data"
+seed = 2
+[system]
+start = "tipper.fis"
+[cost]
+kind = "data"
+data = "samples.csv"
+validation = 0.25
+test = "test.csv"
+[optimizer]
+kind = "cmaes"
+generations = 25
+[settings]
+free = ["service", "food"]
+rule_switches = false
+"""
+
+
+def test_a_data_job_file_tunes_from_the_command_line(tmp_path):
+    (tmp_path / "tipper.fis").write_text(TIPPER)
+    tipper = fuzzy.read_fis(TIPPER, "tipper.fis")
+    truth = perturbed(tipper, 0.05, np.random.default_rng(11))
+    for name, n, seed in (("samples.csv", 300, 1), ("test.csv", 300, 2)):
+        X, y = samples(truth, n, seed)
+        pd.DataFrame({"service": X[:, 0], "food": X[:, 1], "tip": y}).to_csv(
+            tmp_path / name, index=False)
+    (tmp_path / "job.toml").write_text(DATA_JOB)
+    job = load_job(tmp_path / "job.toml")
+    assert job.optimizer().name == "cmaes" and job.validation_arg() == 0.25
+    done = subprocess.run([sys.executable, "-m", "hybridnav.cli", "tune",
+                           str(tmp_path / "job.toml"), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "test: on the test data the tuned system is better than its start" in done.stdout
+    out = tmp_path / "o"
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["selected_by"] == "validation" and summary["verdicts"]["test"]["better"]
+    assert (out / "fis.fis").exists() and (out / "report.md").exists()
+    tuned = fuzzy.load(str(out / "fis.json"))
+    assert tuned.input_names == ("service", "food")
+
+
+@pytest.mark.parametrize("extra, key, text", [
+    ('[optimizer]\nkind = "annealing"\n', "optimizer.kind", "expected one of ga, cmaes, pso"),
+    ('[optimizer]\nkind = "pso"\npopulation = 4\n', "optimizer.pso: population",
+     "unknown setting"),
+    ('[cost]\nkind = "data"\n', "cost.data", "expected a CSV file of samples"),
+    ('[cost]\nkind = "data"\ndata = "missing.csv"\n', "cost.data", "missing.csv"),
+    ('[cost]\nkind = "python"\nfunction = "nowhere:f"\n', "cost.function",
+     "cannot import module 'nowhere'"),
+    ('[settings]\nfree = ["dtheta.tiny"]\n', "settings", "dtheta has no term 'tiny'"),
+    ('[settings]\nfree = []\nrule_switches = false\n', "settings", "nothing is free"),
+    ('[free]\nmf = ["dtheta"]\n[settings]\nfree = ["alpha"]\n', "settings",
+     "expected either [settings] or its old name [free]"),
+    ('[system]\nstart = "tipper.fis"\n', "system.start",
+     "the effc planner provides the fuzzy inputs dtheta, alpha; 'tipper' has service, food"),
+])
+def test_bad_job_files_fail_before_any_work(tmp_path, extra, key, text):
+    (tmp_path / "tipper.fis").write_text(TIPPER)
+    p = tmp_path / "bad.toml"
+    p.write_text(textwrap.dedent(extra))
+    with pytest.raises(HybridnavError) as info:
+        load_job(p)
+    msg = str(info.value)
+    assert "bad.toml" in msg and f": {key}" in msg and text in msg, msg
