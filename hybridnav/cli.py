@@ -321,7 +321,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     if not args.resume and not args.force and (out / "checkpoint.json").exists():
         raise HybridnavError(f"{out}: holds a tuning run (checkpoint.json); --resume continues it, "
                              "--force starts over and overwrites it, or choose another --out")
-    total = (job.optimizer().generations + 1) * max(1, job["validation"]["kfold"])
+    total = (job.optimizer().generations + 1) * max(1, job["validation"]["kfold"]) \
+        * (2 if job["learning"]["max_rules"] else 1)
     bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
     evals = {"n": 0, "t": 0.0}
 

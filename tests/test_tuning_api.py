@@ -17,6 +17,7 @@ from hybridnav.backends import DaskBackend, ProcessBackend
 from hybridnav.fuzzy.export._common import normalize
 from hybridnav.tuner import (
     CMAES,
+    Candidates,
     GA,
     NSGA2,
     PSO,
@@ -26,6 +27,7 @@ from hybridnav.tuner import (
     NavigationCost,
     TunableSettings,
     TuningResult,
+    learn,
     load_job,
     tune,
 )
@@ -357,3 +359,103 @@ def test_bad_job_files_fail_before_any_work(tmp_path, extra, key, text):
         load_job(p)
     msg = str(info.value)
     assert "bad.toml" in msg and f": {key}" in msg and text in msg, msg
+
+
+# ---- rule learning ----------------------------------------------------------------------------
+
+def test_learned_rule_bases_evaluate_as_the_systems_they_decode_to(target):
+    """A population of learned rule bases (per slot: term, NOT term or don't care per input) in
+    one batched family evaluation equals each decoded FuzzySystem's own evaluation."""
+    s = TunableSettings.learning(target, 7, rule_weights=True)
+    assert s.learns_rules and s.size == 7 * (1 + 2 + 1 + 1)
+    rng = np.random.default_rng(4)
+    X = s.random(40, rng)
+    P, _ = samples(target, 300, 5)
+    out = Candidates(s, X).evaluate({"dtheta": P[:, 0], "alpha": P[:, 1]})
+    for k in range(len(X)):
+        sk = s.to_system(X[k])
+        assert 1 <= len(sk.rules) <= 7
+        ref = sk.evaluate(dtheta=P[:, 0], alpha=P[:, 1])
+        np.testing.assert_allclose(out[k], ref, rtol=0, atol=1e-12)
+    # and a decoded system agrees with scikit-fuzzy's own Mamdani engine where a rule fires
+    from skfuzzy import control as ctrl
+
+    sk = s.to_system(X[0])
+    sim = ctrl.ControlSystemSimulation(sk.to_skfuzzy(), cache=False)
+    used = {a.label for a in sk.to_skfuzzy().antecedents}
+    fired = Candidates(s, X[:1]).family.fired(Candidates(s, X[:1]).tables,
+                                              np.zeros(20, dtype=int),
+                                              {"dtheta": P[:20, 0], "alpha": P[:20, 1]})
+    for k in np.flatnonzero(fired):
+        for i, name in enumerate(("dtheta", "alpha")):
+            if name in used:
+                sim.input[name] = float(P[k, i])
+        sim.compute()
+        assert sim.output["w"] == pytest.approx(out[0, k], abs=1e-9)
+
+
+def test_learning_starts_from_the_systems_rules_or_from_none(target):
+    s = TunableSettings.learning(target, 8)
+    start = s.to_system(s.to_vector())
+
+    def parts(a):
+        return frozenset(getattr(a, "items", (a,)))
+
+    assert [parts(r.antecedent) for r in start.rules] == [parts(r.antecedent)
+                                                           for r in target.rules]
+    assert [r.then for r in start.rules] == [r.then for r in target.rules]
+    P, _ = samples(target, 200, 3)
+    np.testing.assert_allclose(start.evaluate(dtheta=P[:, 0], alpha=P[:, 1]),
+                               target.evaluate(dtheta=P[:, 0], alpha=P[:, 1]), atol=1e-12)
+    empty = TunableSettings.learning(target, 8, keep_rules=False)
+    one = empty.to_system(empty.to_vector())
+    assert len(one.rules) == 1                        # at least one rule stays on
+    X, y = samples(target, 300, 6)
+    res = learn(target, DataCost(X, y), max_rules=6, keep_rules=False,
+                rule_optimizer=GA(population=24, generations=8), optimizer=CMAES(generations=8),
+                seed=1, validation=0.25)
+    assert res.learning is not None and res.learning.finished
+    assert res.objectives[0] <= res.learning.objectives[0] + 1e-12     # stage 2 from stage 1
+    assert res.objectives[0] < 0.5 * res.start_objectives[0]           # far below the empty start
+    assert res.start is target                                      # judged against the start
+
+
+# ---- a second planner that takes a fuzzy system ------------------------------------------------
+
+def test_worldstack_nearest_each_is_the_worlds():
+    from hybridnav.planners.field.worldstack import WorldStack
+    from hybridnav.world import load_scenario
+
+    worlds = [load_scenario(n).world for n in ("effc-env-a", "effc-env-b", "fastep-s2",
+                                                "effc-train-1")]
+    stack = WorldStack(worlds)
+    rng = np.random.default_rng(2)
+    for e, w in enumerate(worlds):
+        x0, x1, y0, y1 = w.workspace
+        P = rng.uniform([x0, y0], [x1, y1], (50, 2))
+        D, near = stack.nearest_each(P, np.full(50, e), 0.7)
+        Dw, nw = w.nearest_each(P, 0.7)
+        k = len(w.obstacles)
+        np.testing.assert_allclose(D[:, :k], Dw, atol=1e-12)
+        np.testing.assert_allclose(near[:, :k], nw, atol=1e-12)
+        assert np.all(np.isinf(D[:, k:]))
+
+
+def test_fuzzy_steer_lockstep_is_the_planner_and_tunes_on_the_same_worlds(tmp_path):
+    from hybridnav import planners
+    from hybridnav.worldgen import WorldGenerator
+
+    worlds = WorldGenerator().generate(6, 2027)
+    start = fuzzy.builtin("steer-7rule")
+    cost = NavigationCost(worlds, planner="fuzzy-steer", name="fresh")
+    table = cost.judge({"start": start}, "fresh", apf=False)
+    for w in worlds:
+        r = planners.get("fuzzy-steer", fis=start).run(w).robots[0]
+        row = table[table.scenario == w.name].iloc[0]
+        assert row.outcome == r.outcome
+        assert row.path_length == pytest.approx(r.path_length, rel=1e-9)
+        assert row.min_clearance == pytest.approx(r.min_clearance, rel=1e-9, abs=1e-12)
+    # the same job machinery tunes it (a short run: the objective can only improve)
+    res = tune(start, cost, optimizer=GA(population=8, generations=2), seed=0, judge=False)
+    assert res.objectives[0] <= res.start_objectives[0]
+    assert res.system.input_names == ("left", "front", "right", "bearing")

@@ -40,6 +40,9 @@ class FamilyTables:
     output: FloatArray              # (K, output terms, output points)
     weights: FloatArray             # (K, rules)
     consequents: NDArray[np.intp]   # (K, rules), index into the output terms
+    #: (K, rules, inputs) per-member conjunctive antecedents, or None (the template's rules):
+    #: per input 0 = don't care, 1..T = term T-1, T+1..2T = NOT term (code - T - 1)
+    antecedents: NDArray[np.intp] | None = None
 
     @property
     def size(self) -> int:
@@ -66,7 +69,8 @@ class SystemFamily:
     def tables(self, input_params: Sequence[Sequence[Sequence[Sequence[float]]]],
                output_params: Sequence[Sequence[Sequence[float]]],
                weights: ArrayLike | None = None,
-               consequents: ArrayLike | None = None) -> FamilyTables:
+               consequents: ArrayLike | None = None,
+               antecedents: ArrayLike | None = None) -> FamilyTables:
         """Sample every member's membership functions.
 
         Parameters
@@ -77,6 +81,10 @@ class SystemFamily:
             Default: the template's weights.
         consequents : (K, rules) of output-term indices, optional
             Default: the template's.
+        antecedents : (K, rules, inputs) of term codes, optional
+            Per member its own conjunctive rule antecedents (rule learning), replacing the
+            template's: per input 0 = don't care, ``1 + j`` = term ``j``, ``1 + T + j`` = NOT
+            term ``j`` (``T`` terms); a rule whose inputs are all "don't care" fires fully.
         """
         K = len(output_params)
         tin = []
@@ -98,7 +106,13 @@ class SystemFamily:
         consequents = np.asarray(consequents, dtype=np.intp).reshape(K, len(self.rules))
         if np.any((consequents < 0) | (consequents >= len(self.output.terms))):
             raise HybridnavError("consequents: expected output-term indices")
-        return FamilyTables(tin, tout, weights, consequents)
+        if antecedents is not None:
+            antecedents = np.asarray(antecedents, dtype=np.intp).reshape(
+                K, len(self.rules), len(self.inputs))
+            top = np.array([2 * len(v.terms) for v in self.inputs])
+            if np.any((antecedents < 0) | (antecedents > top)):
+                raise HybridnavError("antecedents: expected term codes in [0, 2 T]")
+        return FamilyTables(tin, tout, weights, consequents, antecedents)
 
     def tables_of(self, systems: Sequence) -> FamilyTables:
         """Tables of concrete systems shaped like the template (rules by position)."""
@@ -140,9 +154,20 @@ class SystemFamily:
                 mu[(i, j)] = vals[:, j]
         R = len(self.rules)
         T = len(self.output.terms)
-        strength = np.empty((B, R))
-        for r, rule in enumerate(self.rules):
-            strength[:, r] = self._fire(rule.antecedent, mu)
+        if tables.antecedents is not None:
+            # AND of the parts as the template path computes it (fmin: NaN only when every part
+            # is NaN); "don't care" is no part (NaN here), a rule without parts fires fully
+            strength = np.full((B, R), np.nan)
+            codes = tables.antecedents[member]                   # (B, R, inputs)
+            for i, v in enumerate(self.inputs):
+                vals = np.column_stack([mu[(i, j)] for j in range(len(v.terms))])
+                ext = np.concatenate([np.full((B, 1), np.nan), vals, 1.0 - vals], axis=1)
+                strength = np.fmin(strength, np.take_along_axis(ext, codes[:, :, i], axis=1))
+            strength[(codes == 0).all(axis=2)] = 1.0
+        else:
+            strength = np.empty((B, R))
+            for r, rule in enumerate(self.rules):
+                strength[:, r] = self._fire(rule.antecedent, mu)
         strength *= tables.weights[member]
         cons = tables.consequents[member]                        # (B, R)
         cuts = np.zeros((B, T))

@@ -20,6 +20,7 @@ from hybridnav.planners.field.apf import APF
 from hybridnav.planners.field.effc import EFFC
 from hybridnav.planners.field.hapf import HAPF
 from hybridnav.planners.field.pbpf import PBPF
+from hybridnav.planners.field.steer import FuzzySteer
 from hybridnav.planners.lbcs import LbCSPlanner
 from hybridnav.planners.path.planners import (
     AStarPlanner,
@@ -34,7 +35,7 @@ from hybridnav.planners.step.fastepk import FAStepKinematic
 
 PLANNERS: dict[str, type[Planner]] = {
     cls.name: cls for cls in (ACOKinematic, APF, AStarPlanner, DijkstraPlanner, EFFC,
-                              FAStepKinematic, HAPF, LbCSPlanner, PBPF, PSOBAPlanner, PSOPathPlanner,
+                              FAStepKinematic, FuzzySteer, HAPF, LbCSPlanner, PBPF, PSOBAPlanner, PSOPathPlanner,
                               RFDPlanner, RFDPSOPlanner)
 }
 

@@ -11,7 +11,7 @@ Tuning jobs (TOML files, ``hybridnav tune``) are a thin front over the same obje
 ``run_job(job, out)`` tunes and writes every output.
 """
 
-from hybridnav.tuner.core import KFold, select_member, tune
+from hybridnav.tuner.core import KFold, learn, select_member, tune
 from hybridnav.tuner.costs import (
     Candidates,
     Context,
@@ -29,5 +29,5 @@ from hybridnav.tuner.settings import TunableSettings
 
 __all__ = ["CMAES", "DEFAULT_JOB", "GA", "NSGA2", "PSO", "SBX", "Blend", "Candidates",
            "Context", "Cost", "DataCost", "Evaluation", "FunctionCost", "Gaussian", "Job",
-           "KFold", "Member", "NavigationCost", "Polynomial", "TunableSettings", "TuningResult",
+           "KFold", "Member", "learn", "NavigationCost", "Polynomial", "TunableSettings", "TuningResult",
            "load_job", "quick", "run_job", "select_member", "tune", "write_outputs"]

@@ -55,7 +55,7 @@ from hybridnav.tuner.settings import TunableSettings
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CHECKPOINT_FORMAT", "KFold", "select_member", "tune"]
+__all__ = ["CHECKPOINT_FORMAT", "KFold", "learn", "select_member", "tune"]
 
 CHECKPOINT_FORMAT = "hybridnav-tune-checkpoint/3"
 
@@ -293,6 +293,7 @@ class _Run:
 
     def run(self, stop_after: int | None) -> None:
         done = len(self.logbook)
+        self.finished = False
         while self.stage < len(self.stages):
             while not self.opt.done and self.stopped is None:
                 if stop_after is not None and done > stop_after:
@@ -310,6 +311,7 @@ class _Run:
                 self.save([])
             else:
                 self.save([], finished=True)
+                self.finished = True
                 return
 
     # ---- checkpoints -----------------------------------------------------------------------
@@ -589,20 +591,86 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
         validation_score=(run.val.best or {}).get("score"),
         start_validation_score=start_val["score"] if start_val else None,
         optimizer=opt.config(), cost=cost.describe(), seed=run.seed,
-        wall_time=run.elapsed, evaluations=run.evaluations, config_hash=run.config_hash)
+        wall_time=run.elapsed, evaluations=run.evaluations, config_hash=run.config_hash,
+        finished=run.finished)
+    result.validation_cost = run.validation
     if judge:
-        systems = {"start": start, "tuned": system}
-        tables = []
-        for role, c in (("validation", run.validation), ("test", test)):
-            if c is None:
-                continue
-            kw = {"backend": backend} if "backend" in _params(c.judge) else {}
-            t = c.judge(systems, role, **kw)
-            tables.append(t)
-            result.verdicts[role] = c.verdict(t, role)
-        if tables:
-            result.heldout = pd.concat(tables, ignore_index=True)
+        _judge(result, start, run.validation, test, backend)
     return result
+
+
+def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | None,
+           backend) -> None:
+    """Start and tuned on the validation and test costs: ``result.heldout`` and verdicts."""
+    systems = {"start": start, "tuned": result.system}
+    tables = []
+    for role, c in (("validation", validation), ("test", test)):
+        if c is None:
+            continue
+        kw = {"backend": backend} if "backend" in _params(c.judge) else {}
+        t = c.judge(systems, role, **kw)
+        tables.append(t)
+        result.verdicts[role] = c.verdict(t, role)
+    if tables:
+        result.heldout = pd.concat(tables, ignore_index=True)
+
+
+def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
+          rule_weights: bool = False, rule_optimizer: Optimizer | None = None,
+          optimizer: Optimizer | None = None, settings: Callable | None = None,
+          checkpoint: str | Path | None = None, resume: bool = False, test: Cost | None = None,
+          backend: Backend | None = None, name: str | None = None, judge: bool = True,
+          **kw: Any) -> TuningResult:
+    """Learn a rule base, then tune the learned system's membership functions (MATLAB's
+    two-stage ``OptimizationType = "learning"`` then ``"tuning"``).
+
+    Stage 1 tunes :meth:`TunableSettings.learning` settings (up to ``max_rules`` rules, each
+    per input a term, NOT a term or "don't care", a consequent and optionally a weight; MFs
+    fixed) with ``rule_optimizer``; stage 2 tunes the MFs of the learned rule base
+    (``settings(learned)``, default ``TunableSettings(learned)``) with ``optimizer``. Both stages
+    share ``validation``, ``seed`` and the other :func:`tune` arguments (``**kw``); their
+    checkpoints are ``checkpoint/learning`` and ``checkpoint``. The result is stage 2's, judged
+    against the *original* start; ``result.learning`` is stage 1's.
+
+    Parameters
+    ----------
+    system : FuzzySystem
+        The variables and terms to use; its rules start the rule base unless ``keep_rules`` is
+        False (an empty rule base).
+    cost : Cost
+    max_rules : int
+    keep_rules : bool
+    rule_weights : bool
+        Learn rule weights too.
+    rule_optimizer, optimizer : Optimizer, optional
+        The two stages' optimizers (default: :class:`GA` each).
+    settings : callable, optional
+        ``settings(learned) -> TunableSettings`` for stage 2.
+    checkpoint, resume, test, backend, name, judge :
+        As :func:`tune`.
+    **kw
+        Further :func:`tune` arguments (``validation``, ``seed``, ``chunk``, ``patience``, ...).
+    """
+    ck = None if checkpoint is None else Path(checkpoint)
+    s1 = TunableSettings.learning(system, max_rules, keep_rules=keep_rules,
+                                  rule_weights=rule_weights)
+    first = tune(s1.template, cost, settings=s1, optimizer=rule_optimizer or GA(),
+                 checkpoint=None if ck is None else ck / "learning", resume=resume,
+                 backend=backend, judge=False, name=f"{system.name}-learned", **kw)
+    if not first.finished:                      # interrupted (stop_after): stage 1 only
+        return first
+    learned = first.system
+    s2 = settings(learned) if settings is not None else TunableSettings(learned)
+    second = tune(learned, cost, settings=s2, optimizer=optimizer or GA(), checkpoint=ck,
+                  resume=resume and ck is not None and (ck / "checkpoint.json").exists(),
+                  backend=backend, judge=False, name=name or f"{system.name}-tuned", **kw)
+    if not second.finished:
+        return second
+    second.start, second.learning = system, first
+    second.start_objectives = first.start_objectives
+    if judge:
+        _judge(second, system, second.validation_cost, test, backend)
+    return second
 
 
 def _params(fn) -> set[str]:

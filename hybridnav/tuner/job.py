@@ -110,6 +110,12 @@ SCHEMA: dict[str, dict[str, Param]] = {
     },
     "reward": REWARD,
     "coverage": COVERAGE,
+    "learning": {
+        "max_rules": Param(0, "learn a rule base of up to this many rules first, then tune its "
+                              "MFs (0: tune only)", lo=0, hi=1000),
+        "keep_rules": Param(True, "start from the system's rules (false: an empty rule base)"),
+        "rule_weights": Param(False, "learn rule weights too"),
+    },
     "validation": {
         "top": Param(3, "candidates scored on validation per generation", lo=1, hi=1000),
         "patience": Param(10, "generations without improvement before stopping (0: never)",
@@ -407,6 +413,8 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             raise fail("system.start", f"the {data['cost']['planner']} planner provides the "
                                        f"fuzzy inputs {', '.join(wanted)}; {system.name!r} has "
                                        f"{', '.join(system.input_names)}")
+    if "free" not in raw and "settings" not in raw:    # every variable of the start system
+        data["free"]["mf"] = [*system.input_names, system.output.name]
     try:
         settings = job.tunable()
     except HybridnavError as exc:

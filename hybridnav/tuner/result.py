@@ -64,6 +64,12 @@ class TuningResult:
         ``headline``.
     files : list of str
         The files a job run wrote (``hybridnav tune``; empty from :func:`tune`).
+    learning : TuningResult or None
+        :func:`hybridnav.tuner.learn`: the rule-learning stage's result.
+    validation_cost : Cost or None
+        The cost that chose the returned system.
+    finished : bool
+        False when the run was stopped (``stop_after``) before its budget or early stop.
     """
 
     system: Any
@@ -96,6 +102,9 @@ class TuningResult:
     heldout: pd.DataFrame | None = None
     verdicts: dict[str, dict[str, Any]] = field(default_factory=dict)
     files: list[str] = field(default_factory=list)
+    learning: TuningResult | None = None
+    validation_cost: Any = None
+    finished: bool = True
 
     @property
     def verdict(self) -> dict[str, Any] | None:

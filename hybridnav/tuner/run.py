@@ -70,22 +70,29 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
     out = Path(out)
     be = job["backend"]
     with make_backend(be["workers"], dask_client or be["dask"]) as backend:
-        result = tune(job.start_system(), job.cost("train"), backend=backend, checkpoint=out,
-                      progress=progress, resume=resume, stop_after=stop_after,
-                      **job.tune_kwargs())
-        if stop_after is not None and not _finished(out):
+        kw = job.tune_kwargs()
+        lr = job["learning"]
+        if lr["max_rules"]:             # two stages: learn the rules, then tune the MFs
+            from hybridnav.tuner.core import learn
+            from hybridnav.tuner.settings import TunableSettings
+
+            table = job.data.get("settings") or job["free"]
+            del kw["settings"]
+            kw["rule_optimizer"] = kw.pop("optimizer")
+            result = learn(job.start_system(), job.cost("train"), max_rules=lr["max_rules"],
+                           keep_rules=lr["keep_rules"], rule_weights=lr["rule_weights"],
+                           optimizer=job.optimizer(),
+                           settings=lambda learned: TunableSettings.from_table(learned, table),
+                           backend=backend, checkpoint=out, progress=progress, resume=resume,
+                           stop_after=stop_after, **kw)
+        else:
+            result = tune(job.start_system(), job.cost("train"), backend=backend,
+                          checkpoint=out, progress=progress, resume=resume,
+                          stop_after=stop_after, **kw)
+        if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
         result.files = write_outputs(job, result, out, backend=backend)
     return result
-
-
-def _finished(out: Path) -> bool:
-    import json
-
-    try:
-        return bool(json.loads((out / "checkpoint.json").read_text())["finished"])
-    except (OSError, ValueError, KeyError):
-        return False
 
 
 def write_outputs(job: Job, result: TuningResult, out: Path,
@@ -141,8 +148,9 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
                     out / "coverage.png")
         files.append("coverage.png")
         files += _paths(job, result, out)
-    files += _exports(result.system, out)
-    sil = _sil_lines(job, result.system, out) if nav and f"{C_BASENAME}.c" in files else []
+    effc = nav and job["cost"]["planner"] == "effc"
+    files += _exports(result.system, out, C_BASENAME if effc else "fis")
+    sil = _sil_lines(job, result.system, out) if effc and f"{C_BASENAME}.c" in files else []
     atomic_write_text(out / "report.md", _report(job, result, summary, unc, files, falsified,
                                                  sil))
     files.append("report.md")
@@ -210,7 +218,7 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
     return {"result": res, "rows": rows, "files": files, "config": cfg}
 
 
-def _exports(system, out: Path) -> list[str]:
+def _exports(system, out: Path, c_name: str = C_BASENAME) -> list[str]:
     """Deployment exports (FLL, MATLAB .fis, FCL, C) when the export module is installed."""
     try:
         from hybridnav.fuzzy.export import export_to_file
@@ -220,7 +228,7 @@ def _exports(system, out: Path) -> list[str]:
     # FLL and FCL carry the sampled terms: exactly the membership the GA tuned, whatever the
     # universe resolution (formula terms can differ where a narrow term spans few samples)
     for fmt, target, opts in (("fll", "fis.fll", {"sampled": True}), ("fis", "fis.fis", {}),
-                              ("fcl", "fis.fcl", {"sampled": True}), ("c", C_BASENAME, {})):
+                              ("fcl", "fis.fcl", {"sampled": True}), ("c", c_name, {})):
         try:
             written = export_to_file(system, fmt, out / target, **opts)
         except HybridnavError as exc:       # e.g. a rule MATLAB's .fis cannot express
@@ -372,10 +380,23 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         if scores:
             lines += ["", f"Cross-validation estimate (mean of the fold scores): "
                           f"{float(np.mean(scores)):.4f} (std {float(np.std(scores)):.4f})."]
+    lr = result.learning
+    if lr is not None:
+        cfg = job["learning"]
+        lines += ["", f"Rule learning (stage 1 of 2): up to {cfg['max_rules']} rules learned from "
+                      + ("the start's rules" if cfg["keep_rules"] else "an empty rule base")
+                      + f" with the start's membership functions: training objective "
+                      f"{lr.start_objectives[0]:.4f} -> {lr.objectives[0]:.4f}"
+                      + (f", validation {lr.validation_score:.4f}"
+                         if lr.validation_score is not None else "")
+                      + f" (generation {lr.best_generation}, {lr.evaluations} evaluations). "
+                      "Stage 2 tuned the learned system's membership functions; the 'start' "
+                      "of the verdicts and tables is the system the job started from."]
     lines += ["", f"Training objective ({result.objective_names[0]}, minimized): start "
                   f"{result.start_objectives[0]:.4f}, returned {result.objectives[0]:.4f}.",
-              f"The tuned system keeps {len(result.system.rules)} of "
-              f"{len(result.start.rules)} rules:", "",
+              (f"The tuned system has {len(result.system.rules)} rules (learned):"
+               if lr is not None else f"The tuned system keeps {len(result.system.rules)} of "
+               f"{len(result.start.rules)} rules:"), "",
               *(f"- {r.sentence(result.system.output.name)}" for r in result.system.rules), ""]
     if nav and unc is not None:
         lines += [f"Coverage (grid {job['coverage']['grid']} per axis over the input ranges): no "
@@ -417,8 +438,9 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         else:
             lines += ["", "No failure found within the budget."]
     lines += sil or []
-    lines += ["", f"Wall time {result.wall_time:.1f} s for {result.evaluations} evaluations "
-                  "(tuning only).", "", "Files: " + ", ".join(files + ["report.md"]), ""]
+    wall = result.wall_time + (lr.wall_time if lr is not None else 0.0)
+    evals = result.evaluations + (lr.evaluations if lr is not None else 0)
+    lines += ["", f"Wall time {wall:.1f} s for {evals} evaluations (tuning only).", "", "Files: " + ", ".join(files + ["report.md"]), ""]
     return "\n".join(lines)
 
 

@@ -117,6 +117,9 @@ class TunableSettings:
                 and math.isfinite(margin) and margin >= 0):
             raise HybridnavError(f"margin: expected a non-negative number, got {margin!r}")
         self.margin = float(margin)
+        self._learn = False
+        self._codes0: np.ndarray | None = None    # learning: the slots' initial codes
+        self._on0: np.ndarray | None = None
         self._free: set[tuple[int, int, int]] = set()
         self._bounds: dict[int, tuple[float, float]] = {}
         n_rules = len(system.rules)
@@ -158,6 +161,69 @@ class TunableSettings:
         except HybridnavError as exc:
             raise HybridnavError(f"{where}{exc}") from None
         return s
+
+    @classmethod
+    def learning(cls, system, max_rules: int = 10, *, keep_rules: bool = True,
+                 mf: bool | Iterable[str] = False, rule_weights: bool = False,
+                 margin: float = 0.25,
+                 bounds: Mapping[str, Sequence[float]] | None = None) -> TunableSettings:
+        """Settings that *learn* a rule base (MATLAB's ``OptimizationType = "learning"``).
+
+        The system gets ``max_rules`` rule slots; per slot the genes are: on/off, per input a
+        term, NOT a term, or "don't care", the consequent, and (``rule_weights``) the weight.
+        The system's own rules that are conjunctions of (negated) terms over distinct inputs
+        start in the first slots (a partial rule base); the other slots start off (an empty
+        rule base when the system's rules are all left out by ``max_rules``). A slot whose
+        inputs are all "don't care" is off; at least one slot is always on. Membership
+        functions are fixed unless ``mf`` frees them (MATLAB's two-stage process learns the
+        rules first, then tunes the MFs of the learned system: :func:`hybridnav.tuner.learn`).
+
+        Parameters
+        ----------
+        system : FuzzySystem
+            Its variables and terms; its rules are the initial rule base.
+        max_rules : int
+            Rule slots.
+        keep_rules : bool
+            Start from the system's rules (a partial rule base); False: from an empty one.
+        """
+        from hybridnav.fuzzy import FuzzySystem
+
+        if not isinstance(system, FuzzySystem):
+            raise HybridnavError(f"system: expected a FuzzySystem, got {type(system).__name__}")
+        if isinstance(max_rules, bool) or not isinstance(max_rules, int) or \
+                not 1 <= max_rules <= 1000:
+            raise HybridnavError(f"max_rules: expected an integer in [1, 1000], got "
+                                 f"{max_rules!r}")
+        names = list(system.input_names)
+        codes, on, rules = [], [], []
+        for r in system.rules:
+            c = _conjunctive_codes(r.antecedent, system)
+            if c is None or len(rules) == max_rules or not keep_rules:
+                continue
+            codes.append(c)
+            on.append(True)
+            rules.append({"if": [names[0], system.inputs[0].terms[0].name], "then": r.then,
+                          "weight": r.weight})
+        while len(rules) < max_rules:              # empty slots
+            codes.append([0] * len(names))
+            on.append(False)
+            rules.append({"if": [names[0], system.inputs[0].terms[0].name],
+                          "then": system.output.terms[0].name, "weight": 1.0})
+        d = system.to_dict()
+        d["rules"] = rules
+        template = FuzzySystem.from_dict(d)
+        s = cls(template, mf=mf, rule_weights=rule_weights, margin=margin, bounds=bounds)
+        s._learn = True
+        s._codes0 = np.array(codes, dtype=np.intp).reshape(max_rules, len(names))
+        s._on0 = np.array(on, dtype=bool)
+        s._build()
+        return s
+
+    @property
+    def learns_rules(self) -> bool:
+        """Whether these settings learn a rule base (:meth:`learning`)."""
+        return self._learn
 
     def _copy(self) -> TunableSettings:
         new = copy.copy(self)
@@ -277,6 +343,16 @@ class TunableSettings:
                                       f"{v.name}.{t.name}.{t.mf}[{pi}]"))
         n_terms = len(self.template.output.terms)
         for ri, _ in enumerate(self.template.rules):
+            if self._learn:
+                genes.append(Gene("switch", -1, ri, -1, 0.0, 1.0, f"rule{ri + 1}.on"))
+                for vi, v in enumerate(self.template.inputs):
+                    genes.append(Gene("antecedent", vi, ri, -1, 0.0,
+                                      2 * len(v.terms) + 1 - 1e-9, f"rule{ri + 1}.{v.name}"))
+                genes.append(Gene("consequent", -1, ri, -1, 0.0, n_terms - 1e-9,
+                                  f"rule{ri + 1}.then"))
+                if self._rule["weight"][ri]:
+                    genes.append(Gene("weight", -1, ri, -1, 0.0, 1.0, f"rule{ri + 1}.weight"))
+                continue
             if self._rule["switch"][ri]:
                 genes.append(Gene("switch", -1, ri, -1, 0.0, 1.0, f"rule{ri + 1}.on"))
             if self._rule["weight"][ri]:
@@ -351,7 +427,9 @@ class TunableSettings:
             if g.kind == "mf":
                 x[k] = variables[g.var].terms[g.term].params[g.param]
             elif g.kind == "switch":
-                x[k] = 1.0
+                x[k] = 1.0 if not self._learn else (1.0 if self._on0[g.term] else 0.25)
+            elif g.kind == "antecedent":
+                x[k] = self._codes0[g.term, g.var] + 0.5
             elif g.kind == "weight":
                 x[k] = s.rules[g.term].weight
             else:
@@ -426,9 +504,17 @@ class TunableSettings:
                 switches[:, g.term] = col >= 0.5
             elif g.kind == "weight":
                 weights[:, g.term] = col
-            else:
+            elif g.kind == "consequent":
                 cons[:, g.term] = np.clip(col.astype(int), 0, n_terms - 1)
-        if self._switch_cols:                  # at least one rule on: the largest switch gene
+        if self._learn:
+            codes = self._rule_codes(X)
+            switches &= ~(codes == 0).all(axis=2)            # no antecedent: off
+            none = ~switches.any(axis=1)
+            if none.any():                                   # the largest switch gene stays on
+                best = np.argmax(X[np.ix_(none, self._switch_cols)], axis=1)
+                rules = [self.genes[self._switch_cols[b]].term for b in best]
+                switches[np.flatnonzero(none), rules] = True
+        elif self._switch_cols:                  # at least one rule on: the largest switch gene
             none = ~switches.any(axis=1)
             if none.any():
                 best = np.argmax(X[np.ix_(none, self._switch_cols)], axis=1)
@@ -437,6 +523,25 @@ class TunableSettings:
         weights = np.where(switches, weights, 0.0)
         n_in = len(self.template.inputs)
         return ([p[:n_in] for p in params], [p[n_in] for p in params], weights, cons, switches)
+
+    def _rule_codes(self, X: np.ndarray) -> np.ndarray:
+        """Learning: per member and slot the antecedent codes ``(K, R, inputs)``; a slot kept on
+        only because no other is has its first input's first term when it had no antecedent."""
+        K = len(X)
+        codes = np.tile(self._codes0, (K, 1, 1))
+        for k, g in enumerate(self.genes):
+            if g.kind == "antecedent":
+                top = 2 * len(self.template.inputs[g.var].terms)
+                codes[:, g.term, g.var] = np.clip(np.floor(X[:, k]).astype(np.intp), 0, top)
+        sw = X[:, self._switch_cols]
+        on = (sw >= 0.5) & ~(codes == 0).all(axis=2)
+        none = ~on.any(axis=1)
+        if none.any():
+            slot = np.argmax(sw[none], axis=1)
+            rows = np.flatnonzero(none)
+            empty = (codes[rows, slot] == 0).all(axis=1)
+            codes[rows[empty], slot[empty], 0] = 1
+        return codes
 
     @property
     def family(self):
@@ -451,7 +556,8 @@ class TunableSettings:
         """The sampled tables of every row of ``X``, for one batched
         :meth:`~hybridnav.fuzzy.family.SystemFamily.evaluate` of the whole population."""
         inp, out, weights, cons, _ = self.arrays(X)
-        return self.family.tables(inp, out, weights, cons)
+        codes = self._rule_codes(self._matrix(X)) if self._learn else None
+        return self.family.tables(inp, out, weights, cons, codes)
 
     def to_system(self, x: np.ndarray, name: str | None = None,
                   description: str | None = None):
@@ -472,11 +578,14 @@ class TunableSettings:
         for ti, t in enumerate(d["output"]["terms"]):
             t["params"] = [float(p) for p in out[0][ti]]
         terms = [t["name"] for t in d["output"]["terms"]]
+        codes = self._rule_codes(x.reshape(1, -1))[0] if self._learn else None
         rules = []
         for ri, r in enumerate(d["rules"]):
             if not switches[0, ri]:
                 continue
             r = dict(r)
+            if codes is not None:
+                r["if"] = _antecedent_of(codes[ri], self.template)
             r["then"] = terms[int(cons[0, ri])]
             r["weight"] = float(weights[0, ri])
             rules.append(r)
@@ -488,6 +597,41 @@ class TunableSettings:
     def systems(self, X: np.ndarray) -> list:
         """:meth:`to_system` of every row of ``X``."""
         return [self.to_system(x) for x in np.array(X, dtype=float, ndmin=2)]
+
+
+def _conjunctive_codes(a, system) -> list[int] | None:
+    """The codes of an antecedent that is a conjunction of (negated) terms over distinct
+    inputs, or None."""
+    from hybridnav.fuzzy.spec import And, Not, TermRef
+
+    parts = list(a.items) if isinstance(a, And) else [a]
+    names = list(system.input_names)
+    codes = [0] * len(names)
+    for p in parts:
+        neg = isinstance(p, Not)
+        ref = p.item if neg else p
+        if not isinstance(ref, TermRef):
+            return None
+        i = names.index(ref.input)
+        if codes[i]:
+            return None
+        terms = system.inputs[i].term_names()
+        j = terms.index(ref.term)
+        codes[i] = 1 + j + (len(terms) if neg else 0)
+    return codes
+
+
+def _antecedent_of(codes, system) -> Any:
+    """The ``hybridnav-fis/1`` antecedent of a slot's codes (at least one is non-zero)."""
+    parts: list[Any] = []
+    for i, c in enumerate(codes):
+        if c == 0:
+            continue
+        v = system.inputs[i]
+        T = len(v.terms)
+        ref = [v.name, v.terms[(c - 1) % T].name]
+        parts.append(ref if c <= T else {"not": ref})
+    return parts[0] if len(parts) == 1 else {"and": parts}
 
 
 def _param_bounds(mf: str, index: int, lo: float, hi: float, width: float) -> tuple[float, float]:

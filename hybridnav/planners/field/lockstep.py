@@ -45,6 +45,7 @@ def lockstep_field(
     stuck_radius: float = 2.0,
     record_paths: bool = False,
     stack=None,
+    field_state: bool = False,
 ) -> LockstepResult:
     """Simulate ``n_members`` controllers on each single-robot scenario, all in lockstep.
 
@@ -74,6 +75,9 @@ def lockstep_field(
     stack : WorldStack, optional
         The scenarios' worlds packed (:class:`hybridnav.planners.field.worldstack.WorldStack`); built
         here when not given. Collision and bounds tests ask it for all robots at once.
+    field_state : bool
+        Pass the robots' whole states ``(m, nx)`` (x, y, heading, ...) to ``field`` instead of
+        their positions (controllers that steer relative to the heading).
     """
     if not scenarios:
         raise HybridnavError("scenarios: expected at least one training scenario")
@@ -122,7 +126,8 @@ def lockstep_field(
         t = k * dt
         V = np.zeros((N, 2))
         sel = np.flatnonzero(run)
-        V[sel] = field(env[sel], member[sel], X[sel, :2], goals[sel], t)
+        V[sel] = field(env[sel], member[sel], X[sel] if field_state else X[sel, :2],
+                       goals[sel], t)
         norm = np.hypot(V[:, 0], V[:, 1])
         dead = run & np.isnan(norm)              # NaN: the field says "local minimum"
         status[dead] = OUTCOME_CODES.index("stuck")

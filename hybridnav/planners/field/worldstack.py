@@ -124,6 +124,27 @@ class WorldStack:
         clear = np.where(has, clear, np.inf)
         return clear, near
 
+    def nearest_each(self, P: np.ndarray, env: np.ndarray, t: float = 0.0):
+        """Signed clearance ``(N, K)`` to every obstacle of each point's world (``+inf`` in the
+        padding columns) and the nearest surface point on each ``(N, K, 2)``, in each world's
+        obstacle order, as :meth:`World.nearest_each`."""
+        P = np.asarray(P, dtype=float)
+        env = np.asarray(env)
+        n = len(P)
+        if not self.K:
+            return np.full((n, 0), np.inf), np.zeros((n, 0, 2))
+        Dk, _, Cn, de, Qe = self._distances(P, env, t, True)
+        pts = np.full((n, self.C + self.G + 1, 2), np.nan)
+        with np.errstate(invalid="ignore"):
+            for c in range(self.C):
+                pts[:, c] = _nearest_on_circle(P, Cn[:, c], self.cr[env, c])
+        rows = np.arange(n)
+        for g in range(self.G):
+            masked = np.where(self.owner[env] == g, de, np.inf)
+            pts[:, self.C + g] = Qe[rows, np.argmin(masked, axis=1)]
+        near = np.take_along_axis(pts, self.perm[env][:, :, None], axis=1)
+        return Dk, near
+
     def border_clearance(self, P: np.ndarray, env: np.ndarray) -> np.ndarray:
         """Signed distance to each point's workspace boundary (positive inside)."""
         P = np.asarray(P, dtype=float)
