@@ -174,6 +174,10 @@ def _kwargs_calls():
 
     for name, cls in OPTIMIZERS.items():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
+    from hybridnav.tuner import DataCost, learn
+
+    calls["hybridnav.tuner.core.learn"] = lambda: learn(
+        fuzzy.builtin("effc-2rule"), DataCost([[0.1, 0.5]], [0.5]), max_rules=2, bogus=1.0)
     return calls
 
 

@@ -553,12 +553,12 @@ def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
     assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
     report = (tmp_path / "o" / "report.md").read_text()
     assert "k-fold over the training data (2 folds" in report
-    assert "Cross-validation estimate" in report
+    assert "Mean of the fold scores" in report
     assert "the last k-fold stage's best on its own fold (fold 1" in report
     job_file.write_text(KFOLD)
     assert main(["tune", str(job_file), "--out", str(tmp_path / "v")]) == 0
     report = (tmp_path / "v" / "report.md").read_text()
-    assert "of k-fold stage" in report and "Cross-validation estimate" in report
+    assert "of k-fold stage" in report and "Mean of the fold scores" in report
 
 
 def test_backends_report_each_finished_task_and_keep_the_order():

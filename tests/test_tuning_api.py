@@ -338,8 +338,11 @@ def test_a_data_job_file_tunes_from_the_command_line(tmp_path):
 
 @pytest.mark.parametrize("extra, key, text", [
     ('[optimizer]\nkind = "annealing"\n', "optimizer.kind", "expected one of ga, cmaes, pso"),
-    ('[optimizer]\nkind = "pso"\npopulation = 4\n', "optimizer.pso: population",
+    ('[optimizer]\nkind = "pso"\npopulation = 4\n', "optimizer.population",
      "unknown setting"),
+    ('[optimizer]\nkind = ["ga"]\n', "optimizer.kind", "expected one of ga, cmaes"),
+    ('[optimizer]\nkind = "ga"\ncrossover = {kind = "sbx", eta = -1}\n',
+     "optimizer.crossover.eta", "expected a non-negative number, got -1"),
     ('[cost]\nkind = "data"\n', "cost.data", "expected a CSV file of samples"),
     ('[cost]\nkind = "data"\ndata = "missing.csv"\n', "cost.data", "missing.csv"),
     ('[cost]\nkind = "python"\nfunction = "nowhere:f"\n', "cost.function",
@@ -459,3 +462,29 @@ def test_fuzzy_steer_lockstep_is_the_planner_and_tunes_on_the_same_worlds(tmp_pa
     res = tune(start, cost, optimizer=GA(population=8, generations=2), seed=0, judge=False)
     assert res.objectives[0] <= res.start_objectives[0]
     assert res.system.input_names == ("left", "front", "right", "bearing")
+
+
+def test_navigation_objectives_for_nsga2_and_an_evaluation_budget():
+    """(failure, length, clearance) on worlds: each objective is what the runs measure."""
+    from hybridnav.world import load_scenario
+
+    worlds = [load_scenario(n) for n in ("effc-train-1", "effc-train-2")]
+    start = fuzzy.builtin("effc-5rule")
+    cost = NavigationCost(worlds, objectives=("failure", "collision", "length", "clearance"),
+                          coverage={"penalty": 0.0})
+    table = cost.judge({"start": start}, "t", apf=False)
+    ev = cost.assess(Candidates(TunableSettings(start, mf=False), np.zeros((1, 0))),
+                     __import__("hybridnav.tuner", fromlist=["Context"]).Context())
+    f = ev.objectives[0]
+    reached = table.outcome == "reached"
+    assert f[0] == pytest.approx(1 - reached.mean())
+    assert f[1] == pytest.approx(table.outcome.isin(["collided", "out_of_bounds"]).mean())
+    D = np.array([np.hypot(*np.subtract(w.robots[0].goal, w.robots[0].start))
+                  - w.robots[0].goal_radius for w in worlds])
+    assert f[2] == pytest.approx(np.mean((table.path_length / D)[reached]))
+    assert f[3] == pytest.approx(-table.min_clearance.min())
+    res = tune(start, cost, optimizer=NSGA2(population=8, generations=50), max_evals=20,
+               seed=1, judge=False)
+    assert 20 <= res.evaluations <= 28 and len(res.logbook) == 3      # 8 + 8 + 8, then stop
+    assert res.front.shape[1] >= 5 and non_dominated(
+        res.front[[f"objective_{i}" for i in range(4)]].to_numpy()).all()

@@ -208,22 +208,49 @@ class SystemFamily:
         positive = tables.output.max(axis=2) > 0                 # (K, T)
         return np.any(used & (cuts > 0) & positive[member], axis=1)
 
-    def uncovered(self, tables: FamilyTables, grid: int = 41) -> FloatArray:
-        """Per member, the fraction of a ``grid``-per-axis grid over the input ranges (range
-        ends included) where no rule fires (the output falls back to ``default``).
+    def coverage_points(self, grid: int = 41, max_points: int = 4096) -> list[FloatArray]:
+        """The points :meth:`uncovered` checks: the ``grid``-per-axis grid over the input ranges
+        (range ends included) for one or two inputs or while it has at most ``max_points``
+        points; beyond (three inputs or more), the first ``max_points`` points of the Halton
+        sequence over the ranges plus the ``2^d`` corners (deterministic, and as even as a
+        grid)."""
+        d = len(self.inputs)
+        if d <= 2 or grid ** d <= max_points:
+            axes = [np.linspace(v.range[0], v.range[1], grid) for v in self.inputs]
+            return [m.ravel() for m in np.meshgrid(*axes, indexing="ij")]
+        from scipy.stats import qmc
+
+        U = qmc.Halton(d, scramble=False).random(max_points)
+        corners = np.array(np.meshgrid(*[[0.0, 1.0]] * d, indexing="ij")).reshape(d, -1).T
+        U = np.vstack([corners, U])
+        lo = np.array([v.range[0] for v in self.inputs])
+        hi = np.array([v.range[1] for v in self.inputs])
+        P = lo + U * (hi - lo)
+        return [P[:, i] for i in range(d)]
+
+    def uncovered(self, tables: FamilyTables, grid: int = 41,
+                  max_points: int = 4096) -> FloatArray:
+        """Per member, the fraction of the input space where no rule fires (the output falls
+        back to ``default``), on :meth:`coverage_points` (a ``grid``-per-axis grid, range ends
+        included, up to ``max_points`` points). Members are checked a few at a time, so memory
+        stays bounded whatever the population.
 
         Returns
         -------
         ndarray, shape (K,)
         """
-        axes = [np.linspace(v.range[0], v.range[1], grid) for v in self.inputs]
-        mesh = [m.ravel() for m in np.meshgrid(*axes, indexing="ij")]
+        mesh = self.coverage_points(grid, max_points)
         n = len(mesh[0])
         K = tables.size
-        member = np.repeat(np.arange(K), n)
-        X = {v.name: np.tile(m, K) for v, m in zip(self.inputs, mesh)}
-        ok = self.fired(tables, member, X).reshape(K, n)
-        return 1.0 - ok.mean(axis=1)
+        out = np.empty(K)
+        block = max(1, 200_000 // n)
+        for a in range(0, K, block):
+            b = min(K, a + block)
+            member = np.repeat(np.arange(a, b), n)
+            X = {v.name: np.tile(m, b - a) for v, m in zip(self.inputs, mesh)}
+            ok = self.fired(tables, member, X).reshape(b - a, n)
+            out[a:b] = 1.0 - ok.mean(axis=1)
+        return out
 
     def _fire(self, a, mu) -> FloatArray:
         if isinstance(a, TermRef):

@@ -138,6 +138,8 @@ class _Run:
         self.stopped: int | None = None
         self.folds_done: list[dict[str, Any]] = []
         self.best_train: dict[str, Any] | None = None
+        self.max_evals = 0
+        self.finished = False
 
     # ---- evaluation ------------------------------------------------------------------------
 
@@ -205,7 +207,7 @@ class _Run:
         train.update({_key(x): float(f[0]) for x, f in zip(ev_X, ev.objectives)})
         if self.mo:
             return
-        cands = self.candidates(X, F, gen == 0 and self.stage == 0)
+        cands = self.candidates(X, F, gen == 0)        # the start competes in every stage
         fold_cost = self.stages[self.stage][1]
         if fold_cost is not None:
             self.score(fold_cost, "fold", cands, train, gen, self.fold)
@@ -293,9 +295,11 @@ class _Run:
 
     def run(self, stop_after: int | None) -> None:
         done = len(self.logbook)
-        self.finished = False
+        if self.finished:                     # a finished run resumed: nothing left to do
+            return
         while self.stage < len(self.stages):
-            while not self.opt.done and self.stopped is None:
+            while not self.opt.done and self.stopped is None and not (
+                    self.max_evals and self.evaluations >= self.max_evals):
                 if stop_after is not None and done > stop_after:
                     return
                 self.step()
@@ -335,6 +339,20 @@ class _Run:
         atomic_write_text(self.dir / "checkpoint.json", json.dumps(state))
 
     def restore(self, state: dict[str, Any]) -> None:
+        path = self.dir / "checkpoint.json"
+        try:
+            self._restore(state)
+        except HybridnavError as exc:
+            raise HybridnavError(f"{path}: {exc}") from None
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise HybridnavError(f"{path}: damaged checkpoint ({type(exc).__name__}: {exc}); "
+                                 "start again without --resume") from None
+        X = self.opt.population()[0]
+        if X.ndim != 2 or X.shape[1] != self.settings.size:
+            raise HybridnavError(f"{path}: damaged checkpoint (population of shape {X.shape}, "
+                                 f"expected vectors of {self.settings.size})")
+
+    def _restore(self, state: dict[str, Any]) -> None:
         self.stage = int(state["stage"])
         self.opt.set_state(state["optimizer"])
         self.logbook = state["logbook"]
@@ -343,6 +361,7 @@ class _Run:
         self.val, self.fold = _Track.load(state["validation"]), _Track.load(state["fold"])
         self.stopped, self.folds_done = state["stopped"], state["folds_done"]
         self.best_train = state["best_train"]
+        self.finished = bool(state["finished"])
         pos = (self.stage, self.opt.generation)
         self.records = [r for r in _read_jsonl(self.dir / "evaluations.jsonl")
                         if (r["stage"], r["generation"]) < pos]
@@ -352,16 +371,27 @@ class _Run:
 
 
 def _read_jsonl(path: Path) -> list[dict[str, Any]]:
-    out = []
+    """The evaluation rows of a checkpointed run; a last line cut by a kill is dropped (its
+    generation is redone), any other damage is an error naming the file and line."""
+    out: list[dict[str, Any]] = []
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
     except FileNotFoundError:
         return out
-    for line in lines:
+    except (OSError, UnicodeDecodeError) as exc:
+        raise HybridnavError(f"{path}: unreadable ({exc})") from None
+    for i, line in enumerate(lines):
         try:
-            out.append(json.loads(line))
-        except json.JSONDecodeError:          # a line cut by a kill: the generation is redone
-            break
+            row = json.loads(line)
+        except (json.JSONDecodeError, RecursionError):
+            if i == len(lines) - 1:             # cut by a kill
+                break
+            raise HybridnavError(f"{path}: line {i + 1}: expected a JSON row") from None
+        if not (isinstance(row, dict) and isinstance(row.get("stage"), int)
+                and isinstance(row.get("generation"), int)):
+            raise HybridnavError(f"{path}: line {i + 1}: expected a row with an integer stage "
+                                 "and generation")
+        out.append(row)
     return out
 
 
@@ -384,6 +414,26 @@ def _load_checkpoint(path: Path, chash: str) -> dict[str, Any]:
     return state
 
 
+def _check_picklable(cost: Cost, validation: Cost | None, backend) -> None:
+    """Local worker processes receive the costs pickled: say so before any work."""
+    from hybridnav.backends import ProcessBackend
+
+    if not isinstance(backend, ProcessBackend):
+        return
+    import pickle
+
+    for c in (cost, validation):
+        if c is None:
+            continue
+        try:
+            pickle.dumps(c)
+        except (pickle.PicklingError, AttributeError, TypeError) as exc:
+            raise HybridnavError(
+                f"cost: {type(c).__name__} cannot be sent to worker processes ({exc}); use a "
+                "function defined at module level, or FunctionCost('module:function')") \
+                from None
+
+
 def _config_hash(parts: dict[str, Any]) -> str:
     text = json.dumps(parts, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -393,9 +443,9 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
          optimizer: Optimizer | None = None, validation: Cost | float | int | KFold | None = None,
          test: Cost | None = None, seed: int = 0, backend: Backend | None = None,
          checkpoint: str | Path | None = None, progress: Callable | None = None,
-         resume: bool = False, chunk: int = 50, top: int = 3, patience: int = 10,
+         resume: bool = False, chunk: int = 50, top: int = 3, patience: int | None = None,
          tolerance: float = 0.0, select: Callable[[pd.DataFrame], int] | None = None,
-         name: str | None = None, judge: bool = True,
+         name: str | None = None, judge: bool = True, max_evals: int = 0,
          stop_after: int | None = None) -> TuningResult:
     """Tune ``system`` to minimize ``cost``.
 
@@ -428,10 +478,13 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
     resume : bool
         Continue from ``checkpoint``.
     chunk : int
-        Candidates per unit of parallel work.
+        Candidates per unit of parallel work. Part of the configuration: the batched arithmetic
+        of a chunk can round differently (1e-14) from that of another size, so a run is
+        reproduced exactly — on any backend and number of workers — with the same chunk.
     top, patience, tolerance :
         Validation: candidates scored per generation, generations without improvement before
-        stopping (0: never), and the improvement that counts.
+        stopping (0: never; None: the optimizer's ``default_patience``: GA 10, PSO 15, CMA-ES
+        and NSGA-II 0), and the improvement that counts.
     select : callable, optional
         Several objectives: ``select(front) -> index`` of the returned member (default
         :func:`select_member`).
@@ -439,6 +492,9 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         The tuned system's name (default ``<start>-tuned``).
     judge : bool
         Judge start and tuned on the validation and test costs after tuning.
+    max_evals : int
+        Stop once this many candidates have been evaluated on training (0: the optimizer's own
+        budget only); the generation under way finishes.
     stop_after : int, optional
         Stop after this many generations (tests of interruption; the checkpoint stays).
 
@@ -463,6 +519,8 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         raise HybridnavError(f"seed: expected a non-negative integer, got {seed!r}")
     seed = int(seed)
     settings = settings if settings is not None else TunableSettings(system)
+    if not isinstance(settings, TunableSettings):
+        raise HybridnavError(f"settings: expected TunableSettings, got {type(settings).__name__}")
     if settings.template != system:
         raise HybridnavError("settings: built from another system than the one tuned; build "
                              "them with TunableSettings(system)")
@@ -496,22 +554,47 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
             if not isinstance(c, Cost):
                 raise HybridnavError(f"{what}: expected a Cost, got {type(c).__name__}")
             c.check(settings)
-    for k, v, lo in (("chunk", chunk, 1), ("top", top, 1), ("patience", patience, 0)):
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+    if patience is None:
+        patience = optimizer.default_patience
+    for k, v, lo in (("chunk", chunk, 1), ("top", top, 1), ("patience", patience, 0),
+                     ("max_evals", max_evals, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
             raise HybridnavError(f"{k}: expected an integer >= {lo}, got {v!r}")
+    if stop_after is not None and (isinstance(stop_after, bool)
+                                   or not isinstance(stop_after, int) or stop_after < 0):
+        raise HybridnavError(f"stop_after: expected an integer >= 0, got {stop_after!r}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or \
+            not np.isfinite(tolerance) or tolerance < 0:
+        raise HybridnavError(f"tolerance: expected a non-negative number, got {tolerance!r}")
+    if backend is not None and not isinstance(backend, Backend):
+        raise HybridnavError(f"backend: expected a Backend (hybridnav.backends.make_backend), "
+                             f"got {backend!r}")
+    if progress is not None and not callable(progress):
+        raise HybridnavError(f"progress: expected a callable, got {progress!r}")
+    if select is not None and not callable(select):
+        raise HybridnavError(f"select: expected a callable, got {select!r}")
+    if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
+        raise HybridnavError(f"checkpoint: expected a folder path, got {checkpoint!r}")
+    _check_picklable(cost, val_cost, backend)
     problem = Problem(settings.lower, settings.upper, settings.to_vector(), settings.repair,
                       cost.n_objectives)
     optimizer.setup(problem, seed)
     run = _Run(settings, cost, optimizer, val_cost, stages, seed, backend or SerialBackend(),
                chunk, top, patience, float(tolerance), None, progress)
+    run.max_evals = max_evals
     run.config_hash = _config_hash({
         "settings": settings.key(), "cost": cost.config(),
         "validation": val_cost.config() if val_cost else None,
         "kfold": len(stages) if len(stages) > 1 else 0, "optimizer": optimizer.config(),
-        "seed": seed, "top": top, "patience": patience, "tolerance": tolerance})
+        "seed": seed, "top": top, "patience": patience, "tolerance": tolerance,
+        "max_evals": max_evals, "chunk": chunk})
     if checkpoint is not None:
         run.dir = Path(checkpoint)
-        run.dir.mkdir(parents=True, exist_ok=True)
+        try:
+            run.dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise HybridnavError(f"checkpoint: {checkpoint}: cannot make the folder ({exc})") \
+                from None
         if resume:
             run.restore(_load_checkpoint(run.dir / "checkpoint.json", run.config_hash))
             log.info("resuming at stage %d, generation %d", run.stage, optimizer.generation)
@@ -546,6 +629,11 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
             front["validation_feasible"] = ev.feasible
             selected_by = "validation"
         pick = (select or select_member)(front)
+        if isinstance(pick, bool) or not isinstance(pick, (int, np.integer)) or \
+                not 0 <= pick < len(front):
+            raise HybridnavError(f"select: expected the index of a front member in [0, "
+                                 f"{len(front) - 1}], got {pick!r}")
+        pick = int(pick)
         chosen_x, best_gen = fX[pick], opt.generation - 1
         for i, (x, f) in enumerate(zip(fX, fF)):
             members.append(Member(settings.to_system(x, name=f"{start.name}-front-{i}"),
@@ -610,7 +698,12 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
         kw = {"backend": backend} if "backend" in _params(c.judge) else {}
         t = c.judge(systems, role, **kw)
         tables.append(t)
-        result.verdicts[role] = c.verdict(t, role)
+        v = c.verdict(t, role)
+        if role == "validation" and v.get("headline"):
+            v["headline"] += (" — on the data that chose the returned system, not an "
+                              "independent test" + ("" if test is not None else
+                                                    "; give a test set for one"))
+        result.verdicts[role] = v
     if tables:
         result.heldout = pd.concat(tables, ignore_index=True)
 

@@ -72,7 +72,9 @@ SCHEMA: dict[str, dict[str, Param]] = {
                               "job file)"),
         "batch": Param(False, "kind = python: f(candidates, context) per chunk instead of "
                               "f(system) per candidate"),
-        "objectives": Param(1, "kind = python: the number of objectives", lo=1, hi=10),
+        "objectives": Param(1, "python: the number of objectives; navigation: a list of "
+                               "reward, failure, collision, length, clearance (several: NSGA2)",
+                            kind=object),
     },
     "optimizer": {"kind": Param("ga", "ga, cmaes, pso or nsga2 (its own settings beside kind; "
                                       "without this table [ga] holds the GA's)",
@@ -118,8 +120,9 @@ SCHEMA: dict[str, dict[str, Param]] = {
     },
     "validation": {
         "top": Param(3, "candidates scored on validation per generation", lo=1, hi=1000),
-        "patience": Param(10, "generations without improvement before stopping (0: never)",
-                          lo=0),
+        "patience": Param(-1, "generations without improvement before stopping (0: never; -1: "
+                              "the optimizer's default: GA 10, PSO 15, CMA-ES and NSGA-II 0)",
+                          lo=-1),
         "tolerance": Param(0.0, "an improvement must exceed this", **_POS),
         "kfold": Param(0, "k >= 2: k-fold over the training worlds", lo=0, hi=100),
     },
@@ -202,11 +205,16 @@ class Job:
     def with_seed(self, seed: int | None) -> Job:
         if seed is None:
             return self
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise HybridnavError(f"--seed: expected a non-negative integer, got {seed!r}")
         d = copy.deepcopy(self.data)
         d["seed"] = int(seed)
         return Job(d, self.source, self.base)
 
     def with_backend(self, workers: int | None = None, dask: str | None = None) -> Job:
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                    or workers < 1):
+            raise HybridnavError(f"--workers: expected an integer >= 1, got {workers!r}")
         d = copy.deepcopy(self.data)
         if workers is not None:
             d["backend"]["workers"] = int(workers)
@@ -232,9 +240,10 @@ class Job:
             scen = self.scenarios(which)
             if not scen:
                 return None
+            objs = c["objectives"] if isinstance(c["objectives"], list) else ["reward"]
             return NavigationCost(scen, planner=c["planner"], planner_params=self["planner"],
                                   reward=self["reward"], coverage=self["coverage"], name=which,
-                                  strict=which != "test")
+                                  strict=which != "test", objectives=objs)
         if c["kind"] == "data":
             from hybridnav.tuner.costs import DataCost
 
@@ -243,8 +252,10 @@ class Job:
             path = c["data"] if which == "train" else c["test"]
             if not path:
                 return None
-            return DataCost.from_csv(self.resolve(path), c["output"] or None,
-                                     metric=c["metric"])
+            p = Path(path)                        # a data file is a path, never a name
+            return DataCost.from_csv(p if p.is_absolute() else self.base / p,
+                                     c["output"] or None, metric=c["metric"],
+                                     prefer=self.start_system().output.name)
         from hybridnav.tuner.costs import FunctionCost
 
         if which != "train":
@@ -266,6 +277,12 @@ class Job:
         if self.data.get("optimizer"):
             return make_optimizer(self.data["optimizer"], f"{self.source or 'job'}: ")
         g = self["ga"]
+        objs = self["cost"]["objectives"]
+        if (isinstance(objs, list) and len(objs) > 1) or (isinstance(objs, int) and objs > 1):
+            from hybridnav.tuner.optimizers import NSGA2
+
+            return NSGA2(population=max(4, -(-g["population"] // 4) * 4),
+                         generations=g["generations"])
         cx = SBX(g["sbx_eta"]) if g["crossover"] == "sbx" else Blend(g["blend_alpha"])
         mut = (Polynomial(g["polynomial_eta"], g["gene_prob"]) if g["mutation"] == "polynomial"
                else Gaussian(g["gaussian_sigma"], g["gene_prob"]))
@@ -282,7 +299,8 @@ class Job:
         return {"settings": self.tunable(), "optimizer": self.optimizer(),
                 "validation": self.validation_arg(), "test": self.cost("test"),
                 "seed": self.seed, "chunk": self["backend"]["chunk"], "top": v["top"],
-                "patience": v["patience"], "tolerance": v["tolerance"],
+                "patience": None if v["patience"] < 0 else v["patience"],
+                "tolerance": v["tolerance"],
                 "name": f"{self.name}-tuned"}
 
     def validation_arg(self):
@@ -413,8 +431,11 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
             raise fail("system.start", f"the {data['cost']['planner']} planner provides the "
                                        f"fuzzy inputs {', '.join(wanted)}; {system.name!r} has "
                                        f"{', '.join(system.input_names)}")
+    every = [*system.input_names, system.output.name]
     if "free" not in raw and "settings" not in raw:    # every variable of the start system
-        data["free"]["mf"] = [*system.input_names, system.output.name]
+        data["free"]["mf"] = every
+    if "settings" in raw and "free" not in raw["settings"]:
+        data["settings"]["free"] = every
     try:
         settings = job.tunable()
     except HybridnavError as exc:
@@ -423,6 +444,31 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
         raise fail("settings" if "settings" in data else "free",
                    "nothing is free: free a variable or a rule setting")
     kind = data["cost"]["kind"]
+    objs = data["cost"]["objectives"]
+    if kind == "python" and (isinstance(objs, bool) or not isinstance(objs, int)
+                             or not 1 <= objs <= 10):
+        raise fail("cost.objectives", f"expected an integer in [1, 10] for kind = 'python', "
+                                      f"got {objs!r}")
+    if kind == "navigation" and objs != 1:
+        from hybridnav.tuner.costs.navigation import MEASURES
+
+        if not (isinstance(objs, list) and objs and all(o in MEASURES for o in objs)
+                and len(set(objs)) == len(objs)):
+            raise fail("cost.objectives", f"expected a list of distinct names of "
+                                          f"{', '.join(MEASURES)}, got {objs!r}")
+    k = data["validation"]["kfold"]
+    if kind != "navigation" and "scenarios" in raw:
+        raise fail("scenarios", f"expected no worlds for cost.kind = {kind!r} (they are the "
+                                "data of a navigation cost)")
+    if kind != "data" and data["cost"]["validation"] > 0:
+        raise fail("cost.validation", f"a fraction of samples held out is for cost.kind = "
+                                      f"'data', not {kind!r}")
+    if kind == "python" and k >= 2:
+        raise fail("validation.kfold", "a python cost cannot be split into folds (it has no "
+                                       "data the tuner knows of)")
+    if kind == "data" and k >= 2 and data["cost"]["validation"] > 0:
+        raise fail("cost.validation", "expected either a held-out fraction or "
+                                      "validation.kfold, not both")
     if kind == "navigation":
         _check_scenarios(data, raw, where, fail, job)
         try:
@@ -444,6 +490,9 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                     built.check(settings)
             except HybridnavError as exc:
                 raise fail(f"cost.{key}", str(exc)) from None
+            if key == "data" and k >= 2 and k > len(built.y):
+                raise fail("validation.kfold", f"expected at most the number of samples "
+                                               f"({len(built.y)}), got {k}")
     if data["validation"]["kfold"] >= 2 and kind == "navigation" and data["validation"]["kfold"] \
             > len(job.scenarios("train")):
         raise fail("validation.kfold", f"expected at most the number of training worlds "

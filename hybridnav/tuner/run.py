@@ -130,6 +130,9 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     if len(start.inputs) == 2:
         plots.save_surface_png(result.system, out / "surface.png")
         files.append("surface.png")
+    if len(result.objective_names) > 1:
+        save_figure(_front(result), out / "front.png")
+        files.append("front.png")
     nav = job["cost"]["kind"] == "navigation"
     summary, unc, falsified = None, None, None
     if nav:
@@ -144,9 +147,10 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         falsified = _falsify(job, cost, result, backend, out)
         if falsified is not None:
             files += falsified["files"]
-        save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
-                    out / "coverage.png")
-        files.append("coverage.png")
+        if len(start.inputs) == 2:          # a map over the two inputs
+            save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
+                        out / "coverage.png")
+            files.append("coverage.png")
         files += _paths(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
@@ -260,6 +264,31 @@ def _convergence(result: TuningResult) -> Figure:
     return fig
 
 
+def _front(result: TuningResult) -> Figure:
+    """The Pareto front: the first two objectives (training, and validation when scored), the
+    returned member marked."""
+    f = result.front
+    names = result.objective_names
+    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
+    ax = fig.add_subplot()
+    c = f["objective_2"] if "objective_2" in f else None
+    sc = ax.scatter(f["objective_0"], f["objective_1"], c=c, cmap="viridis", s=28,
+                    label="front (training)")
+    if c is not None:
+        fig.colorbar(sc, ax=ax, label=names[2])
+    if "validation_0" in f:
+        ax.scatter(f["validation_0"], f["validation_1"], marker="x", color="0.4", s=22,
+                   label="the same members on validation")
+    r = f[f["returned"]]
+    ax.scatter(r["objective_0"], r["objective_1"], s=140, facecolors="none",
+               edgecolors="red", linewidths=1.5, label="returned (fis.json)")
+    ax.set_xlabel(f"{names[0]} (minimized)")
+    ax.set_ylabel(f"{names[1]} (minimized)")
+    ax.set_title(f"Pareto front: {len(f)} members")
+    ax.legend(fontsize=8)
+    return fig
+
+
 def _coverage(job: Job, systems: dict[str, Any], unc: np.ndarray) -> Figure:
     """Where no rule fires (the output falls back to ``default``), per system."""
     from hybridnav.fuzzy.family import SystemFamily
@@ -362,8 +391,13 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
                           + f" (patience {job['validation']['patience']}, tolerance "
                             f"{job['validation']['tolerance']:g})."]
     elif result.folds:
+        last = result.folds[-1]
         lines += [f"No validation set: the returned system is the last k-fold stage's best on "
-                  f"its own fold ({result.selected_by}, generation {result.best_generation})."]
+                  f"its own fold ({result.selected_by}, generation {result.best_generation}; "
+                  "the start competed on every fold)."]
+        if last.get("generation") == 0 and np.array_equal(result.x, result.x_start):
+            lines += ["", "**WARNING: no tuned candidate beat the starting system on the last "
+                          "fold: the returned system is the start.**"]
     else:
         lines += ["No validation set: the returned system is the best on training (generation "
                   f"{result.best_generation}); nothing checks that it generalizes."]
@@ -378,8 +412,10 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
                          f"{f.get('generation', '-')} "
                          f"| {f['stopped'] if f['stopped'] is not None else '-'} |")
         if scores:
-            lines += ["", f"Cross-validation estimate (mean of the fold scores): "
-                          f"{float(np.mean(scores)):.4f} (std {float(np.std(scores)):.4f})."]
+            lines += ["", f"Mean of the fold scores: {float(np.mean(scores)):.4f} (std "
+                          f"{float(np.std(scores)):.4f}); each is the best of the candidates "
+                          "scored on that fold, so it reads better than an independent "
+                          "estimate would."]
     lr = result.learning
     if lr is not None:
         cfg = job["learning"]
@@ -393,7 +429,9 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
                       "Stage 2 tuned the learned system's membership functions; the 'start' "
                       "of the verdicts and tables is the system the job started from."]
     lines += ["", f"Training objective ({result.objective_names[0]}, minimized): start "
-                  f"{result.start_objectives[0]:.4f}, returned {result.objectives[0]:.4f}.",
+                  f"{result.start_objectives[0]:.4f}, returned {result.objectives[0]:.4f}"
+                  + (" (each on its own k-fold stage's training folds: not comparable)."
+                     if result.folds else "."),
               (f"The tuned system has {len(result.system.rules)} rules (learned):"
                if lr is not None else f"The tuned system keeps {len(result.system.rules)} of "
                f"{len(result.start.rules)} rules:"), "",
@@ -401,8 +439,8 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
     if nav and unc is not None:
         lines += [f"Coverage (grid {job['coverage']['grid']} per axis over the input ranges): no "
                   f"rule fires on {100 * unc[0]:.1f} % for the start, {100 * unc[1]:.1f} % for "
-                  f"the tuned system (allowed: {100 * job['coverage']['max_uncovered']:.1f} %; "
-                  "see coverage.png).", ""]
+                  f"the tuned system (allowed: {100 * job['coverage']['max_uncovered']:.1f} %"
+                  + ("; see coverage.png)." if "coverage.png" in files else ")."), ""]
     if nav and summary is not None and len(summary):
         lines += ["## Start vs tuned vs apf on held-out worlds", "",
                   "Nominal runs (no noise). Length and clearance: means over the worlds every "

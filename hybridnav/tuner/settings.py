@@ -114,8 +114,8 @@ class TunableSettings:
         self.variables = list(system.inputs) + [system.output]
         self._names = [v.name for v in self.variables]
         if not (isinstance(margin, (int, float)) and not isinstance(margin, bool)
-                and math.isfinite(margin) and margin >= 0):
-            raise HybridnavError(f"margin: expected a non-negative number, got {margin!r}")
+                and math.isfinite(margin) and 0 <= margin <= 100):
+            raise HybridnavError(f"margin: expected a number in [0, 100], got {margin!r}")
         self.margin = float(margin)
         self._learn = False
         self._codes0: np.ndarray | None = None    # learning: the slots' initial codes
@@ -129,12 +129,20 @@ class TunableSettings:
         elif mf is not False:
             if isinstance(mf, str):
                 mf = [mf]
+            if not isinstance(mf, (list, tuple, set)):
+                raise HybridnavError(f"mf: expected true, false or a list of variable, term or "
+                                     f"parameter paths, got {mf!r}")
             for path in mf:
                 self._free |= set(self._mf_paths(path))
-        for kind, on in zip(_RULE_KINDS, (rule_switches, rule_weights, rule_consequents)):
+        for key, kind, on in (("rule_switches", "switch", rule_switches),
+                              ("rule_weights", "weight", rule_weights),
+                              ("rule_consequents", "consequent", rule_consequents)):
             if not isinstance(on, bool):
-                raise HybridnavError(f"rule_{kind}s: expected true or false, got {on!r}")
+                raise HybridnavError(f"{key}: expected true or false, got {on!r}")
             self._rule[kind] = [on] * n_rules
+        if bounds is not None and not isinstance(bounds, Mapping):
+            raise HybridnavError(f"bounds: expected a table of [lo, hi] per variable, got "
+                                 f"{bounds!r}")
         for name, b in (bounds or {}).items():
             self._set_bounds(name, b)
         self._build()
@@ -186,6 +194,10 @@ class TunableSettings:
             Rule slots.
         keep_rules : bool
             Start from the system's rules (a partial rule base); False: from an empty one.
+        mf, margin, bounds :
+            As for :class:`TunableSettings` (default: membership functions fixed).
+        rule_weights : bool
+            Learn the rule weights too.
         """
         from hybridnav.fuzzy import FuzzySystem
 
@@ -276,17 +288,25 @@ class TunableSettings:
             except OverflowError:
                 ok = False
             else:
-                ok = math.isfinite(lo) and math.isfinite(hi) and lo < hi
+                ok = (math.isfinite(lo) and math.isfinite(hi) and lo < hi
+                      and math.isfinite(hi - lo) and hi - lo > 1e-9 * max(abs(lo), abs(hi)))
         if not ok:
-            raise HybridnavError(f"bounds.{name}: expected [lo, hi] with finite lo < hi, got "
-                                 f"{b!r}")
+            raise HybridnavError(f"bounds.{name}: expected [lo, hi] with finite lo < hi (and a "
+                                 f"finite width, not vanishing against lo and hi), got {b!r}")
         self._bounds[self._names.index(name)] = (lo, hi)
+
+    def _paths(self, paths) -> list[str]:
+        for p in paths:
+            if not isinstance(p, str):
+                raise HybridnavError(f"{p!r}: expected a path 'var', 'var.term' or "
+                                     "'var.term[i]'")
+        return list(paths)
 
     def free(self, *paths: str) -> TunableSettings:
         """New settings with the parameters of ``paths`` (``var``, ``var.term``,
         ``var.term[i]``) free."""
         new = self._copy()
-        for p in paths:
+        for p in self._paths(paths):
             new._free |= set(new._mf_paths(p))
         new._build()
         return new
@@ -294,7 +314,7 @@ class TunableSettings:
     def fix(self, *paths: str) -> TunableSettings:
         """New settings with the parameters of ``paths`` fixed at the template's values."""
         new = self._copy()
-        for p in paths:
+        for p in self._paths(paths):
             new._free -= set(new._mf_paths(p))
         new._build()
         return new
@@ -320,6 +340,10 @@ class TunableSettings:
         for kind, on in zip(_RULE_KINDS, (switches, weights, consequents)):
             if on is None:
                 continue
+            if not isinstance(on, bool):
+                raise HybridnavError(f"{kind}es: expected true, false or None, got {on!r}"
+                                     if kind == "switch" else
+                                     f"{kind}s: expected true, false or None, got {on!r}")
             for i in idx:
                 new._rule[kind][i] = bool(on)
         new._build()
@@ -339,7 +363,8 @@ class TunableSettings:
                     if (vi, ti, pi) not in self._free:
                         continue
                     b = _param_bounds(t.mf, pi, lo, hi, width)
-                    genes.append(Gene("mf", vi, ti, pi, b[0], b[1],
+                    own = float(t.params[pi])      # the start is always inside its own box
+                    genes.append(Gene("mf", vi, ti, pi, min(b[0], own), max(b[1], own),
                                       f"{v.name}.{t.name}.{t.mf}[{pi}]"))
         n_terms = len(self.template.output.terms)
         for ri, _ in enumerate(self.template.rules):
@@ -363,6 +388,11 @@ class TunableSettings:
         self.genes = genes
         self.lower = np.array([g.lower for g in genes], dtype=float)
         self.upper = np.array([g.upper for g in genes], dtype=float)
+        if not (np.all(np.isfinite(self.upper - self.lower))):
+            k = int(np.flatnonzero(~np.isfinite(self.upper - self.lower))[0])
+            raise HybridnavError(f"{genes[k].label}: its bounds [{self.lower[k]:g}, "
+                                 f"{self.upper[k]:g}] have no finite width (range, margin or "
+                                 "bounds too large)")
         self.labels = [g.label for g in genes]
         self._out_index = {t.name: j for j, t in enumerate(self.template.output.terms)}
         groups: dict[tuple[int, int], list[int]] = {}
@@ -422,6 +452,12 @@ class TunableSettings:
         """
         s = system or self.template
         variables = list(s.inputs) + [s.output]
+        if system is not None and (
+                [(v.name, tuple(len(t.params) for t in v.terms)) for v in variables]
+                != [(v.name, tuple(len(t.params) for t in v.terms)) for v in self.variables]
+                or len(s.rules) != len(self.template.rules)):
+            raise HybridnavError(f"system: {s.name!r} is not shaped like {self.template.name!r} "
+                                 "(the same variables, terms and number of rules)")
         x = np.empty(self.size)
         for k, g in enumerate(self.genes):
             if g.kind == "mf":
@@ -462,7 +498,8 @@ class TunableSettings:
             if mf in ("zmf", "smf"):            # strictly a < b
                 a, b = cols
                 width = self.upper[b] - self.lower[a]
-                eps = 1e-6 * width
+                eps = max(1e-6 * width, 8 * float(np.spacing(max(abs(self.upper[b]),
+                                                                 abs(self.lower[a])))))
                 tight = X[:, b] - X[:, a] < eps
                 X[tight, b] = np.minimum(X[tight, a] + eps, self.upper[b])
                 X[tight, a] = X[tight, b] - eps
@@ -474,7 +511,9 @@ class TunableSettings:
         fixed = list(term.params)
         pis = [self.genes[c].param for c in cols]
         # zmf/smf need a < b strictly: keep a small gap from a fixed neighbour
-        gap = 1e-6 * (self.upper[cols[0]] - self.lower[cols[0]]) \
+        span = self.upper[cols[0]] - self.lower[cols[0]]
+        gap = max(1e-6 * span, 8 * float(np.spacing(max(abs(self.upper[cols[0]]),
+                                                         abs(self.lower[cols[0]])))))\
             if term.mf in ("zmf", "smf") else 0.0
         out = Xc.copy()
         for j, pi in enumerate(pis):

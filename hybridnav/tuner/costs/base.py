@@ -106,8 +106,19 @@ class Candidates:
     def evaluate(self, inputs: Mapping[str, Any]) -> np.ndarray:
         """Every candidate's output at the same ``S`` input samples: ``(n, S)``, one batched
         call (``inputs``: input name -> ``(S,)`` array)."""
-        cols = {k: np.asarray(v, dtype=float).ravel() for k, v in inputs.items()}
-        S = len(next(iter(cols.values())))
+        names = self.settings.template.input_names
+        if not isinstance(inputs, Mapping) or set(inputs) != set(names):
+            raise HybridnavError(f"inputs: expected a mapping with exactly the inputs "
+                                 f"{', '.join(names)}, got "
+                                 f"{sorted(inputs) if isinstance(inputs, Mapping) else inputs!r}")
+        try:
+            cols = {k: np.asarray(v, dtype=float).ravel() for k, v in inputs.items()}
+        except (TypeError, ValueError):
+            raise HybridnavError("inputs: expected arrays of numbers") from None
+        sizes = {len(v) for v in cols.values()}
+        if len(sizes) != 1:
+            raise HybridnavError(f"inputs: expected arrays of one length, got {sorted(sizes)}")
+        S = sizes.pop()
         n = len(self)
         member = np.repeat(np.arange(n), S)
         tiled = {k: np.tile(v, n) for k, v in cols.items()}
@@ -115,7 +126,9 @@ class Candidates:
 
     def uncovered(self, grid: int = 41) -> np.ndarray:
         """Per candidate, the fraction of a ``grid``-per-axis grid where no rule fires."""
-        return self.family.uncovered(self.tables, grid)
+        if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
+            raise HybridnavError(f"grid: expected an integer >= 2, got {grid!r}")
+        return self.family.uncovered(self.tables, int(grid))
 
 
 @dataclass
@@ -177,8 +190,10 @@ class Cost:
     def objectives(self, F: Any, n: int) -> np.ndarray:
         """``F`` as an ``(n, m)`` float array, or a clear error."""
         try:
+            if np.iscomplexobj(F):
+                raise TypeError("complex")
             F = np.array(F, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise HybridnavError(f"cost {type(self).__name__}: expected an (n, m) array of "
                                  "numbers") from None
         if F.ndim == 1 and self.n_objectives == 1:
@@ -186,6 +201,9 @@ class Cost:
         if F.shape != (n, self.n_objectives):
             raise HybridnavError(f"cost {type(self).__name__}: expected objectives of shape "
                                  f"({n}, {self.n_objectives}), got {F.shape}")
+        if np.any(F == -np.inf):
+            raise HybridnavError(f"cost {type(self).__name__}: expected objectives that are "
+                                 "finite or +inf (the worst), got -inf")
         return np.where(np.isnan(F), np.inf, F)
 
     def check(self, settings) -> None:
@@ -234,7 +252,9 @@ class Cost:
         checks = []
         for i, name in enumerate(self.objective_names):
             a, b = t.loc["tuned", f"objective_{i}"], t.loc["start", f"objective_{i}"]
-            checks.append((f"{name}: tuned {a:.4g} vs start {b:.4g}", bool(a <= b)))
+            ok = bool(np.isfinite(a) and (a < b or not np.isfinite(b)))
+            checks.append((f"{name}: tuned {a:.4g} vs start {b:.4g} (lower is better)", ok))
+        # better: strictly lower on every objective, and finite (a tie is not better)
         better = all(ok for _, ok in checks)
         return {"checks": checks, "better": better,
                 "headline": f"on the {role} data the tuned system is "

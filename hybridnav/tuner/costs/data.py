@@ -59,16 +59,29 @@ class DataCost(Cost):
         self.source = source
         self.objective_names = (metric,)
         if isinstance(inputs, pd.DataFrame):
-            self.columns: list[str] | None = [str(c) for c in inputs.columns]
-            data = inputs.to_numpy()
+            names = [str(c) for c in inputs.columns]
+            if len(set(names)) != len(names):
+                dup = sorted({c for c in names if names.count(c) > 1})[0]
+                raise HybridnavError(f"{where}{dup}: expected distinct column names")
+            # only numeric columns can be inputs; the others are checked when named
+            num = [c for c in inputs.columns if pd.api.types.is_numeric_dtype(inputs[c])
+                   and not pd.api.types.is_complex_dtype(inputs[c])]
+            self.columns: list[str] | None = [str(c) for c in num]
+            self._other = [c for c in names if c not in self.columns]
+            data = inputs[num].to_numpy(dtype=float)
         else:
             self.columns = None
+            self._other = []
             data = inputs
         try:
-            X = np.array(data, dtype=float, ndmin=2)
+            if np.iscomplexobj(data) or np.iscomplexobj(outputs):
+                raise TypeError("complex")
+            X = np.array(data, dtype=float)
             y = np.array(outputs, dtype=float).ravel()
-        except (TypeError, ValueError):
-            raise HybridnavError(f"{where}inputs, outputs: expected numbers") from None
+        except (TypeError, ValueError, OverflowError):
+            raise HybridnavError(f"{where}inputs, outputs: expected real numbers") from None
+        if X.ndim == 1:                      # one input: a plain vector of samples
+            X = X[:, None]
         if X.ndim != 2:
             raise HybridnavError(f"{where}inputs: expected an (n, k) array, got shape {X.shape}")
         if len(y) != len(X):
@@ -84,22 +97,35 @@ class DataCost(Cost):
 
     @classmethod
     def from_csv(cls, path: str | Path, output: str | None = None, *, metric: str = "rmse",
-                 inputs: list[str] | None = None) -> DataCost:
+                 inputs: list[str] | None = None, prefer: str | None = None) -> DataCost:
         """Samples from a CSV file with a header row: the system's inputs and its output as
-        columns (``output``: the output column's name; default: the last column)."""
+        columns (``output``: the output column's name; default: the column named ``prefer``
+        — the system's output — when there is one, else the last column)."""
         from hybridnav.fileio import read_text_file
 
         import io
 
         text = read_text_file(Path(path), "data file")
+        import csv
+
+        try:
+            header = next(csv.reader(io.StringIO(text)), [])
+        except csv.Error as exc:
+            raise HybridnavError(f"{path}: not a CSV table ({exc})") from None
+        header = [h.strip() for h in header]
+        dup = sorted({h for h in header if header.count(h) > 1})
+        if dup:
+            raise HybridnavError(f"{path}: {dup[0]}: expected distinct column names in the "
+                                 "header row")
         try:
             df = pd.read_csv(io.StringIO(text))
-        except (ValueError, pd.errors.ParserError) as exc:
+        except (ValueError, pd.errors.ParserError, OverflowError) as exc:
             raise HybridnavError(f"{path}: not a CSV table ({exc})") from None
+        df.columns = [str(c).strip() for c in df.columns]
         if df.shape[1] < 2:
             raise HybridnavError(f"{path}: expected a header row with the input columns and the "
                                  f"output column, got {list(df.columns)}")
-        out = output or str(df.columns[-1])
+        out = output or (prefer if prefer in df.columns else str(df.columns[-1]))
         if out not in df.columns:
             raise HybridnavError(f"{path}: {out}: no such column (columns: "
                                  f"{', '.join(map(str, df.columns))})")
@@ -108,9 +134,9 @@ class DataCost(Cost):
         if missing:
             raise HybridnavError(f"{path}: {missing[0]}: no such column")
         try:
-            X = df[cols].apply(pd.to_numeric, errors="raise")
-            y = pd.to_numeric(df[out], errors="raise")
-        except (ValueError, TypeError) as exc:
+            X = df[cols].apply(pd.to_numeric, errors="raise").astype(float)
+            y = pd.to_numeric(df[out], errors="raise").astype(float)
+        except (ValueError, TypeError, OverflowError) as exc:
             raise HybridnavError(f"{path}: expected numbers in every column ({exc})") from None
         return cls(X, y, metric=metric, source=str(path))
 
@@ -123,6 +149,8 @@ class DataCost(Cost):
                                      f"{self.X.shape[1]}")
             return self.X
         missing = [n for n in names if n not in self.columns]
+        if missing and missing[0] in self._other:
+            raise HybridnavError(f"{self._where()}{missing[0]}: expected a column of numbers")
         if missing:
             raise HybridnavError(f"{self._where()}{missing[0]}: expected a column for every input "
                                  f"of the system ({', '.join(names)}); columns: "
@@ -157,7 +185,10 @@ class DataCost(Cost):
 
     def assess(self, candidates: Candidates, context: Context) -> Evaluation:
         E = self.errors(candidates)
-        rmse = np.sqrt(np.mean(E * E, axis=1))
+        with np.errstate(over="ignore", invalid="ignore"):
+            scale = np.max(np.abs(E), axis=1, keepdims=True)       # no overflow in E * E
+            safe = np.where(scale > 0, scale, 1.0)
+            rmse = scale[:, 0] * np.sqrt(np.mean((E / safe) ** 2, axis=1))
         mae = np.mean(np.abs(E), axis=1)
         F = (rmse if self.metric == "rmse" else mae)[:, None]
         info = [{"rmse": float(a), "mae": float(b), "max_error": float(c)}

@@ -109,26 +109,56 @@ class FunctionCost(Cost):
             self._f = resolve_function(self.spec, self.path)
         return self._f
 
+    @property
+    def name(self) -> str:
+        """``module:function`` of the function."""
+        return self.spec or (f"{getattr(self._f, '__module__', '?')}:"
+                             f"{getattr(self._f, '__qualname__', repr(self._f))}")
+
     def config(self) -> dict[str, Any]:
-        name = self.spec or f"{getattr(self._f, '__module__', '?')}:" \
-                            f"{getattr(self._f, '__qualname__', repr(self._f))}"
-        return {"kind": "python", "function": name, "batch": self.batch,
+        import hashlib
+        import marshal
+
+        code = getattr(self.function, "__code__", None)
+        try:      # the function's code too: two lambdas share a name, not a meaning
+            digest = hashlib.sha256(marshal.dumps(code)).hexdigest() if code else None
+        except ValueError:
+            digest = None
+        return {"kind": "python", "function": self.name, "code": digest, "batch": self.batch,
                 "objectives": list(self.objective_names)}
 
     def describe(self) -> str:
         return f"the user function {self.config()['function']} (minimized)"
 
+    def _call(self, *args):
+        try:
+            return self.function(*args)
+        except HybridnavError:
+            raise
+        except Exception as exc:        # the user's code: say whose error it is
+            import logging
+
+            logging.getLogger(__name__).debug("cost function failed", exc_info=True)
+            how = "f(candidates, context)" if self.batch else "f(system)"
+            raise HybridnavError(f"cost function {self.name}: raised {type(exc).__name__}: "
+                                 f"{exc} (called as {how}; batch={self.batch})") from None
+
     def evaluate(self, candidates: Candidates, context: Context) -> np.ndarray:
-        f = self.function
         if self.batch:
-            return self.objectives(f(candidates, context), len(candidates))
+            return self.objectives(self._call(candidates, context), len(candidates))
         rows = []
         for s in candidates.systems:
-            v = f(s)
-            rows.append(np.ravel(np.asarray(v, dtype=float)) if v is not None else [np.nan])
-        try:
-            F = np.array(rows, dtype=float)
-        except ValueError:
-            raise HybridnavError(f"cost {self.config()['function']}: expected "
-                                 f"{self.n_objectives} number(s) per system") from None
-        return self.objectives(F, len(candidates))
+            v = self._call(s)
+            try:
+                if np.iscomplexobj(v):
+                    raise TypeError("complex")
+                rows.append(np.ravel(np.asarray(v, dtype=float)) if v is not None
+                            else np.full(self.n_objectives, np.nan))
+            except (TypeError, ValueError, OverflowError):
+                raise HybridnavError(f"cost function {self.name}: expected "
+                                     f"{self.n_objectives} real number(s) per system, got "
+                                     f"{str(v)[:60]!r}") from None
+        if len({len(r) for r in rows}) > 1:
+            raise HybridnavError(f"cost function {self.name}: expected {self.n_objectives} "
+                                 "number(s) per system, got lists of different lengths")
+        return self.objectives(np.array(rows, dtype=float), len(candidates))

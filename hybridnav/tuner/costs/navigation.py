@@ -58,7 +58,17 @@ from hybridnav.tuner.costs.base import (
     process_cache,
 )
 
-__all__ = ["COVERAGE", "PLANNER", "REWARD", "VALIDATION_KEY", "NavigationCost"]
+__all__ = ["COVERAGE", "MEASURES", "PLANNER", "REWARD", "VALIDATION_KEY", "NavigationCost"]
+
+#: What a navigation objective can measure (several: a multi-objective cost for NSGA2). Each is
+#: minimized, and each gets the coverage penalty added.
+MEASURES = {
+    "reward": "the reward of reward.kind (the paper reward's negative)",
+    "failure": "fraction of runs that do not reach the goal",
+    "collision": "fraction of runs that collide or leave the workspace",
+    "length": "mean path length / start-goal distance over the runs that reach (inf: none)",
+    "clearance": "minus the smallest clearance of any run (m): larger clearance is better",
+}
 
 #: First spawn-key entry of the validation noise streams (training uses the generation there).
 VALIDATION_KEY = 2**31 - 1
@@ -132,6 +142,9 @@ class NavigationCost(Cost):
         :data:`COVERAGE` settings.
     name : str, optional
         The set's name in reports (``train``, ``validation``, ...).
+    objectives : sequence of str
+        What is minimized, one or several of :data:`MEASURES` (default the reward; e.g.
+        ``("failure", "length", "clearance")`` for NSGA2).
     strict : bool
         False: accept worlds the lockstep simulation cannot batch (several robots, other
         models) — such a cost can only :meth:`judge` (run by run with the planner).
@@ -141,11 +154,26 @@ class NavigationCost(Cost):
                  planner_params: Mapping[str, Any] | None = None,
                  reward: Mapping[str, Any] | None = None,
                  coverage: Mapping[str, Any] | None = None, name: str = "worlds",
-                 strict: bool = True) -> None:
+                 strict: bool = True, objectives: Sequence[str] = ("reward",)) -> None:
         super().__init__()
         from hybridnav import planners
 
-        self.scenarios = list(scenarios)
+        from hybridnav.world import Scenario, load_scenario
+
+        if isinstance(scenarios, (str, Scenario)):
+            scenarios = [scenarios]
+        loaded = []
+        for i, s in enumerate(scenarios):
+            if isinstance(s, str):             # a built-in name or a scenario file
+                try:
+                    s = load_scenario(s)
+                except HybridnavError as exc:
+                    raise HybridnavError(f"{name}[{i}]: {exc}") from None
+            elif not isinstance(s, Scenario):
+                raise HybridnavError(f"{name}[{i}]: expected a Scenario or a scenario name, got "
+                                     f"{type(s).__name__}")
+            loaded.append(s)
+        self.scenarios = loaded
         self.name = name
         if planner not in planners.PLANNERS or not hasattr(planners.PLANNERS[planner],
                                                            "fuzzy_inputs"):
@@ -167,7 +195,14 @@ class NavigationCost(Cost):
                                  "dtheta_noise or alpha_noise > 0 (without noise every repeat "
                                  "is identical)")
         self.coverage = _settings(COVERAGE, coverage, "coverage")
-        self.objective_names = (f"{self.reward['kind']} reward",)
+        if isinstance(objectives, str) or not objectives or \
+                any(o not in MEASURES for o in objectives) or len(set(objectives)) < len(
+                    objectives):
+            raise HybridnavError(f"objectives: expected distinct names of {', '.join(MEASURES)}"
+                                 f", got {objectives!r}")
+        self.objectives_measured = tuple(objectives)
+        self.objective_names = tuple(f"{self.reward['kind']} reward" if o == "reward" else o
+                                     for o in objectives)
         if not self.scenarios:
             raise HybridnavError(f"{name}: expected at least one world")
         self.strict = strict
@@ -209,6 +244,7 @@ class NavigationCost(Cost):
         from hybridnav.world import scenario_to_dict
 
         return {"kind": "navigation", "planner": self.planner,
+                "objectives": list(self.objectives_measured),
                 "planner_params": self.planner_params, "reward": self.reward,
                 "coverage": self.coverage,
                 "worlds": [scenario_to_dict(s) for s in self.scenarios]}
@@ -223,7 +259,8 @@ class NavigationCost(Cost):
                               planner_params=self.planner_params,
                               reward={k: v for k, v in self.reward.items() if k != "sense"}
                               | ({"sense": "minimize"} if self.reward["kind"] != "paper" else {}),
-                              coverage=self.coverage, name=name)
+                              coverage=self.coverage, name=name,
+                              objectives=self.objectives_measured)
 
     def folds(self, k: int, seed: int) -> list[tuple[NavigationCost, NavigationCost]]:
         n = len(self.scenarios)
@@ -313,8 +350,26 @@ class NavigationCost(Cost):
         unc = candidates.uncovered(cov["grid"])
         pen = cov["penalty"] * np.maximum(unc - cov["max_uncovered"], 0.0)
         fitness = total - pen if kind == "paper" else total + pen
-        objective = -fitness if kind == "paper" else fitness
         reached = (res.outcome == "reached").reshape(E, K, repeats)
+        columns = []
+        for o in self.objectives_measured:
+            if o == "reward":
+                columns.append(-fitness if kind == "paper" else fitness)
+                continue
+            if o == "failure":
+                v = 1.0 - reached.mean(axis=(0, 2))
+            elif o == "collision":
+                crash = np.isin(res.outcome, ("collided", "out_of_bounds")).reshape(E, K, repeats)
+                v = crash.mean(axis=(0, 2))
+            elif o == "length":
+                D = self._distances()[:, None, None]
+                L = np.where(reached, res.path_length.reshape(E, K, repeats) / D, np.nan)
+                n = reached.sum(axis=(0, 2))
+                v = np.where(n > 0, np.nansum(L, axis=(0, 2)) / np.maximum(n, 1), np.inf)
+            else:
+                v = -res.min_clearance.reshape(E, K, repeats).min(axis=(0, 2))
+            columns.append(v + pen)
+        objective = np.column_stack(columns)
         details = []
         for k in range(K):
             envs = []
@@ -333,7 +388,14 @@ class NavigationCost(Cost):
         info = [{"fitness": float(f), "reward": float(t), "uncovered": float(u)}
                 for f, t, u in zip(fitness, total, unc)]
         feasible = unc <= cov["max_uncovered"] + 1e-12
-        return Evaluation(objective[:, None], feasible, info, details)
+        return Evaluation(objective, feasible, info, details)
+
+    def _distances(self) -> np.ndarray:
+        """Per world the start-goal distance less the goal radius (at least the radius)."""
+        r = [s.robots[0] for s in self.scenarios]
+        d0 = np.array([math.dist(x.start, x.goal) for x in r])
+        gr = np.array([x.goal_radius for x in r])
+        return np.maximum(d0 - gr, gr)
 
     def evaluate(self, candidates: Candidates, context: Context) -> np.ndarray:
         return self.assess(candidates, context).objectives

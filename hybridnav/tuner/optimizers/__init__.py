@@ -21,10 +21,13 @@ def make_optimizer(table: dict, where: str = "") -> Optimizer:
     """An optimizer from a job file's ``[optimizer]`` table: ``kind`` and its own settings."""
     t = dict(table)
     kind = t.pop("kind", "ga")
-    if kind not in OPTIMIZERS:
+    if not isinstance(kind, str) or kind not in OPTIMIZERS:
         raise HybridnavError(f"{where}optimizer.kind: expected one of {', '.join(OPTIMIZERS)}, "
                              f"got {kind!r}")
     try:
         return OPTIMIZERS[kind](**t)
     except HybridnavError as exc:
-        raise HybridnavError(f"{where}optimizer.{exc}") from None
+        msg = str(exc)
+        if msg.startswith(f"{kind}: "):
+            msg = msg[len(kind) + 2:]
+        raise HybridnavError(f"{where}optimizer.{msg}") from None

@@ -62,6 +62,9 @@ class Optimizer:
 
     name: ClassVar[str] = ""
     multiobjective: ClassVar[bool] = False
+    #: generations without a validation improvement before :func:`tune` stops early, when its
+    #: ``patience`` is not given (0: never)
+    default_patience: ClassVar[int] = 10
     parameters: ClassVar[dict[str, Param]] = {}
 
     def __init__(self, **settings: Any) -> None:

@@ -6,8 +6,11 @@ the starting vector with step size ``sigma`` (a fraction of every range). Each g
 global one — clips and repairs them, evaluates them and updates the strategy with the repaired
 points (the values belong to them).
 
-Defaults: ``lambda_ = 4 + 3 ln d`` (DEAP's and Hansen's), ``sigma`` 0.2, 60 generations after
-the initial one (the initial generation evaluates only the start).
+Defaults: ``lambda_ = 4 + 3 ln d`` (DEAP's and Hansen's), ``sigma`` 0.1 of every range, 150
+generations after the initial one (the initial generation evaluates only the start; 1,651
+evaluations for 12 free numbers), and no early stopping on validation unless ``tune`` is given a
+``patience`` (a generation of CMA-ES is a dozen samples: its validation best stalls for long
+stretches while the step size adapts).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 from deap import cma
 
+from hybridnav.errors import HybridnavError
 from hybridnav.params import Param
 from hybridnav.tuner.optimizers.base import Optimizer, Problem, rng_state, set_rng_state
 from hybridnav.tuner.optimizers.operators import Individual
@@ -49,11 +53,18 @@ class CMAES(Optimizer):
 
     name = "cmaes"
     parameters: ClassVar[dict[str, Param]] = {
-        "generations": Param(60, "generations after the initial one", lo=0, hi=100_000),
-        "lambda_": Param(0, "offspring per generation (0: 4 + 3 ln d)", lo=0, hi=100_000),
-        "sigma": Param(0.2, "initial step, a fraction of each gene's range", lo=0.0,
+        "generations": Param(150, "generations after the initial one", lo=0, hi=100_000),
+        "lambda_": Param(0, "offspring per generation (0: 4 + 3 ln d; else at least 2)", lo=0,
+                         hi=100_000),
+        "sigma": Param(0.1, "initial step, a fraction of each gene's range", lo=0.0,
                        lo_open=True, hi=10.0),
     }
+    default_patience = 0
+
+    def _check(self) -> None:
+        if self.values["lambda_"] == 1:
+            raise HybridnavError(f"{self.name}: lambda_: expected 0 (4 + 3 ln d) or an integer "
+                                 ">= 2, got 1")
 
     def _setup(self, problem: Problem, seed: int) -> None:
         self.rng = np.random.default_rng(seed)
@@ -61,7 +72,7 @@ class CMAES(Optimizer):
         z0 = (problem.x0 - problem.lower) / self._span
         kw = {}
         if self.values["lambda_"]:
-            kw["lambda_"] = max(2, self.values["lambda_"])
+            kw["lambda_"] = self.values["lambda_"]
         self.strategy = _Strategy(centroid=z0.tolist(), sigma=self.values["sigma"], **kw)
         self._X = problem.x0[None].copy()
         self._F = np.full((1, problem.n_obj), np.inf)
@@ -100,12 +111,21 @@ class CMAES(Optimizer):
     def _state(self) -> dict[str, Any]:
         s = {k: (v.tolist() if isinstance(v, np.ndarray) else v)
              for k, v in vars(self.strategy).items() if k in _DYNAMIC}
-        return {"strategy": s, "numpy_random": rng_state(self.rng),
+        # the arrays' memory order too: np.dot rounds differently on C and Fortran order
+        order = {k: "F" for k, v in vars(self.strategy).items()
+                 if k in _DYNAMIC and isinstance(v, np.ndarray) and v.ndim == 2
+                 and v.flags.f_contiguous and not v.flags.c_contiguous}
+        return {"strategy": s, "order": order, "numpy_random": rng_state(self.rng),
                 "X": self._X.tolist(), "F": self._F.tolist()}
 
     def _set_state(self, state: dict[str, Any]) -> None:
+        order = state.get("order", {})
         for k, v in state["strategy"].items():
-            setattr(self.strategy, k, np.array(v) if isinstance(v, list) else v)
+            if k not in _DYNAMIC:
+                raise HybridnavError(f"checkpoint: optimizer.strategy.{k}: unknown key")
+            setattr(self.strategy, k,
+                    np.array(v, dtype=float, order=order.get(k, "C")) if isinstance(v, list)
+                    else v)
         self.rng = set_rng_state(state["numpy_random"])
         self._X = np.array(state["X"], dtype=float)
         self._F = np.array(state["F"], dtype=float)

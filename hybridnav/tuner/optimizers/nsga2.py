@@ -58,6 +58,7 @@ class NSGA2(Optimizer):
 
     name = "nsga2"
     multiobjective = True
+    default_patience = 0
     parameters: ClassVar[dict[str, Param]] = {
         "population": Param(100, "individuals per generation (a multiple of 4)", lo=4,
                             hi=100_000),

@@ -63,7 +63,7 @@ def deap_random(rnd: random.Random):
 
 def _check(op: str, spec: dict[str, Param], values: dict[str, Any]) -> None:
     for k, p in spec.items():
-        p.check(k, values[k], f"{op}: ")
+        p.check(k, values[k], f"{op}(): ")
 
 
 @dataclass(frozen=True)
@@ -143,7 +143,10 @@ def _from(kind: str, table: dict, value: Any, key: str):
         if bad:
             raise HybridnavError(f"{key}.{bad[0]}: unknown setting of {value['kind']}; expected "
                                  f"one of: {', '.join(cls.__dataclass_fields__)}")
-        return cls(**args)
+        try:
+            return cls(**args)
+        except HybridnavError as exc:
+            raise HybridnavError(f"{key}.{str(exc).split('(): ', 1)[-1]}") from None
     raise HybridnavError(f"{key}: expected a {kind} operator ({', '.join(table)}, or a table "
                          f"with kind and its settings), got {value!r}")
 

@@ -24,6 +24,7 @@ class PSO(Optimizer):
     """Global-best particle swarm (Kennedy & Eberhart 1995, inertia weight of Shi & Eberhart)."""
 
     name = "pso"
+    default_patience = 15
     parameters: ClassVar[dict[str, Param]] = {
         "n": Param(30, "particles", lo=2, hi=100_000),
         "generations": Param(60, "generations after the initial one", lo=0, hi=100_000),
