@@ -488,3 +488,108 @@ def test_navigation_objectives_for_nsga2_and_an_evaluation_budget():
     assert 20 <= res.evaluations <= 28 and len(res.logbook) == 3      # 8 + 8 + 8, then stop
     assert res.front.shape[1] >= 5 and non_dominated(
         res.front[[f"objective_{i}" for i in range(4)]].to_numpy()).all()
+
+
+# ---- found in review ---------------------------------------------------------------------------
+
+def test_resumes_are_exact_for_cma_es_and_finished_k_fold_runs(tmp_path, target):
+    X, y = samples(target, 120, 1)
+    cost = DataCost(X, y)
+    start = perturbed(target, 0.05, np.random.default_rng(3))
+    for seed in (4, 5, 6):
+        kw = dict(settings=TunableSettings(start).rules(switches=True), seed=seed,
+                  optimizer=CMAES(generations=4))
+        full = tune(start, cost, **kw)
+        tune(start, cost, checkpoint=tmp_path / f"c{seed}", stop_after=1, **kw)
+        again = tune(start, cost, checkpoint=tmp_path / f"c{seed}", resume=True, **kw)
+        assert np.array_equal(again.x, full.x) and again.objectives[0] == full.objectives[0]
+    kw = dict(optimizer=PSO(n=6, generations=2), validation=KFold(2), seed=1)
+    done = tune(start, cost, checkpoint=tmp_path / "k", **kw)
+    again = tune(start, cost, checkpoint=tmp_path / "k", resume=True, **kw)   # finished: as is
+    assert np.array_equal(again.x, done.x) and len(again.logbook) == len(done.logbook)
+
+
+def test_verdicts_never_read_better_than_the_data(target):
+    X, y = samples(target, 60, 2)
+    same = tune(target, FunctionCost(lambda s: 1.0), optimizer=GA(population=4, generations=1),
+                settings=TunableSettings(target, mf=["alpha"]), test=DataCost(X, y))
+    v = same.verdicts["test"]
+    assert not v["better"] and "NOT better" in v["headline"]        # a tie is not better
+    val = tune(target, DataCost(X, y), optimizer=GA(population=4, generations=1),
+               validation=DataCost(X, y))
+    assert "not an independent test" in val.verdicts["validation"]["headline"]
+
+
+def test_a_start_outside_the_default_bounds_is_kept_exactly():
+    tipper = fuzzy.read_fis(TIPPER.replace("[1.5 5]", "[40 5]"), "wide.fis")  # sigma 40 > 10
+    X, y = samples(tipper, 80, 3)
+    s = TunableSettings(tipper)
+    assert np.array_equal(s.to_system(s.to_vector()).to_dict()["inputs"],
+                          tipper.to_dict()["inputs"])
+    res = tune(tipper, DataCost(X, y), optimizer=GA(population=4, generations=1), settings=s)
+    assert res.start_objectives[0] < 1e-12                  # the real start, scored as it is
+
+
+@pytest.mark.parametrize("f, text", [
+    (lambda s: "abc", "expected 1 real number(s) per system, got 'abc'"),
+    (lambda s: 1 / 0, "raised ZeroDivisionError: division by zero"),
+    (lambda s: -np.inf, "finite or +inf"),
+    (lambda s: 1 + 2j, "expected 1 real number(s)"),
+])
+def test_a_users_cost_function_fails_with_its_name(target, f, text):
+    with pytest.raises(HybridnavError, match="cost") as info:
+        tune(target, FunctionCost(f), optimizer=GA(population=4, generations=0))
+    assert text in str(info.value)
+
+
+def test_lambdas_are_refused_before_a_process_pool_and_damaged_checkpoints_are_named(
+        tmp_path, target):
+    with ProcessBackend(2) as be, pytest.raises(HybridnavError,
+                                                match="cannot be sent to worker processes"):
+        tune(target, FunctionCost(lambda s: 1.0), backend=be)
+    X, y = samples(target, 60, 2)
+    kw = dict(optimizer=GA(population=4, generations=3), seed=0, checkpoint=tmp_path)
+    tune(target, DataCost(X, y), stop_after=1, **kw)
+    ck = tmp_path / "checkpoint.json"
+    good = ck.read_text()
+    state = json.loads(good)
+    del state["optimizer"]["population"]
+    ck.write_text(json.dumps(state))
+    with pytest.raises(HybridnavError, match="checkpoint.json: damaged checkpoint"):
+        tune(target, DataCost(X, y), resume=True, **kw)
+    ck.write_text(good)
+    rows = (tmp_path / "evaluations.jsonl").read_text().splitlines()
+    (tmp_path / "evaluations.jsonl").write_text("\n".join(rows[:2] + ["garbage"] + rows[2:]))
+    with pytest.raises(HybridnavError, match="evaluations.jsonl: line 3: expected a JSON row"):
+        tune(target, DataCost(X, y), resume=True, **kw)
+
+
+def test_csv_headers_are_checked_and_the_output_column_found_by_name(tmp_path):
+    p = tmp_path / "d.csv"
+    p.write_text("service,food,food,tip\n1,2,3,4\n")
+    with pytest.raises(HybridnavError, match="food: expected distinct column names"):
+        DataCost.from_csv(p)
+    p.write_text("service,food,tip,extra\n1,2,3,4\n2,3,4,5\n")
+    c = DataCost.from_csv(p, prefer="tip")
+    assert c.y.tolist() == [3.0, 4.0] and c.columns == ["service", "food", "extra"]
+
+
+@pytest.mark.parametrize("extra, key, text", [
+    ('[cost]\nkind = "python"\nfunction = "os:getcwd"\n[validation]\nkfold = 2\n',
+     "validation.kfold", "cannot be split into folds"),
+    ('[cost]\nkind = "python"\nfunction = "os:getcwd"\nvalidation = 0.3\n', "cost.validation",
+     "for cost.kind = 'data'"),
+    ('[cost]\nkind = "python"\nfunction = "os:getcwd"\n[scenarios]\ntrain = ["x"]\n',
+     "scenarios", "expected no worlds"),
+    ('[cost]\nkind = "python"\nfunction = "os:getcwd"\nobjectives = 0\n', "cost.objectives",
+     "expected an integer in [1, 10]"),
+    ('[cost]\nobjectives = ["failure", "speed"]\n', "cost.objectives",
+     "expected a list of distinct names"),
+])
+def test_job_cost_combinations_that_cannot_work_fail_before_any_work(tmp_path, extra, key,
+                                                                      text):
+    p = tmp_path / "bad.toml"
+    p.write_text(extra)
+    with pytest.raises(HybridnavError) as info:
+        load_job(p)
+    assert f"bad.toml: {key}" in str(info.value) and text in str(info.value), str(info.value)

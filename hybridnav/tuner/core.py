@@ -180,7 +180,7 @@ class _Run:
                 track.cache[_key(x)] = {
                     "x": np.asarray(x, dtype=float).tolist(), "score": float(f[0]),
                     "objectives": f.tolist(), "feasible": bool(ok), "info": info,
-                    "train": train[_key(x)], "stage": self.stage, "generation": generation,
+                    "train": train.get(_key(x)), "stage": self.stage, "generation": generation,
                     "details": det}
         scores = [track.cache[_key(x)]["score"] for x in cands]
         track.gen_best = float(min(scores))
@@ -650,7 +650,10 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
             chosen = run.best_train
         chosen_x = np.array(chosen["x"], dtype=float)
         best_gen, stage = chosen["generation"], chosen.get("stage", stage)
-        chosen_F = np.array([chosen.get("train", chosen["score"])])
+        t = chosen.get("train", chosen["score"])
+        if t is None:          # the start, chosen on a fold of a stage it was not trained in
+            t = run.start_objectives[0] if _key(chosen_x) == _key(run.x0) else np.nan
+        chosen_F = np.array([t], dtype=float)
         front = pd.DataFrame({"member": [0], "objective_0": chosen_F})
         members = [Member(None, chosen_F, chosen_x, {})]
     tuned_name = name or f"{start.name}-tuned"
