@@ -116,6 +116,8 @@ class FuzzySteer(FieldPlanner):
                              lo_open=True, hi=math.pi / 2),
         **COMMON,
     }
+    #: robots with a heading to steer (the unicycle)
+    drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"robot", "heading_control"}),)
     #: the fuzzy inputs this planner provides (what a tuned system must take)
     fuzzy_inputs: ClassVar[tuple[str, ...]] = INPUTS
     #: many controllers on many worlds in one batch (what the tuner simulates)
@@ -135,16 +137,6 @@ class FuzzySteer(FieldPlanner):
                 f"planner fuzzy-steer: fis: expected a fuzzy system with the inputs "
                 f"{', '.join(INPUTS)}, {system.name!r} has {', '.join(system.input_names)}")
         self.fis = system
-
-    def check_scenario(self, scenario) -> None:
-        super().check_scenario(scenario)
-        from hybridnav.models import MODELS
-
-        for r in scenario.robots:
-            if "heading_control" not in MODELS[r.model].capabilities:
-                raise HybridnavError(f"planner fuzzy-steer: {scenario.name}: robot {r.name}: "
-                                     f"expected a model with a heading (unicycle), got "
-                                     f"{r.model}")
 
     def velocity(self, state, sim: Simulation, idx, P, goals):
         theta = np.array([sim.X[i][2] for i in idx], dtype=float)
