@@ -40,7 +40,7 @@ from hybridnav.tuner.optimizers.operators import (
     mutation_from,
 )
 
-__all__ = ["GA", "initial_population"]
+__all__ = ["GA", "Evolutionary", "initial_population"]
 
 _UNIT = {"lo": 0.0, "hi": 1.0}
 
@@ -57,7 +57,65 @@ def initial_population(problem: Problem, n: int, local: float, sigma: float,
     return np.vstack([x0[None], near, far])
 
 
-class GA(Optimizer):
+class Evolutionary(Optimizer):
+    """What the real-coded evolutionary optimizers (:class:`GA`, :class:`NSGA2`) share: their
+    operator objects, generation 0 (:func:`initial_population`), DEAP individuals and their
+    JSON state."""
+
+    def _check(self) -> None:
+        v = self.values
+        v["crossover"] = crossover_from(v["crossover"], f"{self.name}: crossover")
+        v["mutation"] = mutation_from(v["mutation"], f"{self.name}: mutation")
+
+    def config(self) -> dict[str, Any]:
+        c = super().config()
+        c["crossover"], c["mutation"] = describe(c["crossover"]), describe(c["mutation"])
+        return c
+
+    def _setup(self, problem: Problem, seed: int) -> None:
+        v = self.values
+        self.rnd = random.Random(seed)
+        self.rng = np.random.default_rng(seed)
+        self._m = problem.n_obj
+        X = initial_population(problem, v["population"], v["init_local"], v["init_sigma"],
+                               self.rng)
+        self.pop = [Individual(x, self._m) for x in X]
+        self._pending: list[Individual] = []
+        self._low, self._up = problem.lower.tolist(), problem.upper.tolist()
+
+    def _reevaluate(self) -> np.ndarray:
+        """Generation 0 of a stage: the whole population is evaluated (again)."""
+        for ind in self.pop:
+            del ind.fitness.values
+        self._pending = list(self.pop)
+        return np.array(self.pop, dtype=float)
+
+    def population(self) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array(self.pop, dtype=float),
+                np.array([i.fitness.values for i in self.pop], dtype=float))
+
+    def _new_stage(self) -> None:
+        pass                                  # ask() at generation 0 re-evaluates the population
+
+    @staticmethod
+    def _dump(ind) -> dict[str, Any]:
+        return {"x": list(ind), "f": list(ind.fitness.values) if ind.fitness.valid else None}
+
+    def _load(self, d) -> Individual:
+        ind = Individual(d["x"], self._m)
+        if d["f"] is not None:
+            ind.fitness.values = tuple(d["f"])
+        return ind
+
+    def _random_state(self) -> dict[str, Any]:
+        return {"python_random": random_state(self.rnd), "numpy_random": rng_state(self.rng)}
+
+    def _set_random_state(self, state: dict[str, Any]) -> None:
+        self.rnd = set_random_state(state["python_random"])
+        self.rng = set_rng_state(state["numpy_random"])
+
+
+class GA(Evolutionary):
     """Genetic algorithm: tournament selection, crossover and mutation objects, elitism.
 
     Parameters
@@ -86,9 +144,8 @@ class GA(Optimizer):
     }
 
     def _check(self) -> None:
+        super()._check()
         v = self.values
-        v["crossover"] = crossover_from(v["crossover"], f"{self.name}: crossover")
-        v["mutation"] = mutation_from(v["mutation"], f"{self.name}: mutation")
         if v["elite"] >= v["population"]:
             raise HybridnavError(f"{self.name}: elite: expected fewer elites than the "
                                  f"population ({v['population']}), got {v['elite']}")
@@ -96,33 +153,17 @@ class GA(Optimizer):
             raise HybridnavError(f"{self.name}: tournament: expected at most the population "
                                  f"({v['population']}), got {v['tournament']}")
 
-    def config(self) -> dict[str, Any]:
-        c = super().config()
-        c["crossover"], c["mutation"] = describe(c["crossover"]), describe(c["mutation"])
-        return c
-
     # ---- run -------------------------------------------------------------------------------
 
     def _setup(self, problem: Problem, seed: int) -> None:
-        v = self.values
-        self.rnd = random.Random(seed)
-        self.rng = np.random.default_rng(seed)
-        self._m = problem.n_obj
-        X = initial_population(problem, v["population"], v["init_local"], v["init_sigma"],
-                               self.rng)
-        self.pop = [Individual(x, self._m) for x in X]
+        super()._setup(problem, seed)
         self.hof = None
-        self._pending: list[Individual] = []
-        self._low, self._up = problem.lower.tolist(), problem.upper.tolist()
 
     def ask(self) -> np.ndarray:
         v = self.values
         if self.generation == 0:            # (re-)evaluate the whole population
-            for ind in self.pop:
-                del ind.fitness.values
-            self._pending = list(self.pop)
             self._offspring = None
-            return np.array(self.pop, dtype=float)
+            return self._reevaluate()
         elite = v["elite"]
         with deap_random(self.rnd):
             offspring = [self._clone(i) for i in tools.selTournament(
@@ -157,17 +198,10 @@ class GA(Optimizer):
         self._pending, self._offspring = [], None
         self.generation += 1
 
-    def population(self) -> tuple[np.ndarray, np.ndarray]:
-        return (np.array(self.pop, dtype=float),
-                np.array([i.fitness.values for i in self.pop], dtype=float))
-
     def best(self) -> tuple[np.ndarray, np.ndarray]:
         """The hall of fame's best vector and its objectives."""
         h = self.hof[0]
         return np.array(h, dtype=float), np.array(h.fitness.values, dtype=float)
-
-    def _new_stage(self) -> None:
-        pass                                  # ask() at generation 0 re-evaluates the population
 
     def _clone(self, ind: Individual) -> Individual:
         new = Individual(ind, self._m)
@@ -177,20 +211,10 @@ class GA(Optimizer):
 
     # ---- state -----------------------------------------------------------------------------
 
-    @staticmethod
-    def _dump(ind) -> dict[str, Any]:
-        return {"x": list(ind), "f": list(ind.fitness.values) if ind.fitness.valid else None}
-
-    def _load(self, d) -> Individual:
-        ind = Individual(d["x"], self._m)
-        if d["f"] is not None:
-            ind.fitness.values = tuple(d["f"])
-        return ind
-
     def _state(self) -> dict[str, Any]:
         return {"population": [self._dump(i) for i in self.pop],
                 "hall_of_fame": [self._dump(i) for i in self.hof] if self.hof else None,
-                "python_random": random_state(self.rnd), "numpy_random": rng_state(self.rng)}
+                **self._random_state()}
 
     def _set_state(self, state: dict[str, Any]) -> None:
         self.pop = [self._load(d) for d in state["population"]]
@@ -198,5 +222,4 @@ class GA(Optimizer):
         if state["hall_of_fame"] is not None:
             self.hof = tools.HallOfFame(max(1, self.values["elite"]))
             self.hof.update([self._load(d) for d in state["hall_of_fame"]])
-        self.rnd = set_random_state(state["python_random"])
-        self.rng = set_rng_state(state["numpy_random"])
+        self._set_random_state(state)

@@ -14,7 +14,6 @@ with probability 1/d when ``gene_prob`` is 0.
 
 from __future__ import annotations
 
-import random
 from typing import Any, ClassVar
 
 import numpy as np
@@ -22,24 +21,9 @@ from deap import tools
 
 from hybridnav.errors import HybridnavError
 from hybridnav.params import Param
-from hybridnav.tuner.optimizers.base import (
-    Optimizer,
-    Problem,
-    random_state,
-    rng_state,
-    set_random_state,
-    set_rng_state,
-)
-from hybridnav.tuner.optimizers.ga import initial_population
-from hybridnav.tuner.optimizers.operators import (
-    SBX,
-    Individual,
-    Polynomial,
-    crossover_from,
-    deap_random,
-    describe,
-    mutation_from,
-)
+from hybridnav.tuner.optimizers.base import Problem
+from hybridnav.tuner.optimizers.ga import Evolutionary
+from hybridnav.tuner.optimizers.operators import SBX, Individual, Polynomial, deap_random
 
 __all__ = ["NSGA2", "non_dominated"]
 
@@ -53,7 +37,7 @@ def non_dominated(F: np.ndarray) -> np.ndarray:
     return ~dominated
 
 
-class NSGA2(Optimizer):
+class NSGA2(Evolutionary):
     """Elitist non-dominated sorting genetic algorithm for several objectives."""
 
     name = "nsga2"
@@ -75,29 +59,15 @@ class NSGA2(Optimizer):
     }
 
     def _check(self) -> None:
+        super()._check()
         v = self.values
-        v["crossover"] = crossover_from(v["crossover"], f"{self.name}: crossover")
-        v["mutation"] = mutation_from(v["mutation"], f"{self.name}: mutation")
         if v["population"] % 4:
             raise HybridnavError(f"{self.name}: population: expected a multiple of 4 (DEAP's "
                                  f"tournament on rank and crowding), got {v['population']}")
 
-    def config(self) -> dict[str, Any]:
-        c = super().config()
-        c["crossover"], c["mutation"] = describe(c["crossover"]), describe(c["mutation"])
-        return c
-
     def _setup(self, problem: Problem, seed: int) -> None:
-        v = self.values
-        self.rnd = random.Random(seed)
-        self.rng = np.random.default_rng(seed)
-        self._m = problem.n_obj
-        X = initial_population(problem, v["population"], v["init_local"], v["init_sigma"],
-                               self.rng)
-        self.pop = [Individual(x, self._m) for x in X]
-        self._pending: list[Individual] = []
-        self._low, self._up = problem.lower.tolist(), problem.upper.tolist()
-        mut = v["mutation"]
+        super()._setup(problem, seed)
+        mut = self.values["mutation"]
         if getattr(mut, "gene_prob", None) == 0.0:
             self._mutation = type(mut)(**{**vars(mut), "gene_prob": 1.0 / max(problem.dim, 1)})
         else:
@@ -106,11 +76,8 @@ class NSGA2(Optimizer):
     def ask(self) -> np.ndarray:
         v = self.values
         if self.generation == 0:
-            for ind in self.pop:
-                del ind.fitness.values
-            self._pending = list(self.pop)
             self._children = None
-            return np.array(self.pop, dtype=float)
+            return self._reevaluate()
         with deap_random(self.rnd):
             parents = tools.selTournamentDCD(self.pop, len(self.pop))
             children = [Individual(p, self._m) for p in parents]
@@ -137,19 +104,12 @@ class NSGA2(Optimizer):
         self._pending, self._children = [], None
         self.generation += 1
 
-    def population(self) -> tuple[np.ndarray, np.ndarray]:
-        return (np.array(self.pop, dtype=float),
-                np.array([i.fitness.values for i in self.pop], dtype=float))
-
-    def _new_stage(self) -> None:
-        pass
-
     def _state(self) -> dict[str, Any]:
         return {"population": [{"x": list(i), "f": list(i.fitness.values)
                                 if i.fitness.valid else None,
                                 "crowding": getattr(i.fitness, "crowding_dist", None)}
                                for i in self.pop],
-                "python_random": random_state(self.rnd), "numpy_random": rng_state(self.rng)}
+                **self._random_state()}
 
     def _set_state(self, state: dict[str, Any]) -> None:
         pop = []
@@ -161,5 +121,4 @@ class NSGA2(Optimizer):
                 ind.fitness.crowding_dist = d["crowding"]
             pop.append(ind)
         self.pop = pop
-        self.rnd = set_random_state(state["python_random"])
-        self.rng = set_rng_state(state["numpy_random"])
+        self._set_random_state(state)
