@@ -610,3 +610,19 @@ def test_rules_learned_from_an_empty_base_reach_as_often_as_the_5_rule_start(tmp
     for which in ("validation", "test"):
         assert s.loc[(which, "tuned"), "reached"] >= s.loc[(which, "start"), "reached"]
         assert s.loc[(which, "tuned"), "collided"] <= s.loc[(which, "start"), "collided"]
+
+
+def test_min_overlap_is_kept_by_the_repair_and_rules_can_be_chosen(target):
+    s = TunableSettings(target, min_overlap=0.3)
+    X = s.random(300, np.random.default_rng(0))
+    for x in X:
+        sk = s.to_system(x)
+        for v in (*sk.inputs, sk.output):
+            width = v.range[1] - v.range[0]
+            low, high = v.terms                     # zmf, smf: their supports' ends
+            assert high.params[0] <= low.params[1] - 0.3 * width + 1e-9 * width
+    s2 = TunableSettings.from_table(target, {"free": ["w"], "rule_weights": True,
+                                             "rules": [2, 4]})
+    assert s2.labels[-2:] == ["rule2.weight", "rule4.weight"]
+    with pytest.raises(HybridnavError, match=r"rules: expected rule numbers in \[1, 5\]"):
+        TunableSettings.from_table(target, {"rules": [0]})

@@ -100,6 +100,10 @@ SCHEMA: dict[str, dict[str, Param]] = {
         "bounds": Param({}, "optional [lo, hi] per variable (replaces range and margin)"),
         "margin": Param(0.25, "term positions may pass the range ends by this times its width",
                         **_UNIT),
+        "rules": Param([], "1-based numbers of the rules the rule_* settings apply to (empty: "
+                           "all)"),
+        "min_overlap": Param(0.0, "neighbouring terms' supports overlap by at least this "
+                                  "fraction of the range (0: not enforced)", **_UNIT),
     },
     "scenarios": {
         "train": Param(["effc-train-1", "effc-train-2", {"generate": 30, "seed": 1}],

@@ -46,6 +46,8 @@ from hybridnav.errors import HybridnavError
 __all__ = ["Gene", "TunableSettings"]
 
 _ORDERED = ("zmf", "smf", "trimf", "trapmf")
+#: per MF type, the parameters at the left and right end of its support (None: unbounded)
+_EDGES = {"zmf": (None, 1), "smf": (0, None), "trimf": (0, 2), "trapmf": (0, 3)}
 _RULE_KINDS = ("switch", "weight", "consequent")
 _PATH = re.compile(r"^(?P<var>[^.\[\]]+)(?:\.(?P<term>[^.\[\]]+)(?:\.(?P<mf>[^.\[\]]+))?)?"
                    r"(?:\[(?P<param>\d+)\])?$")
@@ -82,6 +84,11 @@ class TunableSettings:
         Term positions may pass a variable's range ends by this times its width (default 0.25).
     bounds : mapping of str to (lo, hi), optional
         Per variable name, the bounds of its term positions (replaces range and margin).
+    min_overlap : float, optional
+        An interpretability constraint, kept by :meth:`repair`: the supports of neighbouring
+        terms (in the variable's term order; ``zmf``, ``smf``, ``trimf``, ``trapmf``) overlap by at
+        least this fraction of the variable's range, so that no input falls between two terms
+        (default 0: not enforced).
 
     Attributes
     ----------
@@ -104,8 +111,8 @@ class TunableSettings:
 
     def __init__(self, system, *, mf: bool | Iterable[str] = True, rule_switches: bool = False,
                  rule_weights: bool = False, rule_consequents: bool = False,
-                 margin: float = 0.25, bounds: Mapping[str, Sequence[float]] | None = None
-                 ) -> None:
+                 margin: float = 0.25, bounds: Mapping[str, Sequence[float]] | None = None,
+                 min_overlap: float = 0.0) -> None:
         from hybridnav.fuzzy import FuzzySystem
 
         if not isinstance(system, FuzzySystem):
@@ -117,6 +124,11 @@ class TunableSettings:
                 and math.isfinite(margin) and 0 <= margin <= 100):
             raise HybridnavError(f"margin: expected a number in [0, 100], got {margin!r}")
         self.margin = float(margin)
+        if isinstance(min_overlap, bool) or not isinstance(min_overlap, (int, float)) or \
+                not 0.0 <= min_overlap <= 1.0:
+            raise HybridnavError(f"min_overlap: expected a number in [0, 1], got "
+                                 f"{min_overlap!r}")
+        self.min_overlap = float(min_overlap)
         self._learn = False
         self._codes0: np.ndarray | None = None    # learning: the slots' initial codes
         self._on0: np.ndarray | None = None
@@ -155,15 +167,24 @@ class TunableSettings:
 
         Keys: ``mf`` (variable, term or parameter paths that are free; the old name) or
         ``free``, ``fixed`` (paths fixed again), ``rule_switches``, ``rule_weights``,
-        ``rule_consequents``, ``margin``, ``bounds`` (``{var = [lo, hi]}``).
+        ``rule_consequents`` (for the rules numbered in ``rules``, 1-based; default all),
+        ``margin``, ``bounds`` (``{var = [lo, hi]}``), ``min_overlap``.
         """
         t = dict(table)
         free = t.get("free", t.get("mf", True))
+        rules = t.get("rules") or []
         try:
-            s = cls(system, mf=free, rule_switches=t.get("rule_switches", False),
-                    rule_weights=t.get("rule_weights", False),
-                    rule_consequents=t.get("rule_consequents", False),
-                    margin=t.get("margin", 0.25), bounds=t.get("bounds") or {})
+            s = cls(system, mf=free, margin=t.get("margin", 0.25),
+                    bounds=t.get("bounds") or {}, min_overlap=t.get("min_overlap", 0.0))
+            n = len(system.rules)
+            if not (isinstance(rules, list) and all(
+                    isinstance(r, int) and not isinstance(r, bool) and 1 <= r <= n
+                    for r in rules)):
+                raise HybridnavError(f"rules: expected rule numbers in [1, {n}], got {rules!r}")
+            s = s.rules(switches=t.get("rule_switches", False),
+                        weights=t.get("rule_weights", False),
+                        consequents=t.get("rule_consequents", False),
+                        which=[r - 1 for r in rules] if rules else None)
             for path in t.get("fixed", []):
                 s = s.fix(path)
         except HybridnavError as exc:
@@ -400,6 +421,7 @@ class TunableSettings:
             if g.kind == "mf":
                 groups.setdefault((g.var, g.term), []).append(k)
         self._groups = groups
+        self._col = {(g.var, g.term, g.param): k for k, g in enumerate(genes) if g.kind == "mf"}
         self._switch_cols = [k for k, g in enumerate(genes) if g.kind == "switch"]
         self._family = None
 
@@ -503,7 +525,37 @@ class TunableSettings:
                 tight = X[:, b] - X[:, a] < eps
                 X[tight, b] = np.minimum(X[tight, a] + eps, self.upper[b])
                 X[tight, a] = X[tight, b] - eps
+        if self.min_overlap > 0:
+            self._overlap(X)
         return X
+
+    def _overlap(self, X: np.ndarray) -> None:
+        """Widen neighbouring terms' supports towards each other until they overlap by
+        ``min_overlap`` of the range (as far as the bounds allow; moving a support end outwards
+        keeps every term's parameter order)."""
+        for vi, v in enumerate(self.variables):
+            need = self.min_overlap * (v.range[1] - v.range[0])
+            for j in range(len(v.terms) - 1):
+                e0, e1 = _EDGES.get(v.terms[j].mf), _EDGES.get(v.terms[j + 1].mf)
+                if e0 is None or e1 is None or e0[1] is None or e1[0] is None:
+                    continue
+                kr = self._col.get((vi, j, e0[1]))
+                kl = self._col.get((vi, j + 1, e1[0]))
+                if kr is None and kl is None:
+                    continue
+                r = X[:, kr] if kr is not None else np.full(len(X), v.terms[j].params[e0[1]])
+                left = X[:, kl] if kl is not None else np.full(len(X),
+                                                               v.terms[j + 1].params[e1[0]])
+                deficit = np.maximum(need - (r - left), 0.0)
+                share = 0.5 if kr is not None and kl is not None else 1.0
+                if kr is not None:                 # half each; what a bound stops, the other
+                    X[:, kr] = np.minimum(r + share * deficit, self.upper[kr])
+                    deficit = deficit - (X[:, kr] - r)
+                if kl is not None:
+                    X[:, kl] = np.maximum(left - deficit, self.lower[kl])
+                    deficit = deficit - (left - X[:, kl])
+                if kr is not None and kl is not None:
+                    X[:, kr] = np.minimum(X[:, kr] + np.maximum(deficit, 0.0), self.upper[kr])
 
     def _order_partial(self, Xc: np.ndarray, vi: int, ti: int, cols: list[int]) -> np.ndarray:
         """Keep a term's free parameters between its fixed neighbours."""
