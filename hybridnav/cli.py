@@ -100,9 +100,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     settings = planners.parse_assignments(args.set or [])
     if args.fis is not None:
-        if args.planner != "effc":
-            raise HybridnavError(f"--fis: only the effc planner takes a fuzzy system, not "
-                                 f"{args.planner}")
+        cls = planners.PLANNERS.get(args.planner)
+        if cls is None or "fis" not in cls.parameters:
+            takes = ", ".join(k for k, c in planners.PLANNERS.items() if "fis" in c.parameters)
+            raise HybridnavError(f"--fis: only the planners that take a fuzzy system ({takes}) "
+                                 f"do, not {args.planner}")
         settings["fis"] = args.fis
     planner = planners.get(args.planner, **settings)
     result = planner.run(scenario, seed=args.seed)
@@ -321,6 +323,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     if not args.resume and not args.force and (out / "checkpoint.json").exists():
         raise HybridnavError(f"{out}: holds a tuning run (checkpoint.json); --resume continues it, "
                              "--force starts over and overwrites it, or choose another --out")
+    if args.force:
+        _clear_tuning_outputs(out)
     total = (job.optimizer().generations + 1) * max(1, job["validation"]["kfold"]) \
         * (2 if job["learning"]["max_rules"] else 1)
     bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
@@ -348,6 +352,20 @@ def _cmd_tune(args: argparse.Namespace) -> int:
             print(f"{which}: {v['headline']} (see report.md)")
     print(f"wrote {args.out}/: {', '.join(result.files)}")
     return 0
+
+
+def _clear_tuning_outputs(out) -> None:
+    """--force: the previous run's checkpoints and outputs go, so none is left beside the new
+    run's (a stale front/, falsified/ or stage-1 checkpoint would mislead)."""
+    import shutil
+
+    for name in ("checkpoint.json", "evaluations.jsonl", "result.json", "report.md",
+                 "pareto.csv", "front.png", "paths.png", "coverage.png", "surface.png",
+                 "falsified.csv", "validation.csv", "heldout.csv", "heldout_summary.csv"):
+        (out / name).unlink(missing_ok=True)
+    for name in ("learning", "front", "falsified"):
+        if (out / name).is_dir():
+            shutil.rmtree(out / name)
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:

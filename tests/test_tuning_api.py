@@ -419,8 +419,11 @@ def test_learning_starts_from_the_systems_rules_or_from_none(target):
                 seed=1, validation=0.25)
     assert res.learning is not None and res.learning.finished
     assert res.objectives[0] <= res.learning.objectives[0] + 1e-12     # stage 2 from stage 1
-    assert res.objectives[0] < 0.5 * res.start_objectives[0]           # far below the empty start
+    empty_start = res.learning.start_objectives[0]                  # the empty rule base's
+    assert res.objectives[0] < 0.5 * empty_start
     assert res.start is target                                      # judged against the start
+    assert res.start_objectives[0] < 1e-12      # and scored as itself: the data are its own
+    assert not res.start_is_candidate
 
 
 # ---- a second planner that takes a fuzzy system ------------------------------------------------
@@ -626,3 +629,34 @@ def test_min_overlap_is_kept_by_the_repair_and_rules_can_be_chosen(target):
     assert s2.labels[-2:] == ["rule2.weight", "rule4.weight"]
     with pytest.raises(HybridnavError, match=r"rules: expected rule numbers in \[1, 5\]"):
         TunableSettings.from_table(target, {"rules": [0]})
+
+
+# ---- found in the second review ----------------------------------------------------------------
+
+def test_a_repaired_start_is_scored_as_itself_and_k_fold_stops_at_the_budget(target):
+    X, y = samples(target, 100, 4)
+    res = tune(target, DataCost(X, y), settings=TunableSettings(target, min_overlap=0.3),
+               optimizer=GA(population=4, generations=1), seed=0)
+    assert res.start_objectives[0] < 1e-12 and not res.start_is_candidate
+    a = TunableSettings(target, min_overlap=0.3).key()
+    assert a != TunableSettings(target).key()                     # part of the resume hash
+    r = tune(target, DataCost(X, y), optimizer=GA(population=8, generations=3),
+             validation=KFold(3), max_evals=10, seed=0)
+    assert r.evaluations < 20 and len(r.folds) <= 1
+
+
+def test_the_clearance_objective_is_finite_without_obstacles():
+    from hybridnav.world import scenario_from_dict
+
+    w = scenario_from_dict({
+        "name": "empty", "dt": 0.1, "max_time": 60.0,
+        "workspace": {"xmin": 0.0, "xmax": 5.0, "ymin": 0.0, "ymax": 5.0}, "obstacles": [],
+        "robots": [{"name": "r", "model": "unicycle", "start": [1, 1], "goal": [4, 4],
+                    "goal_radius": 0.1, "radius": 0.1}]})
+    cost = NavigationCost([w], planner="fuzzy-steer", objectives=("failure", "clearance"))
+    ev = cost.assess(Candidates(TunableSettings(fuzzy.builtin("steer-7rule"), mf=False),
+                                np.zeros((1, 0))), __import__(
+        "hybridnav.tuner", fromlist=["Context"]).Context())
+    assert np.isfinite(ev.objectives).all()
+    with pytest.raises(HybridnavError, match="takes heading_noise only"):
+        NavigationCost([w], planner="fuzzy-steer", reward={"alpha_noise": 0.1})

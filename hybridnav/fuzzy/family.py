@@ -191,6 +191,10 @@ class SystemFamily:
         out = upsampled_centroid(self.x_out, tables.output[member], cuts, used,
                                  self.output.default)
         out[np.isnan(strength).any(axis=1)] = np.nan
+        # a NaN input gives a NaN output, as FuzzySystem.evaluate does, whatever the rules
+        for v in self.inputs:
+            x = np.asarray(inputs[v.name], dtype=float).ravel()
+            out[np.isnan(x)] = np.nan
         return out
 
     def fired(self, tables: FamilyTables, member: ArrayLike,

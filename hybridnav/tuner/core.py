@@ -304,11 +304,12 @@ class _Run:
                     return
                 self.step()
                 done += 1
-            if self.kfold:
+            if self.kfold and self.fold.best is not None:
                 self.folds_done.append({"stage": self.stage, "fold": self.stage,
-                                        "stopped": self.stopped, **(self.fold.best or {})})
-                self.fold = _Track()
-            if self.stage + 1 < len(self.stages):
+                                        "stopped": self.stopped, **self.fold.best})
+            self.fold = _Track()
+            spent = bool(self.max_evals and self.evaluations >= self.max_evals)
+            if self.stage + 1 < len(self.stages) and not spent:
                 self.stage += 1
                 self.stopped = None
                 self.opt.new_stage()
@@ -628,7 +629,7 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
                 front[f"validation_{i}"] = ev.objectives[:, i]
             front["validation_feasible"] = ev.feasible
             selected_by = "validation"
-        pick = (select or select_member)(front)
+        pick = (select or select_member)(front.copy())
         if isinstance(pick, bool) or not isinstance(pick, (int, np.integer)) or \
                 not 0 <= pick < len(front):
             raise HybridnavError(f"select: expected the index of a front member in [0, "
@@ -644,7 +645,7 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
     else:
         if run.validation is not None and run.val.best is not None:
             chosen, selected_by = run.val.best, "validation"
-        elif run.kfold and run.folds_done:
+        elif run.kfold and run.folds_done and "x" in run.folds_done[-1]:
             chosen, selected_by = run.folds_done[-1], f"fold {run.folds_done[-1]['fold']}"
         else:
             chosen = run.best_train
@@ -683,11 +684,28 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
         start_validation_score=start_val["score"] if start_val else None,
         optimizer=opt.config(), cost=cost.describe(), seed=run.seed,
         wall_time=run.elapsed, evaluations=run.evaluations, config_hash=run.config_hash,
-        finished=run.finished)
+        finished=run.finished, patience=run.patience)
     result.validation_cost = run.validation
+    if settings.to_system(run.x0) != start:   # the repair changed it (e.g. min_overlap)
+        score_start(result, start, run.stages[0][0], run.validation, run.seed, run)
     if judge:
         _judge(result, start, run.validation, test, backend)
     return result
+
+
+def score_start(result: TuningResult, start, cost: Cost, validation: Cost | None, seed: int,
+                run: _Run | None = None) -> None:
+    """Score the system the user started from itself (not its repaired vector, not a learned
+    rule base): ``result.start_objectives`` on the training cost (nominal context of generation
+    0) and ``result.start_validation_score``; ``result.start_is_candidate`` says whether the
+    search could return it."""
+    fixed = TunableSettings(start, mf=False)
+    ctx = Context(seed, "train", 0, (0,))
+    result.start_objectives = evaluate_chunk(cost, fixed, np.zeros((1, 0)), ctx).objectives[0]
+    if validation is not None:
+        ev = evaluate_chunk(validation, fixed, np.zeros((1, 0)), Context(seed, "validation"))
+        result.start_validation_score = float(ev.objectives[0, 0])
+    result.start_is_candidate = False
 
 
 def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | None,
@@ -709,6 +727,11 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
         result.verdicts[role] = v
     if tables:
         result.heldout = pd.concat(tables, ignore_index=True)
+
+
+def first_train_cost(cost: Cost, fraction: float, seed: int) -> Cost:
+    """The training part of a cost split by ``tune(validation=fraction)``."""
+    return cost.split(fraction, seed)[0]
 
 
 def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
@@ -747,6 +770,12 @@ def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
     **kw
         Further :func:`tune` arguments (``validation``, ``seed``, ``chunk``, ``patience``, ...).
     """
+    if settings is not None and not callable(settings):
+        raise HybridnavError("settings: expected a callable settings(learned) -> "
+                             "TunableSettings (the learned system is known only after stage 1)")
+    for k, v in (("keep_rules", keep_rules), ("rule_weights", rule_weights)):
+        if not isinstance(v, bool):
+            raise HybridnavError(f"{k}: expected true or false, got {v!r}")
     ck = None if checkpoint is None else Path(checkpoint)
     s1 = TunableSettings.learning(system, max_rules, keep_rules=keep_rules,
                                   rule_weights=rule_weights)
@@ -763,7 +792,9 @@ def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
     if not second.finished:
         return second
     second.start, second.learning = system, first
-    second.start_objectives = first.start_objectives
+    score_start(second, system, cost if not isinstance(kw.get("validation"), float)
+                else first_train_cost(cost, kw["validation"], kw.get("seed", 0)),
+                second.validation_cost, kw.get("seed", 0))
     if judge:
         _judge(second, system, second.validation_cost, test, backend)
     return second

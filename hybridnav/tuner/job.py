@@ -436,6 +436,9 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                                        f"fuzzy inputs {', '.join(wanted)}; {system.name!r} has "
                                        f"{', '.join(system.input_names)}")
     every = [*system.input_names, system.output.name]
+    if data["learning"]["max_rules"] and data.get("settings") and data["settings"]["rules"]:
+        raise fail("settings.rules", "expected no rule numbers with [learning] (the learned "
+                                     "rules are not known before stage 1)")
     if "free" not in raw and "settings" not in raw:    # every variable of the start system
         data["free"]["mf"] = every
     if "settings" in raw and "free" not in raw["settings"]:
@@ -453,6 +456,9 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                              or not 1 <= objs <= 10):
         raise fail("cost.objectives", f"expected an integer in [1, 10] for kind = 'python', "
                                       f"got {objs!r}")
+    if kind == "data" and objs != 1:
+        raise fail("cost.objectives", "a data cost has one objective (its metric); objectives "
+                                      "are for kind = 'navigation' or 'python'")
     if kind == "navigation" and objs != 1:
         from hybridnav.tuner.costs.navigation import MEASURES
 
@@ -542,7 +548,15 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
             loaded = job.scenarios(which)
         except HybridnavError as exc:
             raise HybridnavError(f"{where}scenarios.{which}{exc}") from None
+        from hybridnav import planners
+
+        drives = planners.PLANNERS[data["cost"]["planner"]].models
         for i, s in enumerate(loaded):
+            bad = [r.model for r in s.robots if r.model not in drives]
+            if bad:
+                raise fail(f"scenarios.{which}[{i}]", f"{s.source or s.name}: the "
+                           f"{data['cost']['planner']} planner drives {', '.join(drives)}, got "
+                           f"{bad[0]!r}")
             if which != "test" and (len(s.robots) != 1 or s.robots[0].goal is None
                                     or "heading_control" not in
                                     models.MODELS[s.robots[0].model].capabilities):

@@ -70,6 +70,11 @@ class TuningResult:
         The cost that chose the returned system.
     finished : bool
         False when the run was stopped (``stop_after``) before its budget or early stop.
+    patience : int
+        The early-stopping patience the run used.
+    start_is_candidate : bool
+        False when the search could not return the start as it is (its vector is a repaired or
+        learned form of it: ``min_overlap``, rule learning); its scores are then its own.
     """
 
     system: Any
@@ -105,6 +110,8 @@ class TuningResult:
     learning: TuningResult | None = None
     validation_cost: Any = None
     finished: bool = True
+    patience: int = 0
+    start_is_candidate: bool = True
 
     @property
     def verdict(self) -> dict[str, Any] | None:
@@ -123,6 +130,7 @@ class TuningResult:
             "best_stage": self.best_stage, "stopped": self.stopped,
             "validation_score": self.validation_score,
             "start_validation_score": self.start_validation_score,
+            "start_is_candidate": self.start_is_candidate, "patience": self.patience,
             "front_size": len(self.members), "evaluations": self.evaluations,
             "wall_time": self.wall_time, "config_hash": self.config_hash,
             "verdicts": {k: {"better": v["better"], "headline": v.get("headline", ""),

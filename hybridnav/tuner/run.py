@@ -281,10 +281,16 @@ def _front(result: TuningResult) -> Figure:
                    label="the same members on validation")
     r = f[f["returned"]]
     ax.scatter(r["objective_0"], r["objective_1"], s=140, facecolors="none",
-               edgecolors="red", linewidths=1.5, label="returned (fis.json)")
+               edgecolors="red", linewidths=1.5, label="returned (fis.json), training")
+    if "validation_0" in f:
+        ax.scatter(r["validation_0"], r["validation_1"], s=140, facecolors="none",
+                   edgecolors="red", linestyles="--", linewidths=1.2,
+                   label="returned, on validation")
+    inf = int((~np.isfinite(f[["objective_0", "objective_1"]].to_numpy())).any(axis=1).sum())
     ax.set_xlabel(f"{names[0]} (minimized)")
     ax.set_ylabel(f"{names[1]} (minimized)")
-    ax.set_title(f"Pareto front: {len(f)} members")
+    ax.set_title(f"Pareto front: {len(f)} members"
+                 + (f" ({inf} with an infinite objective not drawn)" if inf else ""))
     ax.legend(fontsize=8)
     return fig
 
@@ -374,7 +380,17 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         lines += [f"- {'pass' if ok else 'FAIL'}: {text}" for text, ok in v["checks"]]
         lines.append("")
     vs, ss = result.validation_score, result.start_validation_score
-    if result.selected_by == "validation" and vs is not None:
+    if len(result.objective_names) > 1:
+        f = result.front
+        lines += [f"Several objectives ({', '.join(result.objective_names)}): the Pareto front "
+                  f"has {len(f)} members (`pareto.csv`, `front.png`, `front/member_<i>.json`); "
+                  "`fis.json` is the member select_member picked: "
+                  + ("the fewest of the first objective on **validation** among the members "
+                     "validation calls feasible, then the second objective."
+                     if result.selected_by == "validation" else
+                     "the smallest first training objective (no validation set: nothing checks "
+                     "that it generalizes).")]
+    elif result.selected_by == "validation" and vs is not None:
         lines += [f"Returned system: the best on **validation**, from generation "
                   f"{result.best_generation}"
                   + (f" of k-fold stage {result.best_stage}" if result.folds else "")
@@ -388,7 +404,7 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
             stopped = result.stopped
             lines += ["", "Early stopping: "
                           + (f"stopped at generation {stopped}" if stopped else "not triggered")
-                          + f" (patience {job['validation']['patience']}, tolerance "
+                          + f" (patience {result.patience}, tolerance "
                             f"{job['validation']['tolerance']:g})."]
     elif result.folds:
         last = result.folds[-1]
@@ -417,10 +433,16 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
                           "scored on that fold, so it reads better than an independent "
                           "estimate would."]
     lr = result.learning
+    if not result.start_is_candidate and lr is None:
+        lines += ["", "The start breaks the settings' constraints (e.g. min_overlap): the search "
+                      "began from its repaired form; the start's scores here are its own."]
     if lr is not None:
         cfg = job["learning"]
+        kept = getattr(lr.settings, "kept_rules", 0)
         lines += ["", f"Rule learning (stage 1 of 2): up to {cfg['max_rules']} rules learned from "
-                      + ("the start's rules" if cfg["keep_rules"] else "an empty rule base")
+                      + (f"{kept} of the start's {len(result.start.rules)} rules (the "
+                         "conjunctions of terms a rule slot can hold)" if cfg["keep_rules"]
+                         else "an empty rule base")
                       + f" with the start's membership functions: training objective "
                       f"{lr.start_objectives[0]:.4f} -> {lr.objectives[0]:.4f}"
                       + (f", validation {lr.validation_score:.4f}"
@@ -471,8 +493,8 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
             for r in falsified["rows"]:
                 lines.append(f"| `{r['world']}` | {r['tuned']} | {_fmt(r['tuned_clearance'])} "
                              f"| {r['start']} | {r['apf']} |")
-            lines += ["", "Replay one: `hybridnav run <world> --planner effc --fis fis.json "
-                          "--out DIR`."]
+            lines += ["", f"Replay one: `hybridnav run <world> --planner "
+                          f"{job['cost']['planner']} --fis fis.json --out DIR`."]
         else:
             lines += ["", "No failure found within the budget."]
     lines += sil or []

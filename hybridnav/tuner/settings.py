@@ -224,10 +224,13 @@ class TunableSettings:
 
         if not isinstance(system, FuzzySystem):
             raise HybridnavError(f"system: expected a FuzzySystem, got {type(system).__name__}")
-        if isinstance(max_rules, bool) or not isinstance(max_rules, int) or \
+        if isinstance(max_rules, bool) or not isinstance(max_rules, (int, np.integer)) or \
                 not 1 <= max_rules <= 1000:
             raise HybridnavError(f"max_rules: expected an integer in [1, 1000], got "
                                  f"{max_rules!r}")
+        max_rules = int(max_rules)
+        if not isinstance(keep_rules, bool):
+            raise HybridnavError(f"keep_rules: expected true or false, got {keep_rules!r}")
         names = list(system.input_names)
         codes, on, rules = [], [], []
         for r in system.rules:
@@ -248,6 +251,7 @@ class TunableSettings:
         template = FuzzySystem.from_dict(d)
         s = cls(template, mf=mf, rule_weights=rule_weights, margin=margin, bounds=bounds)
         s._learn = True
+        s.kept_rules = sum(on)               # the start's rules a slot could hold
         s._codes0 = np.array(codes, dtype=np.intp).reshape(max_rules, len(names))
         s._on0 = np.array(on, dtype=bool)
         s._build()
@@ -435,7 +439,10 @@ class TunableSettings:
     def key(self) -> dict[str, Any]:
         """Everything that determines the vector space (for configuration hashes)."""
         return {"system": self.template.to_dict(), "labels": self.labels,
-                "lower": self.lower.tolist(), "upper": self.upper.tolist()}
+                "lower": self.lower.tolist(), "upper": self.upper.tolist(),
+                "min_overlap": self.min_overlap,
+                "learning": None if not self._learn else
+                [self._codes0.tolist(), self._on0.tolist()]}
 
     def table(self):
         """One row per gene: label, kind, lower and upper bound, and the template's value.

@@ -194,6 +194,10 @@ class NavigationCost(Cost):
             raise HybridnavError("reward.repeats: repeats > 1 only make sense with heading_noise, "
                                  "dtheta_noise or alpha_noise > 0 (without noise every repeat "
                                  "is identical)")
+        if planner != "effc" and (self.reward["dtheta_noise"] > 0
+                                  or self.reward["alpha_noise"] > 0):
+            raise HybridnavError(f"reward.dtheta_noise, reward.alpha_noise: noise on EFFC's "
+                                 f"inputs; the {planner} planner takes heading_noise only")
         self.coverage = _settings(COVERAGE, coverage, "coverage")
         if isinstance(objectives, str) or not objectives or \
                 any(o not in MEASURES for o in objectives) or len(set(objectives)) < len(
@@ -250,8 +254,9 @@ class NavigationCost(Cost):
                 "worlds": [scenario_to_dict(s) for s in self.scenarios]}
 
     def describe(self) -> str:
-        return (f"the {self.reward['kind']} reward of the {self.planner} planner on "
-                f"{len(self.scenarios)} worlds")
+        what = (f"the {self.reward['kind']} reward" if self.objectives_measured == ("reward",)
+                else "the objectives " + ", ".join(self.objective_names))
+        return f"{what} of the {self.planner} planner on {len(self.scenarios)} worlds"
 
     def with_scenarios(self, scenarios: Sequence, name: str) -> NavigationCost:
         """The same cost on other worlds."""
@@ -366,8 +371,12 @@ class NavigationCost(Cost):
                 L = np.where(reached, res.path_length.reshape(E, K, repeats) / D, np.nan)
                 n = reached.sum(axis=(0, 2))
                 v = np.where(n > 0, np.nansum(L, axis=(0, 2)) / np.maximum(n, 1), np.inf)
-            else:
-                v = -res.min_clearance.reshape(E, K, repeats).min(axis=(0, 2))
+            else:          # no obstacle in any world: the clearance counts as the diagonal
+                diag = np.array([math.hypot(s.world.workspace[1] - s.world.workspace[0],
+                                            s.world.workspace[3] - s.world.workspace[2])
+                                 for s in self.scenarios])[:, None, None]
+                c = np.minimum(res.min_clearance.reshape(E, K, repeats), diag)
+                v = -c.min(axis=(0, 2))
             columns.append(v + pen)
         objective = np.column_stack(columns)
         details = []
