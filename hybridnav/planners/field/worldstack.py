@@ -135,9 +135,11 @@ class WorldStack:
             return np.full((n, 0), np.inf), np.zeros((n, 0, 2))
         Dk, _, Cn, de, Qe = self._distances(P, env, t, True)
         pts = np.full((n, self.C + self.G + 1, 2), np.nan)
-        with np.errstate(invalid="ignore"):
-            for c in range(self.C):
-                pts[:, c] = _nearest_on_circle(P, Cn[:, c], self.cr[env, c])
+        if self.C:                   # every circle of every point's world in one call
+            with np.errstate(invalid="ignore"):
+                pts[:, :self.C] = _nearest_on_circle(
+                    np.repeat(P, self.C, axis=0), Cn.reshape(-1, 2),
+                    self.cr[env].reshape(-1)).reshape(n, self.C, 2)
         rows = np.arange(n)
         for g in range(self.G):
             masked = np.where(self.owner[env] == g, de, np.inf)
