@@ -37,7 +37,7 @@ def main() -> None:
     out = Path(args.keep) if args.keep else Path(tempfile.mkdtemp()) / "tuned"
     load0 = os.getloadavg()[0]
     tic = time.perf_counter()
-    result, _ = run_job(job, out)
+    result = run_job(job, out)
     wall = time.perf_counter() - tic
     summary = pd.read_csv(out / "heldout_summary.csv")
     radius = job.scenarios("train")[0].robots[0].radius

@@ -17,7 +17,6 @@ Run: ``python benchmarks/bench_tuning.py [--workers 2] [--reduced 6] [--skip-ful
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import tempfile
 import time
@@ -26,9 +25,8 @@ import numpy as np
 
 from hybridnav.backends import make_backend
 from hybridnav.planners.field.effc import effc_force, effc_inputs
-from hybridnav.tuner.evaluate import evaluate_chunk
-from hybridnav.tuner.ga import tune
-from hybridnav.tuner.genome import GenomeSpace
+from hybridnav.tuner import tune
+from hybridnav.tuner.costs.base import Context, evaluate_chunk
 from hybridnav.tuner.job import load_job, validate_job
 
 
@@ -94,37 +92,39 @@ def main() -> None:
         job2 = job.with_backend(workers=args.workers)
         with tempfile.TemporaryDirectory() as out, make_backend(args.workers) as be:
             tic = time.perf_counter()
-            res = tune(job2, out, backend=be)
+            res = tune(job2.start_system(), job2.cost("train"), backend=be, checkpoint=out,
+                       judge=False, **job2.tune_kwargs())
             wall = time.perf_counter() - tic
-        evals = sum(r["evals"] for r in res.logbook)
+        evals = res.evaluations
         E = len(job.scenarios("train"))
         print(f"built-in job's GA: population {job['ga']['population']}, "
               f"{len(res.logbook) - 1} of {job['ga']['generations']} generations (early stop), "
               f"{E} training worlds, {args.workers} workers: {wall:.1f} s wall for {evals} "
               f"individuals ({evals * E / wall:.0f} (individual, world) evaluations/s, validation "
-              f"included); best training fitness {res.logbook[-1]['min']:.4f}   (target: the "
+              f"included); best training objective {res.logbook['min'].iloc[-1]:.4f}   (target: the "
               "whole job <= 180 s)")
     import pathlib
 
     job = validate_job({"scenarios": {"train": ["effc-train-1", "effc-train-2"]},
                         "reward": {"kind": "length"}, "coverage": {"penalty": 0.0}}, None,
                        pathlib.Path.cwd())
-    space = GenomeSpace(job.start_system(), job["free"])
-    X = np.vstack([space.encode()[None], space.random(args.reduced - 1,
-                                                      np.random.default_rng(0))])
-    js = json.dumps({"data": job.data, "source": job.source, "base": str(job.base)})
+    space = job.tunable()
+    X = np.vstack([space.to_vector()[None], space.random(args.reduced - 1,
+                                                         np.random.default_rng(0))])
+    cost = job.cost("train")
     # the lockstep path evaluates a whole generation's chunk at once: time a full population
     # (the reduced job's genomes first) and take the time per (individual, environment)
     P = np.vstack([X, space.random(job["ga"]["population"] - len(X),
                                    np.random.default_rng(1))])
-    evaluate_chunk(js, P[:1], 0, [0])                  # build and compile once
+    evaluate_chunk(cost, space, P[:1], Context(job.seed))       # build and compile once
     tic = time.perf_counter()
-    fast_all = evaluate_chunk(js, P, 0, list(range(len(P))))
+    fast_all = evaluate_chunk(cost, space, P, Context(job.seed, "train", 0,
+                                                      tuple(range(len(P)))))
     t_fast = (time.perf_counter() - tic) / (len(P) * 2)
-    fast = [r["fitness"] for r in fast_all[:len(X)]]
+    fast = fast_all.objectives[:len(X), 0].tolist()
     scenarios = job.scenarios()
     tic = time.perf_counter()
-    slow = [straightforward_reward(job, space.system(x), scenarios) for x in X]
+    slow = [straightforward_reward(job, space.to_system(x), scenarios) for x in X]
     t_slow = (time.perf_counter() - tic) / (len(X) * 2)
     print(f"per (individual, environment) evaluation: lockstep (a generation of {len(P)} in one "
           f"chunk) {t_fast * 1e3:.2f} ms, straightforward (reduced job, {len(X)} individuals) "
