@@ -48,7 +48,7 @@ from hybridnav import __version__
 from hybridnav.backends import Backend, SerialBackend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
-from hybridnav.tuner.costs.base import Context, Cost, Evaluation, evaluate_chunk
+from hybridnav.tuner.costs.base import Candidates, Context, Cost, Evaluation, evaluate_chunk
 from hybridnav.tuner.optimizers import GA, Optimizer, Problem, non_dominated
 from hybridnav.tuner.result import Member, TuningResult
 from hybridnav.tuner.settings import TunableSettings
@@ -203,10 +203,10 @@ class _Run:
 
     def after_generation(self, gen: int, X: np.ndarray, F: np.ndarray, ev_X: np.ndarray,
                          ev: Evaluation) -> None:
+        if self.mo:                       # several objectives: the front is scored at the end
+            return
         train = {_key(x): float(f[0]) for x, f in zip(X, F)}
         train.update({_key(x): float(f[0]) for x, f in zip(ev_X, ev.objectives)})
-        if self.mo:
-            return
         cands = self.candidates(X, F, gen == 0)        # the start competes in every stage
         fold_cost = self.stages[self.stage][1]
         if fold_cost is not None:
@@ -257,8 +257,8 @@ class _Run:
 
     def _rows(self, X: np.ndarray, ev: Evaluation, gen: int) -> list[dict[str, Any]]:
         rows = []
-        base = {"stage": self.stage, "generation": gen, "set": self.stages[self.stage][0]
-                .__dict__.get("name", "train")}
+        base = {"stage": self.stage, "generation": gen,
+                "set": getattr(self.stages[self.stage][0], "name", "train")}
         for i, (f, info, det) in enumerate(zip(ev.objectives, ev.info, ev.details)):
             head = {**base, "individual": i}
             objs = {f"objective_{j}": float(v) for j, v in enumerate(f)}
@@ -699,11 +699,11 @@ def score_start(result: TuningResult, start, cost: Cost, validation: Cost | None
     rule base): ``result.start_objectives`` on the training cost (nominal context of generation
     0) and ``result.start_validation_score``; ``result.start_is_candidate`` says whether the
     search could return it."""
-    fixed = TunableSettings(start, mf=False)
+    one = Candidates.of(start)
     ctx = Context(seed, "train", 0, (0,))
-    result.start_objectives = evaluate_chunk(cost, fixed, np.zeros((1, 0)), ctx).objectives[0]
+    result.start_objectives = evaluate_chunk(cost, one.settings, one.X, ctx).objectives[0]
     if validation is not None:
-        ev = evaluate_chunk(validation, fixed, np.zeros((1, 0)), Context(seed, "validation"))
+        ev = evaluate_chunk(validation, one.settings, one.X, Context(seed, "validation"))
         result.start_validation_score = float(ev.objectives[0, 0])
     result.start_is_candidate = False
 
@@ -716,8 +716,7 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
     for role, c in (("validation", validation), ("test", test)):
         if c is None:
             continue
-        kw = {"backend": backend} if "backend" in _params(c.judge) else {}
-        t = c.judge(systems, role, **kw)
+        t = c.judge(systems, role, backend=backend)
         tables.append(t)
         v = c.verdict(t, role)
         if role == "validation" and v.get("headline"):
@@ -799,8 +798,3 @@ def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
         _judge(second, system, second.validation_cost, test, backend)
     return second
 
-
-def _params(fn) -> set[str]:
-    import inspect
-
-    return set(inspect.signature(fn).parameters)

@@ -142,8 +142,9 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         files.append("heldout_summary.csv")
         from hybridnav.tuner.costs.base import Candidates
 
-        unc = Candidates(result.settings, np.vstack([result.x_start, result.x])).uncovered(
-            job["coverage"]["grid"])
+        # of the systems themselves (the start as given, not a repaired or learned form)
+        unc = np.concatenate([Candidates.of(s).uncovered(job["coverage"]["grid"])
+                              for s in (start, result.system)])
         falsified = _falsify(job, cost, result, backend, out)
         if falsified is not None:
             files += falsified["files"]

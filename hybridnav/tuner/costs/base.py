@@ -20,6 +20,7 @@ All objectives are minimized. A cost that can be cross-validated also implements
 from __future__ import annotations
 
 import uuid
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -80,6 +81,13 @@ class Candidates:
         self.X = np.array(X, dtype=float, ndmin=2)
         self._tables = None
         self._systems = None
+
+    @classmethod
+    def of(cls, system) -> Candidates:
+        """One fixed system as a batch of one (scoring a start, judging, coverage)."""
+        from hybridnav.tuner.settings import TunableSettings
+
+        return cls(TunableSettings(system, mf=False), np.zeros((1, 0)))
 
     def __len__(self) -> int:
         return len(self.X)
@@ -159,7 +167,7 @@ class Evaluation:
                           [d for p in parts for d in p.details])
 
 
-class Cost:
+class Cost(ABC):
     """Base class of tuning costs (see the module docstring).
 
     Attributes
@@ -178,9 +186,9 @@ class Cost:
         """The number of objectives ``m``."""
         return len(self.objective_names)
 
+    @abstractmethod
     def evaluate(self, candidates: Candidates, context: Context) -> np.ndarray:
         """The objectives of every candidate, ``(n, m)`` (all minimized)."""
-        raise NotImplementedError
 
     def assess(self, candidates: Candidates, context: Context) -> Evaluation:
         """:meth:`evaluate` with feasibility, extra numbers and detail rows (costs that have
@@ -231,14 +239,13 @@ class Cost:
 
     # ---- judging ---------------------------------------------------------------------------
 
-    def judge(self, systems: Mapping[str, Any], role: str = "test") -> pd.DataFrame:
-        """One row per system: its objectives on this cost's data (nominal context)."""
+    def judge(self, systems: Mapping[str, Any], role: str = "test", *,
+              backend=None) -> pd.DataFrame:
+        """One row per system: its objectives on this cost's data (nominal context);
+        ``backend`` is for costs whose judging runs elsewhere (unused here)."""
         rows = []
         for label, s in systems.items():
-            from hybridnav.tuner.settings import TunableSettings
-
-            st = TunableSettings(s, mf=False)
-            ev = self.assess(Candidates(st, np.zeros((1, 0))), Context(role=role))
+            ev = self.assess(Candidates.of(s), Context(role=role))
             rows.append({"set": role, "system": label,
                          **{f"objective_{i}": float(v) for i, v in enumerate(ev.objectives[0])},
                          **ev.info[0]})

@@ -21,6 +21,7 @@ construction (``GA(population=0)`` fails naming the key and what was expected).
 from __future__ import annotations
 
 import random
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -52,7 +53,7 @@ class Problem:
         return self.repair(np.clip(X, self.lower, self.upper))
 
 
-class Optimizer:
+class Optimizer(ABC):
     """Base class: declared settings, a generation counter and the step interface.
 
     Subclasses set ``name``, ``parameters`` (``Param`` per setting; ``generations`` is the
@@ -110,20 +111,21 @@ class Optimizer:
         self.generation = 0
         self._setup(problem, int(seed))
 
+    @abstractmethod
     def _setup(self, problem: Problem, seed: int) -> None:
-        raise NotImplementedError
+        """The optimizer's own start: generators seeded from ``seed``, generation 0."""
 
+    @abstractmethod
     def ask(self) -> np.ndarray:
         """The vectors to evaluate next, ``(k, d)``, inside the box and repaired."""
-        raise NotImplementedError
 
+    @abstractmethod
     def tell(self, X: np.ndarray, F: np.ndarray) -> None:
         """The objectives ``(k, m)`` of the vectors of the last :meth:`ask`."""
-        raise NotImplementedError
 
+    @abstractmethod
     def population(self) -> tuple[np.ndarray, np.ndarray]:
         """The population the optimizer carries and its objectives: ``(n, d)``, ``(n, m)``."""
-        raise NotImplementedError
 
     def new_stage(self) -> None:
         """The cost changed (next k-fold stage): the carried values are stale; the next
@@ -131,8 +133,9 @@ class Optimizer:
         self.generation = 0
         self._new_stage()
 
+    @abstractmethod
     def _new_stage(self) -> None:
-        raise NotImplementedError
+        """Forget the values the carried population had on the previous stage's cost."""
 
     def state(self) -> dict[str, Any]:
         """JSON-ready state: with :meth:`set_state` the run continues exactly."""
@@ -146,11 +149,13 @@ class Optimizer:
         self.generation = int(state["generation"])
         self._set_state(state)
 
+    @abstractmethod
     def _state(self) -> dict[str, Any]:
-        raise NotImplementedError
+        """The optimizer's own JSON-ready state (random generators included)."""
 
+    @abstractmethod
     def _set_state(self, state: dict[str, Any]) -> None:
-        raise NotImplementedError
+        """Restore :meth:`_state`."""
 
 
 def rng_state(rng: np.random.Generator) -> dict[str, Any]:
