@@ -67,7 +67,7 @@ def main() -> None:
     load1 = os.getloadavg()[0]
     print(f"\nwall time of the whole job (tuning, held-out runs, falsification, plots, exports): "
           f"{wall:.1f} s on {args.workers} workers; tuning alone "
-          f"{result.logbook[-1]['wall_time']:.1f} s; load average {load0:.2f} -> {load1:.2f}")
+          f"{result.wall_time:.1f} s; load average {load0:.2f} -> {load1:.2f}")
     if not args.keep:
         shutil.rmtree(out.parent, ignore_errors=True)
 
