@@ -58,14 +58,19 @@ def test_non_quadratic_candidate_is_never_proved():
 
 
 def test_unicycle_distance_is_not_a_strict_lyapunov_function():
-    """Vdot = -k_rho rho^2 cos(e)^2 vanishes where the heading is perpendicular to the target."""
+    """Vdot = -k_rho rho^2 cos(e)^2 vanishes where the heading is perpendicular to the target, on
+    a curve no float lies on: at every float state Vdot < 0 exactly, so no state is a
+    counterexample; the verdict is undecided (not proved) and names the Vdot = 0 curve."""
     m = models.get("unicycle")
     rep = check_lyapunov(m, target=(0, 0), region={"x": (-5, 5), "y": (-5, 5),
                                                    "theta": (-math.pi, math.pi)})
-    assert rep.status == "counterexample"
-    x, y, th = rep.counterexample
+    assert rep.status == "undecided" and rep.counterexample is None
+    assert "zero to rounding" in rep.method
+    x, y, th = rep.details["vdot_zero_state"]
     e = math.atan2(-y, -x) - th
     assert abs(math.cos(e)) < 1e-3 and math.hypot(x, y) > 1e-3
+    lo, hi = rep.details["worst_vdot_enclosure"]
+    assert lo < 0 <= hi
 
 
 def test_lbcs_gradient_flow_and_its_local_minimum_in_the_trap():
@@ -229,8 +234,9 @@ def test_analyze_unicycle_reports_lasalle_in_polar_coordinates(tmp_path):
     rows = {c["name"]: c for c in data["checks"]}
     las = rows["LaSalle: V = 1/2 rho^2 in polar error coordinates (rho, e)"]
     assert las["status"] == "proved" and "LaSalle's invariance principle" in las["claim"]
-    assert rows["lyapunov"]["status"] == "counterexample"     # not a strict Lyapunov function
-    x, y, th = rows["lyapunov"]["counterexample"]
+    # not shown strictly decreasing: Vdot = 0 on a curve, zero to rounding at the state found
+    assert rows["lyapunov"]["status"] == "undecided"
+    x, y, th = rows["lyapunov"]["details"]["vdot_zero_state"]
     tx, ty = data["target"]
     assert abs(math.cos(math.atan2(ty - y, tx - x) - th)) < 1e-3   # facing sideways: Vdot = 0
     report = (tmp_path / "report.md").read_text()

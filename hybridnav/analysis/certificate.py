@@ -22,7 +22,9 @@ LaSalle
 Invariance of ``K`` is checked on the box's faces: on each face either ``V > level``, the state is
 outside the free space, or the flow points into the box (``f_i >= 0`` on a lower face, ``<= 0`` on
 an upper one) — with ``Vdot <= 0`` inside, no trajectory leaves ``K`` (Nagumo's theorem). Faces of
-coordinates declared periodic (an angle spanning a whole turn) are skipped.
+coordinates declared periodic (an angle spanning a whole turn) are skipped only where ``V``, ``f``
+and ``g`` are shown ``2 pi``-periodic in that coordinate
+(:func:`~hybridnav.analysis.interval.periodic_in`); otherwise they are checked.
 
 ``Vdot`` and the Lie derivatives are CasADi's derivatives; a box is only decided by them where
 the expressions they differentiate are smooth on it (see
@@ -42,7 +44,7 @@ from typing import Any
 import casadi as cs
 import numpy as np
 
-from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation, periodic_in
 from hybridnav.analysis.region import Box
 
 log = logging.getLogger(__name__)
@@ -173,6 +175,11 @@ def certify(
         F = IntervalFunction(x, outs)
     except UnsupportedOperation as exc:
         return Certificate("not_applicable", "", f"interval arithmetic: {exc}")
+    # a coordinate's faces are identified only where V, f and g are 2 pi-periodic in it (shown
+    # from the expressions); otherwise the flow through th = pi leaves K and must be checked
+    asked = sorted({int(i) for i in periodic})
+    periodic = [i for i in asked if periodic_in(x, [V, f, g], i)]
+    refused = [i for i in asked if i not in periodic]
     point = cs.Function("point", [x], [V, vdot, g, f])
     iv, idot = 0, 1
     ig = slice(2, 2 + ng)
@@ -191,7 +198,12 @@ def certify(
     dprobe = dprobe[np.isfinite(dprobe)]
     zero_tol = 1e-12 * max(1.0, float(np.max(np.abs(dprobe))) if len(dprobe) else 1.0)
     details: dict[str, Any] = {"region": box.to_dict(), "level": level, "zero_tol": zero_tol,
-                               "route": "lasalle" if lasalle else "strict"}
+                               "route": "lasalle" if lasalle else "strict",
+                               "periodic": [box.names[i] for i in periodic]}
+    if refused:
+        details["periodic_refused"] = {
+            box.names[i]: "V, f or g depends on it other than through sin/cos of an integer "
+                          "multiple, so its faces are checked like any other" for i in refused}
     # ---- the local ball around x*
     local = None
     if center is not None and not lasalle:
@@ -300,9 +312,13 @@ def certify(
         mid = (lo + hi) / 2
         bad, bad_face = _violations(point, mid, tag, ng, cap, center, width, lasalle, local,
                                     zero_tol)
-        if bad is not None:
-            cex = mid[bad]
-            break
+        if len(bad):
+            # claimed only where the interval enclosure at the centre shows the violation
+            pl, ph, _ = F(mid[bad], mid[bad], clamp)
+            sure = (pl[:, idot] > 0) if lasalle else (ph[:, iv] <= 0) | (pl[:, idot] >= 0)
+            if sure.any():
+                cex = mid[bad[np.flatnonzero(sure)[0]]]
+                break
         if bad_face is not None and face_cex is None:
             face_cex = mid[bad_face]
         rel = (hi - lo) / width
@@ -324,6 +340,17 @@ def certify(
         invariant = face_cex is None and faces_undecided == 0
         if face_cex is not None:
             details["face_counterexample"] = face_cex.tolist()
+        if invariant and local is not None and level is not None and local["details"]["r0"] > 0:
+            # Vdot < 0 is only shown outside the rounding radius r0: {V <= level} is invariant
+            # only if that ball lies inside {V < level}, off its boundary
+            r0 = local["details"]["r0"]
+            c = local["center"]
+            bl, bh, _ = F((c - r0)[None], (c + r0)[None], clamp)
+            if not bh[0, iv] < cap:
+                invariant = False
+                details["invariance_refused"] = (
+                    f"the ball of the rounding radius r0 = {r0:.3g} around x*, where Vdot < 0 is "
+                    f"not shown, reaches V = {bh[0, iv]:.3g} >= the level {cap:.6g}")
     where = _set_text(box, level, ng)
     if cex is not None:
         v, d = (float(a) for a in np.asarray(point(cex)[:2]).ravel()[:2])
@@ -394,8 +421,9 @@ def _bisect(lo, hi, tag, rel):
 
 
 def _violations(point, mid, tag, ng, cap, center, width, lasalle, local, zero_tol):
-    """Index of an interior centre violating the condition, and of a face centre (inside the
-    level set and the free space) where the flow leaves the box; None where there is none."""
+    """Indices of the interior centres violating the condition in floating point (the caller
+    re-checks them with intervals), and of a face centre (inside the level set and the free space)
+    where the flow leaves the box (None where there is none)."""
     nx = mid.shape[1]
     out = point.map(len(mid))(mid.T)
     v = np.asarray(out[0]).ravel()
@@ -416,7 +444,7 @@ def _violations(point, mid, tag, ng, cap, center, width, lasalle, local, zero_to
     dim, side = tag[rows] // 2, tag[rows] % 2
     fi = fv[rows, dim]
     leaving = rows[np.where(side == 0, fi < 0, fi > 0)]
-    return (int(bad[0]) if len(bad) else None), (int(leaving[0]) if len(leaving) else None)
+    return bad, (int(leaving[0]) if len(leaving) else None)
 
 
 def _local_ball(x, V, vdot, center, half, lower, upper) -> dict[str, Any]:
@@ -479,7 +507,8 @@ def _min_eig(lo, hi, n) -> float:
     if np.abs(rad).max() > 1e150:
         return -np.inf
     ev = float(np.linalg.eigvalsh(mid).min())
-    return ev - float(np.linalg.norm(rad, "fro")) - 1e-12 * (np.abs(mid).max() + 1.0)
+    # eigvalsh's backward error is a few ulp of |mid|: relative, so tiny Hessians keep their sign
+    return ev - float(np.linalg.norm(rad, "fro")) - 1e-12 * np.abs(mid).max() - 1e-300
 
 
 def _max_eig(lo, hi, n) -> float:

@@ -10,7 +10,10 @@ Soundness
     outward by 4 units in the last place plus ``1e-300`` (IEEE arithmetic rounds +, -, *, / and
     sqrt correctly; numpy's exp, log, sin, cos, atan2, ... are accurate to about one ulp).
     Operations that are exact (negation, absolute value, min/max, comparisons, selections) are not
-    widened. Domain errors (``log`` of a negative interval, ``sqrt`` of one entirely negative) give
+    widened. Overflow is directed: a value that overflows to ``inf`` at a lower end (``exp`` on
+    [711, 712], ``1/x`` at a subnormal) stands for "above the largest float", so the lower end
+    becomes that largest float (and likewise at an upper end), never an interval holding only
+    ``inf`` that a later ``inf/inf`` or ``0*inf`` would turn into a false bound. Domain errors (``log`` of a negative interval, ``sqrt`` of one entirely negative) give
     ``[-inf, inf]``, so no box is ever decided from them.
 Smoothness
     Each evaluation also reports, per box and output, whether every operation the output depends
@@ -39,10 +42,18 @@ _EPS = 4 * np.finfo(float).eps
 _TINY = 1e-300
 _OPS = {getattr(cs, n): n[3:].lower() for n in dir(cs) if n.startswith("OP_")}
 _TWO_PI = 2 * np.pi
+_MAX = np.finfo(float).max
 
 
 class UnsupportedOperation(NotImplementedError):
     """The expression uses an operation without an interval extension here."""
+
+
+def _finite_ends(lo, hi):
+    """Directed overflow: a lower end at ``+inf`` (an overflowed value, or an overflowed constant
+    such as CasADi's folded ``exp(800)``) is only known to exceed the largest float, so it
+    becomes that float; an upper end at ``-inf`` likewise. Every interval then holds reals."""
+    return np.where(lo == np.inf, _MAX, lo), np.where(hi == -np.inf, -_MAX, hi)
 
 
 def _widen(lo, hi):
@@ -237,7 +248,7 @@ class IntervalFunction:
         smooth = np.ones((n, self.n_out), dtype=bool)
         for name, ins, outs, const, same in self._program:
             if name == "input":
-                wl[outs[0]], wh[outs[0]] = lo[:, ins[1]], hi[:, ins[1]]
+                wl[outs[0]], wh[outs[0]] = _finite_ends(lo[:, ins[1]], hi[:, ins[1]])
                 if outs[0] in clamp_slot:
                     cl, ch = clamp_slot[outs[0]]
                     wl[outs[0]] = np.maximum(wl[outs[0]], cl)
@@ -255,7 +266,7 @@ class IntervalFunction:
                 continue
             if name == "const":
                 v = np.full(n, float(const))
-                wl[outs[0]], wh[outs[0]] = v, v
+                wl[outs[0]], wh[outs[0]] = _finite_ends(v, v)
                 continue
             a, b = wl[ins[0]], wh[ins[0]]
             c = d = None
@@ -263,6 +274,7 @@ class IntervalFunction:
             if binary:
                 c, d = wl[ins[1]], wh[ins[1]]
             rl, rh, ok = _apply(name, a, b, c, d)
+            rl, rh = _finite_ends(rl, rh)
             defined = _and(wd[ins[0]], wd[ins[1]] if binary else None)
             dom = _domain(name, a, b, c, d, wp[ins[0]], wp[ins[1]] if binary else None)
             nan = np.isnan(rl) | np.isnan(rh)
@@ -341,9 +353,16 @@ def _apply(name, a, b, c, d):
         elif name == "mul":
             lo, hi = _mul(a, b, c, d)
         elif name == "div":
-            il, ih = _inv(c, d)
+            il, ih = _finite_ends(*_inv(c, d))
             lo, hi = _mul(a, b, il, ih)
             lo, hi = _widen(lo, hi)          # two roundings (1/y, then the product)
+            # finite ends and a divisor away from 0: the endpoint quotients, rounded once
+            # (1/y alone may overflow where x/y does not: 5.39e-295 / 2.4e-310)
+            direct = (np.isfinite(a) & np.isfinite(b) & np.isfinite(c) & np.isfinite(d)
+                      & ((c > 0) | (d < 0)))
+            if direct.any():
+                q = np.stack([a / c, a / d, b / c, b / d])
+                lo, hi = np.where(direct, q.min(axis=0), lo), np.where(direct, q.max(axis=0), hi)
         elif name == "inv":
             lo, hi = _inv(a, b)
         elif name == "neg":
@@ -471,3 +490,62 @@ _SUPPORTED = {"input", "output", "const", "add", "sub", "mul", "div", "inv", "ne
               "assign", "sq", "constpow", "pow", "sqrt", "exp", "log", "tanh", "atan", "asin",
               "acos", "sinh", "cosh", "cos", "sin", "atan2", "fabs", "fmin", "fmax", "sign",
               "floor", "ceil", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero"}
+
+
+def periodic_in(x: cs.SX, outputs: Sequence[cs.SX], i: int) -> bool:
+    """Whether every output is ``2 pi``-periodic in ``x[i]``, shown from the expression graph.
+
+    Sound and conservative: the outputs must depend on ``x[i]`` only through ``sin`` or ``cos``
+    (or ``atan2`` of such) of ``k x[i] + (terms without x[i])`` with an integer ``k``; anything
+    else (``x[i]`` itself, ``x[i]**2``, ``atan2`` of it, a non-integer multiple) is not shown
+    periodic, whatever its values, and the caller must then treat ``x[i]`` as an ordinary
+    coordinate (check its faces).
+    """
+    flat = cs.vertcat(*[cs.vec(cs.densify(cs.SX(o))) for o in outputs])
+    fn = cs.Function("periodic", [x], [flat], {"live_variables": False})
+    kind: dict[int, tuple[str, float]] = {}   # slot -> ("free" | "affine" | "periodic" | "other", k)
+    value: dict[int, float] = {}
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        name = _OPS.get(op, str(op))
+        ins, outs = fn.instruction_input(k), fn.instruction_output(k)
+        if name == "output":
+            if kind.get(ins[0], ("free", 0))[0] in ("affine", "other"):
+                return False
+            continue
+        if name == "input":
+            kind[outs[0]] = ("affine", 1.0) if ins[1] == i else ("free", 0.0)
+            continue
+        if name == "const":
+            kind[outs[0]] = ("free", 0.0)
+            value[outs[0]] = float(fn.instruction_constant(k))
+            continue
+        args = [a for a in ins if a >= 0][:2 if name in _BINARY else 1]
+        ks = [kind.get(a, ("free", 0.0)) for a in args]
+        tags = {t for t, _ in ks}
+        out: tuple[str, float]
+        if tags <= {"free"}:
+            out = ("free", 0.0)
+            if name == "neg" and args[0] in value:
+                value[outs[0]] = -value[args[0]]
+        elif "other" in tags:
+            out = ("other", 0.0)
+        elif "affine" not in tags:
+            out = ("periodic", 0.0)         # any operation on periodic and free operands
+        elif name in ("sin", "cos"):
+            out = ("periodic", 0.0) if ks[0][1] == round(ks[0][1]) else ("other", 0.0)
+        elif name in ("add", "sub") and "periodic" not in tags:
+            sign = -1.0 if name == "sub" else 1.0
+            kk = ks[0][1] + sign * ks[1][1]
+            out = ("affine", kk) if kk != 0 else ("free", 0.0)
+        elif name in ("neg", "twice", "assign"):
+            out = ("affine", {"neg": -1.0, "twice": 2.0, "assign": 1.0}[name] * ks[0][1])
+        elif name == "mul" and tags == {"affine", "free"}:
+            j = 1 if ks[0][0] == "affine" else 0
+            c = value.get(args[j])
+            out = ("affine", ks[1 - j][1] * c) if c is not None and c == round(c) and c != 0 \
+                else ("other", 0.0)
+        else:
+            out = ("other", 0.0)
+        kind[outs[0]] = out
+    return True

@@ -57,6 +57,7 @@ from hybridnav.analysis.equilibria import Equilibrium, _target, find_equilibria
 from hybridnav.analysis.quadratic import _quadratic_argument
 from hybridnav.analysis.region import Box, as_box
 from hybridnav.analysis.verdict import LyapunovReport, _counterexample
+from hybridnav.analysis.witness import Witness
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
 
@@ -162,42 +163,49 @@ def check_lyapunov(
     model, v_num, vdot_num, v_sym, vdot_sym = lyapunov_functions(model, V, target=target,
                                                                  params=params)
     box = as_box(model, region)
+    _check_settings(model, box, target, level=level, samples=samples, starts=starts,
+                    exclude=exclude, max_boxes=max_boxes)
     x = model.sym.x
     report = LyapunovReport(status="no_counterexample", V=_pretty(v_sym), vdot=_pretty(vdot_sym),
                             counterexample=None, worst_vdot=-np.inf, worst_state=None, method="")
-    if _quadratic_argument(model, v_num, vdot_num, box, level, report):
+    if _quadratic_argument(model, v_num, vdot_num, box, level, report,
+                           center=_target_state(model, target)):
         return report
     grad_flow = is_gradient_flow(model, v_sym)
     rng = np.random.default_rng(seed)
     both = cs.Function("v_vdot", [x], [v_num, vdot_num])
 
-    # 1) dense sampling through one mapped CasADi call
-    pts = box.sample(int(samples), rng)
-    out = both.map(len(pts))(pts.T)
-    v_s, d_s = np.asarray(out[0]).ravel(), np.asarray(out[1]).ravel()
+    # 1) dense sampling through one mapped CasADi call (concentrated on {V <= level} when that is
+    # a small part of the box)
+    pts, v_s, d_s = _sample(both, box, level, int(samples), rng)
     finite_v = np.isfinite(v_s)
-    v_floor = exclude * (np.max(v_s[finite_v]) if finite_v.any() else 1.0)
+    top = np.max(v_s[finite_v]) if finite_v.any() else 1.0
+    v_floor = exclude * (top if level is None else min(top, level))
     admissible = model.admissible(pts)
-    vscale = max(1.0, float(np.max(np.abs(v_s[finite_v]))) if finite_v.any() else 1.0)
-    # V > 0: a state with V < 0 contradicts positivity (checked before the floor drops it)
+    # V > 0: a state with V < 0 contradicts positivity (checked before the floor drops it); a
+    # negative floating-point value is claimed only where V's interval enclosure is negative
+    witness = Witness(x, v_num, vdot_num)
     in_level = np.ones(len(pts), dtype=bool) if level is None else v_s <= level
-    negative = finite_v & admissible & in_level & (v_s < -1e-12 * vscale)
-    if negative.any():
-        j = int(np.argmin(np.where(negative, v_s, np.inf)))
-        report.route = "sampling"
-        return _counterexample(report, both, pts[j], "dense sampling: V < 0 at this state, so V "
-                               "is not positive definite")
+    negative = np.flatnonzero(finite_v & admissible & in_level & (v_s < 0))
+    if len(negative):
+        worst = negative[np.argsort(v_s[negative])][:64]
+        sure = worst[witness.v_negative(pts[worst])]
+        if len(sure):
+            report.route = "sampling"
+            return _counterexample(report, both, pts[sure[0]], "dense sampling: V < 0 at this "
+                                   "state, so V is not positive definite", witness)
     xmin = _minimize_v(model, lambda z: both(z)[0], v_num, box, level, pts, v_s,
                        finite_v & admissible, starts)
-    vmin = float(np.asarray(both(xmin)[0]).item())
-    if vmin < -1e-12 * vscale:
-        report.route = "ipopt"
-        return _counterexample(report, both, xmin, "multistart IPOPT minimizing V: V < 0 at this "
-                               "state, so V is not positive definite")
-    local = _local_check(model, v_num, vdot_num, both, xmin, box, level, report)
+    for z, how in ((xmin, "multistart IPOPT minimizing V"),
+                   (_equilibrium_guess(model, both, xmin, target, box), "at the equilibrium")):
+        if witness.v_negative(z)[0]:
+            report.route = "ipopt"
+            return _counterexample(report, both, z, f"{how}: V < 0 at this state, so V is not "
+                                   "positive definite", witness)
+    local = _local_check(model, v_num, vdot_num, both, xmin, box, level, report, witness)
     if local is not None:
         report.route = "local"
-        return _counterexample(report, both, local[0], local[1])
+        return _counterexample(report, both, local[0], local[1], witness)
     keep = finite_v & (v_s >= v_floor) & admissible
     if level is not None:
         keep &= v_s <= level
@@ -212,8 +220,6 @@ def check_lyapunov(
             f"(level {level!r}); widen the box or raise the level"
         )
     P, D = pts[keep], d_s[keep]
-    scale = max(1.0, float(np.max(np.abs(D[np.isfinite(D)]))) if np.isfinite(D).any() else 1.0)
-    tol = 1e-12 * scale
     i = int(np.argmax(D))
     best_d, best_x, how = float(D[i]), P[i].copy(), "dense sampling"
 
@@ -266,29 +272,112 @@ def check_lyapunov(
             continue
         if not np.isnan(d) and d > best_d:
             best_d, best_x, how = d, xs, "multistart IPOPT"
-    report.details.update(ipopt_runs=runs, tolerance=tol)
+    report.details.update(ipopt_runs=runs)
     report.worst_vdot, report.worst_state = best_d, best_x
     use_cert = model.nx <= 3 if certificate is None else bool(certificate)
-    if best_d >= -tol:
-        zero = " (zero to rounding)" if best_d <= tol else ""
+    # the sign of Vdot at the worst state, from its interval enclosure: floating point decides
+    # nothing near zero
+    sign, d_lo, d_hi = witness.vdot_sign(best_x)
+    report.details["worst_vdot_enclosure"] = [d_lo, d_hi]
+    route = "ipopt" if how == "multistart IPOPT" else "sampling"
+    if sign in ("positive", "zero"):
+        zero = " (exactly zero)" if sign == "zero" else ""
         _counterexample(report, both, best_x, f"{how}: Vdot = {best_d:.6g}{zero} >= 0 at this "
-                        "state")
-        report.route = "ipopt" if how == "multistart IPOPT" else "sampling"
+                        "state", witness)
+        report.route = route
         report.worst_vdot = max(report.worst_vdot, best_d)
-        if use_cert and best_d <= tol:
+        if use_cert and sign == "zero":
             # Vdot only reaches zero: V may still decide convergence through LaSalle
+            _lasalle_route(report, model, v_num, box, level, max_boxes)
+    elif sign == "rounding":
+        report.status, report.route = "undecided", route
+        report.details["vdot_zero_state"] = best_x.tolist()
+        report.method = (
+            f"{how}: Vdot = {best_d:.6g} at {np.array2string(best_x, precision=6)} is zero to "
+            f"rounding: its interval enclosure [{d_lo:.3g}, {d_hi:.3g}] holds 0, so neither "
+            "Vdot >= 0 there nor strict decrease can be claimed (V is at best not strictly "
+            "decreasing)"
+        )
+        if use_cert:
             _lasalle_route(report, model, v_num, box, level, max_boxes)
     else:
         report.status = "no_counterexample"
         report.route = "sampling"
         extra = "; Vdot <= 0 is exact (gradient flow)" if grad_flow else ""
+        encl = (f" (its interval enclosure at that state is [{d_lo:.3g}, {d_hi:.3g}] < 0)"
+                if best_d >= 0 else "")
         report.method = (
             f"dense sampling ({int(keep.sum())} states in the region) and {runs} IPOPT runs found "
-            f"no Vdot >= 0 (max {best_d:.6g}){extra}; not a proof"
+            f"no Vdot >= 0 (max {best_d:.6g}{encl}){extra}; not a proof"
         )
         if use_cert:
-            _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes)
+            _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes,
+                               witness)
+    if report.status == "proved" and nan:
+        # a proof over K while floating point cannot evaluate Vdot at sampled states of K: the
+        # enclosures and the samples disagree about the same set; claim nothing
+        report.status = "undecided"
+        report.method = (f"not claimed: {report.method}; but Vdot is not a number in floating "
+                         f"point at {nan} sampled states of K (overflow?), so the claim is not "
+                         "re-checked")
+        report.claim = ""
     return report
+
+
+def _check_settings(model: Model, box: Box, target, **kw) -> None:
+    """Refuse settings the check cannot use, naming the key."""
+    for key in ("samples", "starts", "max_boxes"):
+        v = kw[key]
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise HybridnavError(f"{key}: expected a positive integer, got {v!r}")
+    ex = kw["exclude"]
+    if not (isinstance(ex, (int, float, np.floating)) and 0 <= ex < 1):
+        raise HybridnavError(f"exclude: expected a number in [0, 1), got {ex!r}")
+    level = kw["level"]
+    if level is not None and not (isinstance(level, (int, float, np.floating))
+                                  and not isinstance(level, bool) and np.isfinite(level)
+                                  and level > 0):
+        raise HybridnavError(f"level: expected a finite number > 0, got {level!r}")
+    t = _target(target)
+    if not np.all((t >= box.lower[:2]) & (t <= box.upper[:2])):
+        raise HybridnavError(
+            f"target: {t.tolist()} lies outside the region ({box.to_dict()}); a region of "
+            "attraction or a Lyapunov proof is about a region holding the equilibrium")
+
+
+def _sample(both, box: Box, level, n: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` states, ``V`` and ``Vdot`` there: uniform in the box, and, where fewer than a tenth
+    fall in ``{V <= level}``, more drawn from boxes around that set (evidence only: the
+    certificate route covers the whole box)."""
+    fmap = both.map(n)
+
+    def draw(b: Box):
+        p = b.sample(n, rng)
+        out = fmap(p.T)
+        return p, np.asarray(out[0]).ravel(), np.asarray(out[1]).ravel()
+
+    pts, v, d = draw(box)
+    if level is None:
+        return pts, v, d
+    for _ in range(40):
+        inside = v <= level
+        if inside.sum() >= n // 10:
+            break
+        if inside.any():
+            lo, hi = pts[inside].min(axis=0), pts[inside].max(axis=0)
+            span = np.maximum(hi - lo, 1e-12 * (box.upper - box.lower))
+            lo, hi = lo - span, hi + span
+        else:
+            c = pts[int(np.nanargmin(np.where(np.isnan(v), np.inf, v)))]
+            half = (box.upper - box.lower) / 2 ** (_ + 2)
+            lo, hi = c - half, c + half
+        sub = Box(box.names, np.maximum(lo, box.lower), np.minimum(hi, box.upper))
+        p2, v2, d2 = draw(sub)
+        keep = v <= level
+        pts = np.vstack([pts[keep], p2])[:n] if keep.sum() < n else pts[keep][:n]
+        v = np.concatenate([v[keep], v2])[:n]
+        d = np.concatenate([d[keep], d2])[:n]
+    return pts, v, d
 
 
 def _certificate_inputs(model: Model, target):
@@ -305,7 +394,8 @@ def _periodic(model: Model, box: Box) -> list[int]:
             if n in angles and box.upper[i] - box.lower[i] >= 2 * np.pi * (1 - 1e-12)]
 
 
-def _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes) -> None:
+def _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes,
+                       witness=None) -> None:
     """Interval branch and bound for V > 0 and Vdot < 0; updates the report in place."""
     from hybridnav.analysis.certificate import certify
 
@@ -321,7 +411,7 @@ def _certificate_route(report, model, v_num, both, box, level, xmin, target, max
         report.vdot_nonpositive_proved = cert.details.get("ball", {}).get("r0", 0.0) == 0.0
         report.method = f"certificate: {cert.method}; {cert.claim}"
     elif cert.status == "counterexample":
-        _counterexample(report, both, cert.counterexample, cert.method)
+        _counterexample(report, both, cert.counterexample, cert.method, witness)
         report.route = "certificate"
     else:
         report.method += f"; the certificate route is {cert.status}: {cert.method}"
@@ -339,7 +429,7 @@ def _lasalle_route(report, model, v_num, box, level, max_boxes) -> None:
                    periodic=_periodic(model, box), max_boxes=max_boxes)
     report.details["lasalle"] = cert.to_dict()
     if cert.status == "proved":
-        report.details["vdot_zero_state"] = report.counterexample.tolist()
+        report.details["vdot_zero_state"] = report.worst_state.tolist()
         report.status, report.route = "proved", "lasalle"
         report.claim = cert.claim           # Vdot <= 0 outside the small set {V < eps}
         report.method = (f"LaSalle: V is not strictly decreasing ({report.method}); "
@@ -347,6 +437,13 @@ def _lasalle_route(report, model, v_num, box, level, max_boxes) -> None:
         report.counterexample = None
     else:
         report.method += f"; LaSalle's route is {cert.status}: {cert.method}"
+
+
+def _target_state(model: Model, target) -> np.ndarray:
+    """The state at the target: its position the target's, the other states 0."""
+    x = np.zeros(model.nx)
+    x[:2] = _target(target)
+    return x
 
 
 def _equilibrium_guess(model, both, xmin, target, box) -> np.ndarray:
@@ -396,7 +493,7 @@ def _minimize_v(model, v_of, v_num, box: Box, level, pts, v_s, ok, starts) -> np
     return np.asarray(best, dtype=float)
 
 
-def _local_check(model, v_num, vdot_num, both, xmin, box: Box, level, report,
+def _local_check(model, v_num, vdot_num, both, xmin, box: Box, level, report, witness,
                  tol: float = 1e-9):
     """The quadratic parts of V and Vdot at the minimizer of V (where sampling cannot look).
 
@@ -414,7 +511,7 @@ def _local_check(model, v_num, vdot_num, both, xmin, box: Box, level, report,
     hv, hd = (hv + hv.T) / 2, (hd + hd.T) / 2
     ev_v, vv = np.linalg.eigh(hv)
     ev_d, vd = np.linalg.eigh(hd)
-    scale = max(1.0, float(np.max(np.abs(hv))), float(np.max(np.abs(hd))))
+    scale = max(float(np.max(np.abs(hv))), float(np.max(np.abs(hd))), 1e-300)
     report.details.update(local_point=xmin.tolist(), local_eig_hessian_V=ev_v.tolist(),
                           local_eig_hessian_vdot=ev_d.tolist(),
                           local_grad_vdot=gd.ravel().tolist())
@@ -436,10 +533,11 @@ def _local_check(model, v_num, vdot_num, both, xmin, box: Box, level, report,
                 z = xmin + sign * h * direction
                 if not box.contains(z) or not model.admissible(z[None])[0]:
                     continue
-                v, d = (float(np.asarray(a).item()) for a in both(z))
+                v = float(np.asarray(both(z)[0]).item())
                 if level is not None and v > level:
                     continue
-                if (which == "V" and v < 0) or (which == "Vdot" and d > 0):
+                lo, hi = witness.enclose(z)
+                if (which == "V" and hi[0, 0] < 0) or (which == "Vdot" and lo[0, 1] > 0):
                     return z, (f"local check near the minimizer of V "
                                f"{np.array2string(xmin, precision=6)}: {why}; a step of "
                                f"{h:.3g} along it gives {which} "

@@ -319,18 +319,22 @@ def _markdown(result: dict[str, Any], table) -> str:
         lines.append(f"| {c['name']} | **{c['status']}** | {how.replace('|', '/')} |")
     lines += ["", "What the Lyapunov statuses mean:", "",
               "- **proved**: an exact argument, and the row says what was proved on which set: "
-              "quadratic forms with definite Hessians beyond a stated tolerance (global); an "
+              "quadratic forms centred exactly on the equilibrium with Hessians definite by "
+              "interval eigenvalue bounds (global); an "
               "interval branch-and-bound certificate (V > 0 and Vdot < 0 on every box of the "
               "set, the equilibrium's neighbourhood by interval bounds on the Hessians); or "
               "LaSalle's invariance principle (Vdot <= 0 proved, and no trajectory can stay "
               "where Vdot = 0, so trajectories end near V = 0).",
-              "- **counterexample**: a state, re-evaluated, where V < 0 or Vdot >= 0 away from "
-              "the equilibrium (its V and Vdot are printed).",
+              "- **counterexample**: a state where V < 0 or Vdot >= 0 away from the "
+              "equilibrium, claimed only where the interval enclosure of V or Vdot at that "
+              "state shows the sign (its V, Vdot and enclosures are printed).",
               "- **no_counterexample**: dense sampling, an optimizer, the local check at the "
               "equilibrium and (up to 3 states) the certificate's branch and bound found none, "
               "but the certificate did not close. Evidence, not a proof.",
-              "- **undecided**: floating-point rounding would decide (an eigenvalue within the "
-              "tolerance of zero); no claim is made.", "",
+              "- **undecided**: rounding would decide (a Hessian eigenvalue that cannot be told "
+              "from zero, or Vdot zero to rounding at a state: its enclosure holds 0, as where "
+              "Vdot vanishes on a curve), or a proof disagreed with the samples; no claim is "
+              "made.", "",
               "A region of attraction's **proved** is the same kind of argument on the level "
               "set it names (the certificate route); its simulated starts only confirm it. The "
               "basin row simulates a grid of starts: the true region of attraction, against "

@@ -150,7 +150,7 @@ def estimate_roa(
     step = _discrete_check(model, vfun, v_num, box, target, rng)
     details: dict[str, Any] = {"discrete_step": step}
     check: dict[str, Any] = {"target": target, "seed": seed}
-    full = _quadratic_proof(model, v_num, vdot_num, box)
+    full = _quadratic_proof(model, v_num, vdot_num, box, target)
     if full is not None:
         sim = _confirm(model, vfun, box, target, np.inf, confirm, rng, horizon)
         details.update(region=box.to_dict(), claim=full.claim, **sim.get("details", {}))
@@ -211,6 +211,10 @@ def estimate_roa(
         # the certificate found what the bisection's sampling missed: go below it
         cex, bounded = final.counterexample, "counterexample"
         level = min(level, final.details.get("counterexample_V", level)) * (1 - rtol)
+    if status == "counterexample":
+        # every level tried holds a state with Vdot >= 0 (V's minimum is not where Vdot's is):
+        # no sublevel set is certified
+        level = 0.0
     dfun = cs.Function("Vdot", [model.sym.x], [vdot_num])
     sim = (_confirm(model, vfun, box, target, level, confirm, rng, horizon, dfun)
            if level > 0 else {})
@@ -232,19 +236,31 @@ def estimate_roa(
         sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon, dfun)
     if final is not None:
         details.update(claim=final.claim, route=final.route, method=final.method)
+        cert = final.details.get("certificate", {})
+        if status == "proved" and final.route == "certificate" and cert.get("invariant") is not True:
+            # V decreases on the set, but the set was not shown invariant: not a region of
+            # attraction
+            status = "no_counterexample"
+            details["not_proved"] = ("the certificate showed V > 0 > Vdot on {V <= level} but not "
+                                     "that the set is positively invariant: "
+                                     + cert.get("details", {}).get("invariance_refused",
+                                                                   "faces undecided"))
     return RoaEstimate(level=float(level), status=status, bounded_by=bounded, counterexample=cex,
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
                        details={**details, **sim.get("details", {})})
 
 
-def _quadratic_proof(model, v_num, vdot_num, box: Box):
+def _quadratic_proof(model, v_num, vdot_num, box: Box, target):
     """The quadratic route's report when it proves V globally, else None."""
     from hybridnav.analysis.quadratic import _quadratic_argument
     from hybridnav.analysis.verdict import LyapunovReport
 
     rep = LyapunovReport("no_counterexample", "", "", None, -np.inf, None, "")
-    if _quadratic_argument(model, v_num, vdot_num, box, None, rep) and rep.status == "proved":
+    from hybridnav.analysis.lyapunov import _target_state
+
+    if _quadratic_argument(model, v_num, vdot_num, box, None, rep,
+                           center=_target_state(model, target)) and rep.status == "proved":
         return rep
     return None
 

@@ -80,8 +80,10 @@ class LyapunovReport:
         }
 
 
-def _counterexample(report: LyapunovReport, both, state, method: str) -> LyapunovReport:
-    """Record a counterexample after re-evaluating V and Vdot there."""
+def _counterexample(report: LyapunovReport, both, state, method: str,
+                    witness=None) -> LyapunovReport:
+    """Record a counterexample after re-evaluating V and Vdot there (and their interval
+    enclosures, from ``witness``, which the caller has checked decide the sign)."""
     state = np.asarray(state, dtype=float).ravel()
     v, d = (float(np.asarray(a).item()) for a in both(state))
     report.status = "counterexample"
@@ -89,7 +91,14 @@ def _counterexample(report: LyapunovReport, both, state, method: str) -> Lyapuno
     report.worst_state = state
     report.worst_vdot = d
     report.details.update(counterexample_V=v, counterexample_vdot=d)
-    report.method = f"{method} (re-evaluated there: V = {v:.6g}, Vdot = {d:.6g})"
+    encl = ""
+    if witness is not None and witness.exact:
+        lo, hi = witness.enclose(state)
+        report.details.update(counterexample_V_enclosure=[float(lo[0, 0]), float(hi[0, 0])],
+                              counterexample_vdot_enclosure=[float(lo[0, 1]), float(hi[0, 1])])
+        encl = (f"; interval enclosures V in [{lo[0, 0]:.6g}, {hi[0, 0]:.6g}], Vdot in "
+                f"[{lo[0, 1]:.6g}, {hi[0, 1]:.6g}]")
+    report.method = f"{method} (re-evaluated there: V = {v:.6g}, Vdot = {d:.6g}{encl})"
     return report
 
 

@@ -1,0 +1,267 @@
+"""No false proof and no false counterexample: the four classes of issue 24, each with several
+variants, judged against independent computations (mpmath, exact rationals, solve_ivp)."""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import casadi as cs
+import mpmath
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from hybridnav import models
+from hybridnav.analysis import Box, certify, check_lyapunov, estimate_roa
+from hybridnav.analysis.interval import IntervalFunction, periodic_in
+from hybridnav.errors import HybridnavError
+from hybridnav.models.base import Model
+
+mpmath.mp.dps = 60
+
+
+class Flow(Model):
+    """A test closed loop ``xdot = rhs(x - target)`` (a Model, as users subclassed before)."""
+
+    name = "flow"
+    plant_state_names = ("x", "y")
+    input_names = ("vx", "vy")
+    parameters = {}
+    rhs = None
+
+    def open_loop(self, x, u, p):
+        return cs.vertcat(*[u[i] for i in range(self.nx)])
+
+    def controller(self, x, target, p):
+        e = cs.vertcat(x[0] - target[0], x[1] - target[1], *[x[i] for i in range(2, self.nx)])
+        return type(self).rhs(e)
+
+
+def flow(rhs, states=("x", "y"), angles=()):
+    return type("F", (Flow,), {"rhs": staticmethod(rhs), "plant_state_names": tuple(states),
+                               "input_names": tuple(f"u{i}" for i in range(len(states))),
+                               "angle_state_names": tuple(angles)})()
+
+
+# ---- 1. overflow never breaks an enclosure ----------------------------------------------------
+
+def _mp_exprs(x):
+    e = mpmath.exp
+    return [e(x), 1 / (1 + e(-x)), e(x) / (e(x) + 1), e(100 * x) / (e(100 * x) + e(800)),
+            mpmath.sinh(x) * 1e-300, x * 1e300 * 1e10, 1 / (x * 1e-310)]
+
+
+@pytest.mark.parametrize("lo,hi", [(711.0, 712.0), (700.0, 720.0), (7.0, 9.0), (7.9, 8.1),
+                                   (-800.0, -700.0), (1e3, 1e4), (0.5, 2.0)])
+def test_enclosures_hold_through_overflow(lo, hi):
+    x = cs.SX.sym("x")
+    ex = cs.exp
+    exprs = [ex(x), 1 / (1 + ex(-x)), ex(x) / (ex(x) + 1),
+             ex(100 * x) / (ex(100 * x) + ex(800)),    # CasADi folds exp(800) to inf
+             cs.sinh(x) * 1e-300, x * 1e300 * 1e10, 1 / (x * 1e-310)]
+    F = IntervalFunction(x, exprs)
+    pts = np.linspace(lo, hi, 7)
+    olo, ohi, _ = F(np.array([[lo]]), np.array([[hi]]))
+    assert np.all(olo <= ohi) and not np.any(olo == np.inf) and not np.any(ohi == -np.inf)
+    for p in pts:
+        plo, phi, _ = F(np.array([[p]]), np.array([[p]]))
+        for k, true in enumerate(_mp_exprs(mpmath.mpf(p))):
+            for a, b in ((olo[0, k], ohi[0, k]), (plo[0, k], phi[0, k])):
+                assert mpmath.mpf(a) <= true <= mpmath.mpf(b), (k, p, a, b, true)
+
+
+def test_division_by_a_subnormal_encloses_the_quotient():
+    n, d = cs.SX.sym("n"), cs.SX.sym("d")
+    F = IntervalFunction(cs.vertcat(n, d), [n / d, d / n])
+    pt = np.array([[5.39e-295, 2.4e-310]])
+    lo, hi, _ = F(pt, pt)
+    true = mpmath.mpf(5.39e-295) / mpmath.mpf(2.4e-310)
+    assert lo[0, 0] <= true <= hi[0, 0] and np.isfinite(lo[0, 0])
+    assert lo[0, 1] <= 1 / true <= hi[0, 1]
+
+
+def _softmax(shift=800.0, gain=100.0):
+    def rhs(e):
+        w = cs.exp(gain * e[0]) / (cs.exp(gain * e[0]) + math.exp(shift) if shift < 709
+                                   else cs.exp(gain * e[0]) + cs.exp(cs.SX(shift)))
+        return cs.vertcat(-e[0] + 2 * e[0] * w, -e[1])
+    return rhs
+
+
+@pytest.mark.parametrize("shift,gain,eq", [(800.0, 100.0, 8.0), (750.0, 100.0, 7.5),
+                                           (600.0, 100.0, 6.0)])
+def test_a_softmax_blend_with_an_unstable_equilibrium_is_never_proved(shift, gain, eq):
+    # independent: x = eq is an equilibrium (w = 1/2) and trajectories above it leave (solve_ivp
+    # in the rewritten, overflow-free form w = 1 / (1 + exp(shift - gain x)))
+    def f(t, z):
+        w = 1 / (1 + np.exp(min(shift - gain * z[0], 700)))
+        return [-z[0] + 2 * z[0] * w, -z[1]]
+    sol = solve_ivp(f, (0, 1), [eq + 0.5, 0.5], rtol=1e-10, atol=1e-12)
+    assert sol.y[0, -1] > eq + 1.0                 # moves away from the equilibrium
+    model = flow(_softmax(shift, gain))
+    region = {"x": (-10, 10), "y": (-1, 1)}
+    rep = check_lyapunov(model, target=(0, 0), region=region, certificate=True)
+    assert rep.status != "proved", rep.method
+    z = cs.SX.sym("z", 2)
+    cert = certify(z, _softmax(shift, gain)(z), cs.sumsqr(z) / 2,
+                   Box(("x", "y"), np.array([-10.0, -1]), np.array([10.0, 1])),
+                   center=np.zeros(2), max_boxes=20_000)
+    assert cert.status != "proved"
+
+
+# ---- 2. angle faces are identified only where V and f are periodic -----------------------------
+
+def _angle_flow(V_theta):
+    def rhs(e):
+        return cs.vertcat(-e[0] + 0.2 * cs.cos(e[2]), -e[1] + 0.2 * cs.sin(e[2]), 1)
+    m = flow(rhs, ("x", "y", "th"), angles=("th",))
+
+    def V(x, t):
+        return ((x[0] - t[0]) ** 2 + (x[1] - t[1]) ** 2) / 2 + V_theta(x[2])
+    return m, V
+
+
+@pytest.mark.parametrize("V_theta,periodic", [
+    (lambda th: 2 * (math.pi - th) + 1, False),       # the issue's candidate
+    (lambda th: 0.1 * th ** 2 + 1, False),
+    (lambda th: 1 + 0.5 * cs.sin(0.5 * th) + 0 * th, False),   # period 4 pi
+    (lambda th: 1.5 + cs.cos(th), True),
+])
+def test_angle_faces_are_skipped_only_for_periodic_candidates(V_theta, periodic):
+    m, V = _angle_flow(V_theta)
+    x = m.sym.x
+    f = m.closed_loop_at((1.0, 2.0))
+    v = V(x, (1.0, 2.0))
+    assert periodic_in(x, [v, f], 2) is periodic
+    box = Box(("x", "y", "th"), np.array([-2.0, -2, -math.pi]), np.array([4.0, 5, math.pi]))
+    cert = certify(x, f, v, box, periodic=[2], max_boxes=20_000)
+    if not periodic:
+        # th' = 1 leaves through th = pi, where V jumps: K is not invariant, and never claimed so
+        assert cert.invariant is not True and "positively invariant" not in cert.claim
+        assert "th" in cert.details["periodic_refused"]
+    else:
+        assert cert.details["periodic"] == ["th"]
+    rep = check_lyapunov(m, V, target=(1.0, 2.0), region={"x": (-2, 4), "y": (-2, 5),
+                                                          "th": (-math.pi, math.pi)},
+                         max_boxes=20_000)
+    if not periodic:
+        assert "positively invariant (" not in rep.claim
+
+
+# ---- 3. the quadratic route's tolerances are relative (none, in fact) ---------------------------
+
+@pytest.mark.parametrize("alpha,target,shift,box", [
+    (1e-6, (45.0, 5.0), 7e-4, (0.0, 50.0)),                 # the issue's case
+    (1e-3, (1e6, 1e6), 1e-6, (0.0, 2e6)),                  # large coordinates
+    (1e-9, (1.0, 1.0), 1e-5, (0.0, 2.0)),
+    (2.0, (1e-6, 1e-6), 1e-9, (0.0, 2e-6)),                # micro scale
+])
+def test_an_off_centre_quadratic_candidate_gets_an_exact_counterexample(alpha, target, shift,
+                                                                        box):
+    pm = models.get("point_mass", alpha1=alpha, alpha2=alpha)
+    t1, t2 = target
+
+    def V(z):
+        return ((z[0] - t1 - shift) ** 2 + (z[1] - t2) ** 2) / 2
+
+    region = {"x": box, "y": box}
+    rep = check_lyapunov(pm, V, target=target, region=region)
+    assert rep.status == "counterexample", rep.method
+    x, y = rep.counterexample
+    # V as written, (z - t1) - shift, in exact rationals: Vdot = grad V . alpha (t - z)
+    F = Fraction
+    exact = (F(alpha) * ((F(x) - F(t1)) - F(shift)) * (F(t1) - F(x))
+             + F(alpha) * (F(y) - F(t2)) * (F(t2) - F(y)))
+    assert exact > 0, float(exact)
+    roa = estimate_roa(pm, V, target=target, region=region, confirm=10)
+    assert roa.status != "proved"
+
+
+@pytest.mark.parametrize("scale,offset", [(1e-6, 1e-13), (1e-6, 1e-20), (1.0, 1e-3),
+                                          (1e3, 1e-2)])
+def test_a_candidate_negative_near_the_target_is_never_proved_positive(scale, offset):
+    pm = models.get("point_mass")
+    t = (scale, scale)
+    region = {"x": (0, 2 * scale), "y": (0, 2 * scale)}
+
+    def V(z):
+        return ((z[0] - t[0]) ** 2 + (z[1] - t[1]) ** 2) / 2 - offset
+
+    rep = check_lyapunov(pm, V, target=t, region=region)
+    assert rep.status == "counterexample" and rep.details["counterexample_V"] < 0
+    x, y = rep.counterexample
+    assert (Fraction(x) - Fraction(t[0])) ** 2 + (Fraction(y) - Fraction(t[1])) ** 2 \
+        < 2 * Fraction(offset)
+    # the same with a quartic term (not quadratic: the sampling route must catch it)
+    rep = check_lyapunov(pm, lambda z: V(z) + (z[0] - t[0]) ** 4 / scale ** 2, target=t,
+                         region=region)
+    assert rep.status == "counterexample" and rep.details["counterexample_V"] < 0
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e6])
+def test_a_centred_quadratic_is_proved_at_every_scale(scale):
+    pm = models.get("point_mass", alpha1=scale * 1e-3 + 1e-9, alpha2=0.3)
+    t = (scale, 2 * scale)
+    rep = check_lyapunov(pm, target=t, region={"x": (0, 3 * scale), "y": (0, 3 * scale)})
+    assert rep.status == "proved" and rep.route == "quadratic"
+    assert "no tolerance" in rep.method
+
+
+def test_a_semidefinite_vdot_gets_an_exact_zero_counterexample():
+    m = flow(lambda e: cs.vertcat(-e[0], 0 * e[1]))
+    rep = check_lyapunov(m, target=(0, 0), region={"x": (-1, 1), "y": (-1, 1)})
+    assert rep.status == "counterexample"
+    assert rep.details["counterexample_vdot_enclosure"] == [0.0, 0.0]
+    x, y = rep.counterexample
+    assert x == 0.0 and y != 0.0
+
+
+# ---- 4. a counterexample is claimed only where the enclosure shows the sign ---------------------
+
+def _spiral(c):
+    def rhs(e):
+        r2 = e[0] ** 2 + e[1] ** 2
+        return cs.vertcat(-e[1] - c * e[0] * r2, e[0] - c * e[1] * r2)
+    return rhs
+
+
+@pytest.mark.parametrize("c,half", [(1e-3, 1.0), (1e-5, 1.0), (1e-3, 1e-3), (1.0, 1e3)])
+def test_a_slowly_damped_rotation_has_no_false_counterexample(c, half):
+    m = flow(_spiral(c))
+    rep = check_lyapunov(m, target=(0, 0), region={"x": (-half, half), "y": (-half, half)},
+                         max_boxes=20_000)
+    # exactly, Vdot = -c r^4 < 0 away from the origin
+    assert rep.status != "counterexample", rep.method
+    if rep.worst_state is not None and np.any(rep.worst_state):
+        x, y = rep.worst_state
+        exact = -Fraction(c) * (Fraction(x) ** 2 + Fraction(y) ** 2) ** 2
+        assert exact < 0
+
+
+def test_every_reported_counterexample_is_exact():
+    """A true counterexample keeps its verdict: Vdot > 0 where the loop is unstable."""
+    pm = models.get("point_mass")
+    rep = check_lyapunov(pm, target=(45, 5), region={"x": (0, 50), "y": (0, 50)},
+                         params={"alpha1": -1e-9})
+    assert rep.status == "counterexample"
+    lo, hi = rep.details["counterexample_vdot_enclosure"]
+    assert lo > 0
+
+
+# ---- the crash and raw-error cases --------------------------------------------------------------
+
+@pytest.mark.parametrize("kw,msg", [({"samples": 0}, "samples: expected a positive integer"),
+                                    ({"starts": -1}, "starts: expected a positive integer"),
+                                    ({"level": float("nan")}, "level: expected a finite"),
+                                    ({"exclude": 2.0}, "exclude: expected a number in [0, 1)")])
+def test_bad_settings_get_a_named_error(kw, msg):
+    with pytest.raises(HybridnavError, match=msg.replace("[", r"\[").replace(")", r"\)")):
+        check_lyapunov(models.get("point_mass"), target=(45, 5),
+                       region={"x": (0, 50), "y": (0, 50)}, **kw)
+
+
+def test_a_target_outside_the_region_is_refused():
+    with pytest.raises(HybridnavError, match="target: .* lies outside the region"):
+        check_lyapunov(models.get("point_mass"), target=(60, 5),
+                       region={"x": (0, 50), "y": (0, 50)})
