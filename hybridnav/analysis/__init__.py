@@ -1,5 +1,6 @@
-"""Control-theoretic analysis of the kinematic models: Lyapunov checks and certificates,
-linearization, regions of attraction, equilibria, closed-loop sweeps.
+"""Control-theoretic analysis of the kinematic models — and of any system given as a python-control
+``nlsys``, a CasADi ``Function``, expressions or a do-mpc model (:func:`as_system`): Lyapunov checks
+and certificates, linearization, regions of attraction, equilibria, closed-loop sweeps.
 
 The functions are exported here, python-control style (``from hybridnav.analysis import
 linearize``); the modules are named for what they hold (``linearization``, ``lyapunov``,
@@ -38,13 +39,14 @@ from hybridnav.analysis.roa import (
     lyapunov_equation_candidate,
 )
 from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
+from hybridnav.analysis.system import System, as_system
 
 # ``hybridnav.analysis.linearize`` was the module until 0.2; it is the function now. The old
 # ``from hybridnav.analysis.linearize import ...`` keeps working for one version through this alias.
 _sys.modules[__name__ + ".linearize"] = _linearization
 
 __all__ = ["Box", "Certificate", "DiscreteStepReport", "Equilibrium", "LinearizationReport",
-           "LyapunovReport", "RoaEstimate", "as_box", "basin", "certify", "check_lyapunov",
+           "LyapunovReport", "RoaEstimate", "System", "as_box", "as_system", "basin", "certify", "check_lyapunov",
            "closed_loop_sweep", "controllability_rank", "discrete_step", "estimate_roa",
            "find_equilibria", "grid_starts", "is_stable", "linearize", "linearize_expression",
            "lyapunov_equation_candidate", "lyapunov_functions", "rk4_stability_limit", "summarize"]

@@ -42,8 +42,9 @@ class Equilibrium:
 def find_equilibria(
     model: Model,
     *,
-    target: Sequence[float],
+    target: Sequence[float] | None = None,
     region: Mapping[str, Sequence[float]] | Box,
+    equilibrium: Sequence[float] | None = None,
     seed: int = 0,
     starts: int = 400,
 ) -> list[Equilibrium]:
@@ -60,18 +61,20 @@ def find_equilibria(
 
     Parameters
     ----------
-    model : Model
-    target : (float, float)
-        The target the closed loop drives to.
+    model : Model or any system :func:`~hybridnav.analysis.system.as_system` takes
+    target : (float, float), optional
+        The target the closed loop drives to (a robot model).
     region : dict or Box
         Bounds of every state (``{name: (lo, hi)}``).
     seed : int
         Seeds the sampled starts.
     starts : int
         Uniform random Newton starts (besides the smallest-field points and the run ends).
+    equilibrium : sequence of float, optional
+        For a general system: the equilibrium state of interest (reported as ``is_target``).
     """
+    model, tgt = resolve(model, target, equilibrium)
     box = as_box(model, region)
-    tgt = _target(target)
     key = (model._key(), tuple(tgt), tuple(box.lower), tuple(box.upper), int(seed), int(starts))
     if key not in _EQUILIBRIA:
         if len(_EQUILIBRIA) >= 32:
@@ -103,7 +106,7 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
         fd = np.asarray(cs.Function("f", [s.x], [f]).map(len(dense))(dense.T))
         norm = np.linalg.norm(np.where(np.isfinite(fd), fd, np.inf), axis=0)
         runs = model.rollout(dense[:starts], np.tile(tgt, (min(starts, len(dense)), 1)),
-                             int(round(200.0 / model.dt)))[:, -1]
+                             min(int(round(200.0 / model.dt)), 5000))[:, -1]
         runs = runs[np.all(np.isfinite(runs), axis=1) & box.contains(runs)]
         X0 = np.vstack([X0, dense[np.argsort(norm)[:starts // 2]], runs])
     span = float(np.max(box.upper - box.lower)) or 1.0
@@ -130,14 +133,48 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
             kind = "degenerate"
         else:
             kind = "saddle"
-        is_target = bool(np.linalg.norm(z[:2] - tgt) < 1e-6 * span)
+        is_target = bool(np.linalg.norm(z[:len(tgt)] - tgt) < 1e-6 * span)
         found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
     found.sort(key=lambda e: (not e.is_target, e.V))
     return found
 
 
-def _target(target) -> np.ndarray:
-    t = np.asarray(target, dtype=float).ravel()
-    if t.shape != (2,) or not np.all(np.isfinite(t)):
-        raise HybridnavError(f"target: expected two finite numbers (x1, y1), got {target!r}")
+def _target(target, model: Model | None = None) -> np.ndarray:
+    """The target as a vector: a robot's ``(x1, y1)``, or a system's whole equilibrium state."""
+    k = 2 if model is None else model.target_size
+    try:
+        t = np.asarray(target, dtype=float).ravel()
+    except (TypeError, ValueError):
+        t = None
+    if t is None or t.shape != (k,) or not np.all(np.isfinite(t)):
+        if not hasattr(model, "equilibrium"):        # a robot model
+            raise HybridnavError(f"target: expected two finite numbers (x1, y1), got {target!r}")
+        raise HybridnavError(
+            f"equilibrium: expected {k} finite numbers ({', '.join(model.state_names)}), got "
+            f"{target!r}")
     return t
+
+
+def resolve(model, target=None, equilibrium=None) -> tuple[Model, np.ndarray]:
+    """The analysed model (:func:`~hybridnav.analysis.system.as_system` of any system) and its
+    target or equilibrium, validated.
+
+    Raises
+    ------
+    HybridnavError
+        Both or neither given (a system's own ``equilibrium`` is the default), or wrong sizes.
+    """
+    from hybridnav.analysis.system import as_system
+
+    model = as_system(model)
+    if target is not None and equilibrium is not None:
+        raise HybridnavError("equilibrium: pass target= or equilibrium=, not both")
+    t = equilibrium if equilibrium is not None else target
+    if t is None:
+        t = getattr(model, "equilibrium", None)
+    if t is None:
+        what = ("equilibrium: required (the state the analysis is about, "
+                f"{', '.join(model.state_names)})" if hasattr(model, "equilibrium")
+                else "target: required (the point (x1, y1) the closed loop drives to)")
+        raise HybridnavError(what)
+    return model, _target(t, model)

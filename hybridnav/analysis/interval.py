@@ -323,6 +323,9 @@ def _domain(name, a, b, c, d, pos_a, pos_c):
                         np.where(c > 0, a >= 0, _positive(a, pos_a)))
     if name == "atan2":
         return ~((a <= 0) & (b >= 0) & (c <= 0) & (d >= 0))
+    if name == "tan":
+        return np.isfinite(a) & np.isfinite(b) & ~(np.ceil((a - np.pi / 2) / np.pi - 1e-9) <= np.floor(
+            (b - np.pi / 2) / np.pi + 1e-9))
     return None
 
 
@@ -392,6 +395,14 @@ def _apply(name, a, b, c, d):
             lo, hi = _monotone(np.log, np.maximum(a, 0.0), b)
             bad = b <= 0
             lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
+        elif name == "tan":
+            lo, hi = _monotone(np.tan, a, b)
+            # a pole pi/2 + k pi inside (tested with a margin) or beyond 1e8: unbounded
+            pole = (np.ceil((a - np.pi / 2) / np.pi - 1e-9) <= np.floor((b - np.pi / 2) / np.pi
+                                                                          + 1e-9))
+            pole |= ~np.isfinite(a) | ~np.isfinite(b) | (np.maximum(np.abs(a), np.abs(b)) > 1e8)
+            lo, hi = np.where(pole, -np.inf, lo), np.where(pole, np.inf, hi)
+            ok = ~pole
         elif name == "tanh":
             lo, hi = _monotone(np.tanh, a, b)
         elif name == "atan":
@@ -487,7 +498,8 @@ def _compare(name, a, b, c, d):
 
 
 _SUPPORTED = {"input", "output", "const", "add", "sub", "mul", "div", "inv", "neg", "twice",
-              "assign", "sq", "constpow", "pow", "sqrt", "exp", "log", "tanh", "atan", "asin",
+              "assign", "sq", "constpow", "pow", "sqrt", "exp", "log", "tan", "tanh", "atan",
+              "asin",
               "acos", "sinh", "cosh", "cos", "sin", "atan2", "fabs", "fmin", "fmax", "sign",
               "floor", "ceil", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero"}
 

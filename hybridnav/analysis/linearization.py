@@ -41,11 +41,16 @@ def linearize(
 
     Parameters
     ----------
-    model : Model
+    model : Model or any system
+        A hybridnav model, or a python-control ``nlsys`` / ``StateSpace``, a CasADi
+        ``Function``, ``(x, u, rhs)`` expressions or a do-mpc model
+        (:func:`hybridnav.analysis.as_system`): ``linearize(sys, x0, u0)`` returns its
+        ``ct.StateSpace`` about ``(x0, u0)`` as ``control.linearize`` would, with exact Jacobians.
     x0 : sequence of float
         The point: plant states (open loop) or all states (closed loop).
     u0 : sequence of float, optional
-        The input of the open-loop point (required for the open loop).
+        The input of the open-loop point (required for a robot's open loop; a system's held
+        input by default).
     target : (float, float), optional
         Linearize the closed loop driving to it (default: the open loop).
     name : str, optional
@@ -58,9 +63,14 @@ def linearize(
         there, e.g. the unicycle's heading controller at its target): the message names the state
         rows.
     """
+    from hybridnav.analysis.system import as_system
+
+    model = as_system(model)
     x0 = _vector(x0, "x0")
     s = model.sym
     pval = cs.DM(model.p_value())
+    if target is None and u0 is None and hasattr(model, "u0"):
+        u0 = model.u0                      # a system: its held input
     if target is None:
         if u0 is None:
             raise HybridnavError(
@@ -80,26 +90,28 @@ def linearize(
         rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, u0))
         states, inputs = list(model.plant_state_names), list(model.input_names)
         point, args = (x0, u0), cs.Function("f", [xs, s.u], [f])
+        expr = ([xs, s.u], f)
     else:
         t = _vector(target, "target")
-        if x0.size != model.nx or t.size != 2:
+        if x0.size != model.nx or t.size != model.target_size:
             raise HybridnavError(
-                f"x0: expected {model.nx} states ({', '.join(model.state_names)}) and a 2-vector "
-                f"target, got {x0.size} and {t.size}"
+                f"x0: expected {model.nx} states ({', '.join(model.state_names)}) and a "
+                f"{model.target_size}-vector target, got {x0.size} and {t.size}"
             )
         f = cs.substitute(model.closed_loop(), s.p, pval)
         fn = cs.Function("lin", [s.x, s.target],
                          [f, cs.jacobian(f, s.x), cs.jacobian(f, s.target)])
         rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, t))
-        states, inputs = list(model.state_names), ["x1", "y1"]
+        states, inputs = list(model.state_names), [str(v) for v in cs.vertsplit(s.target)]
         point, args = (x0, t), cs.Function("f", [s.x, s.target], [f])
+        expr = ([s.x, s.target], f)
     bad = sorted({states[i] for i in np.argwhere(~np.isfinite(np.hstack([A, B])))[:, 0]})
     if bad:
         raise HybridnavError(
             f"x0: {model.name} is not differentiable at {x0.tolist()}: the Jacobian rows of "
             f"{', '.join(bad)} are not finite there"
         )
-    _one_sided(model.name, args, point, [states, inputs], x0)
+    _one_sided(model.name, args, point, [states, inputs], x0, expr=expr)
     n = len(states)
     sys = control.ss(A, B, np.eye(n), np.zeros((n, B.shape[1])), states=states, inputs=inputs,
                      outputs=list(states), name=name or f"{model.name}_lin")
@@ -107,15 +119,38 @@ def linearize(
     return sys
 
 
-def _one_sided(what: str, f: cs.Function, point, names, x0, rtol: float = 1e-3) -> None:
-    """Raise where the one-sided difference quotients of ``f`` disagree: a kink (``fmax``,
-    ``fabs``) or a jump (an angle wrapping at pi) that CasADi's Jacobian, a one-sided derivative
-    itself, does not show."""
+def _one_sided(what: str, f: cs.Function, point, names, x0, rtol: float = 1e-3,
+               expr=None) -> None:
+    """Raise where ``f`` has a kink (``fmax``, ``fabs``) or a jump (an angle wrapping at pi) at the
+    point, which CasADi's Jacobian, a one-sided derivative itself, does not show.
+
+    Where the expression ``expr = (symbols, f)`` has an interval extension, only the rows that
+    pass through an operation at or within ``1e-8`` (relative) of its kink or jump are examined
+    (:class:`~hybridnav.analysis.interval.IntervalFunction`'s smoothness flags), so curvature at
+    large coordinates (``sin`` at ``1e6``) is never taken for a kink; those rows are then
+    confirmed by one-sided difference quotients with the same step.
+    """
     point = [np.asarray(p, dtype=float).ravel() for p in point]
+    rows = None
+    if expr is not None:
+        from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+
+        syms, fx = expr
+        try:
+            F = IntervalFunction(cs.vertcat(*syms), [fx])
+        except UnsupportedOperation:
+            F = None
+        if F is not None:
+            pt = np.concatenate(point)
+            h = 1e-8 * (1.0 + np.abs(pt))
+            _, _, smooth = F((pt - h)[None], (pt + h)[None])
+            rows = np.flatnonzero(~smooth[0])
+            if not len(rows):
+                return
     f0 = np.asarray(f(*point), dtype=float).ravel()
     for a, (p, labels) in enumerate(zip(point, names)):
         for j in range(p.size):
-            h = 1e-6 * (1.0 + abs(p[j]))
+            h = (1e-8 if rows is not None else 1e-6) * (1.0 + abs(p[j]))
             quot = []
             for sign in (1.0, -1.0):
                 q = [v.copy() for v in point]
@@ -124,6 +159,8 @@ def _one_sided(what: str, f: cs.Function, point, names, x0, rtol: float = 1e-3) 
             dp, dm = quot
             gap = np.abs(dp - dm)
             bad = gap > rtol * (1.0 + np.abs(dp) + np.abs(dm))
+            if rows is not None:
+                bad &= np.isin(np.arange(len(bad)), rows)
             if np.any(bad):
                 i = int(np.argmax(np.where(bad, gap, -np.inf)))
                 raise HybridnavError(
@@ -163,7 +200,7 @@ def linearize_expression(
     if not np.all(np.isfinite(A)):
         raise HybridnavError(f"z0: the vector field is not differentiable at {list(z0)}")
     _one_sided("the vector field", cs.Function("f", [z], [zdot]), (_vector(z0, "z0"),),
-               [list(names)], list(z0))
+               [list(names)], list(z0), expr=([z], zdot))
     n = A.shape[0]
     sys = control.ss(A, np.zeros((n, 0)), np.eye(n), np.zeros((n, 0)), states=list(names),
                      outputs=list(names), name=name)
@@ -200,7 +237,7 @@ class LinearizationReport:
     B: np.ndarray
     eigenvalues: np.ndarray
     stable: bool
-    controllability_rank: int
+    controllability_rank: int | None
     n_states: int
     nominal_rate: np.ndarray
 
@@ -212,7 +249,7 @@ class LinearizationReport:
             "stable": self.stable, "controllability_rank": self.controllability_rank,
             "n_states": self.n_states, "n_inputs": int(self.B.shape[1]) if self.B.ndim == 2 else 0,
             "controllable": (self.controllability_rank == self.n_states
-                             if self.B.ndim == 2 and self.B.shape[1] else None),
+                             if self.controllability_rank is not None else None),
             "nominal_rate": self.nominal_rate.tolist(),
         }
 
@@ -230,7 +267,9 @@ def summarize(sys: control.StateSpace, point: dict[str, float] | None = None) ->
     return LinearizationReport(
         name=sys.name, point=dict(point or {}), A=np.asarray(sys.A), B=np.asarray(sys.B),
         eigenvalues=np.linalg.eigvals(sys.A), stable=is_stable(sys),
-        controllability_rank=controllability_rank(sys), n_states=sys.nstates,
+        # no inputs: controllability does not apply (a rank of 0 would read "uncontrollable")
+        controllability_rank=controllability_rank(sys) if sys.ninputs else None,
+        n_states=sys.nstates,
         nominal_rate=np.asarray(getattr(sys, "nominal_rate", np.zeros(sys.nstates))),
     )
 

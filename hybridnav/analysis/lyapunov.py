@@ -53,7 +53,7 @@ from collections.abc import Mapping, Sequence
 import casadi as cs
 import numpy as np
 
-from hybridnav.analysis.equilibria import Equilibrium, _target, find_equilibria
+from hybridnav.analysis.equilibria import Equilibrium, _target, find_equilibria, resolve
 from hybridnav.analysis.quadratic import _quadratic_argument
 from hybridnav.analysis.region import Box, as_box
 from hybridnav.analysis.verdict import LyapunovReport, _counterexample
@@ -69,7 +69,8 @@ _IPOPT = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt
           "ipopt.tol": 1e-10}
 
 
-def lyapunov_functions(model: Model, V=None, *, target, params: Mapping[str, float] | None = None):
+def lyapunov_functions(model: Model, V=None, *, target=None,
+                       params: Mapping[str, float] | None = None, equilibrium=None):
     """Numeric CasADi functions ``x -> (V, Vdot)`` and the symbolic expressions behind them.
 
     Parameters
@@ -90,13 +91,13 @@ def lyapunov_functions(model: Model, V=None, *, target, params: Mapping[str, flo
     V_sym, Vdot_sym : casadi.SX
         With the parameter and target symbols kept (for printing).
     """
+    model, target = resolve(model, target, equilibrium)
     orig = model
     if params:
         model = model.with_params(**params)
     s = model.sym
     v_sym = _candidate(model, V, orig)
     vdot_sym = cs.jtimes(v_sym, s.x, model.closed_loop())
-    target = _target(target)
     keep = cs.vertcat(s.target, s.p)
     values = cs.DM(np.concatenate([target, model.p_value()]))
     v_num = cs.substitute(v_sym, keep, values)
@@ -108,8 +109,9 @@ def check_lyapunov(
     model: Model,
     V=None,
     *,
-    target: Sequence[float],
+    target: Sequence[float] | None = None,
     region: Mapping[str, Sequence[float]] | Box,
+    equilibrium: Sequence[float] | None = None,
     level: float | None = None,
     params: Mapping[str, float] | None = None,
     seed: int = 0,
@@ -124,16 +126,21 @@ def check_lyapunov(
 
     Parameters
     ----------
-    model : Model
-        A closed-loop model from :func:`hybridnav.models.get`.
+    model : Model or any system
+        A closed-loop model from :func:`hybridnav.models.get`, or a python-control ``nlsys``, a
+        CasADi ``Function``, ``(x, u, rhs)`` expressions or a do-mpc model (see
+        :func:`hybridnav.analysis.as_system`).
     V : casadi.SX or callable, optional
         The candidate, an expression in ``model.sym.x`` (and optionally ``model.sym.target`` and
         ``model.sym.p``) or a callable ``V(x)`` / ``V(x, target)`` returning one. Default: the
-        model's own candidate (``1/2`` squared distance to the target; ``L`` for LbCS).
-    target : (2,) array_like
-        The target point ``(x1, y1)``; the equilibrium is where ``V`` vanishes.
+        model's own candidate (``1/2`` squared distance to the target or equilibrium; ``L`` for
+        LbCS).
+    target : (2,) array_like, optional
+        A robot model's target point ``(x1, y1)``; the equilibrium is where ``V`` vanishes.
     region : dict or Box
         ``{state: (lo, hi)}`` for every state of the model.
+    equilibrium : array_like, optional
+        A general system's equilibrium state (default: the one it was built with).
     level : float, optional
         Restrict the region to ``{V <= level}``.
     params : dict, optional
@@ -160,6 +167,7 @@ def check_lyapunov(
     -------
     LyapunovReport
     """
+    model, target = resolve(model, target, equilibrium)
     model, v_num, vdot_num, v_sym, vdot_sym = lyapunov_functions(model, V, target=target,
                                                                  params=params)
     box = as_box(model, region)
@@ -213,7 +221,7 @@ def check_lyapunov(
     keep &= ~np.isnan(d_s)
     report.details.update(samples=int(samples), samples_in_region=int(keep.sum()),
                           nan_vdot_samples=nan, v_floor=v_floor, level=level,
-                          region=box.to_dict(), target=list(map(float, _target(target))))
+                          region=box.to_dict(), target=list(map(float, _target(target, model))))
     if not keep.any():
         raise HybridnavError(
             "region: no sampled state lies in the region away from the equilibrium "
@@ -338,8 +346,8 @@ def _check_settings(model: Model, box: Box, target, **kw) -> None:
                                   and not isinstance(level, bool) and np.isfinite(level)
                                   and level > 0):
         raise HybridnavError(f"level: expected a finite number > 0, got {level!r}")
-    t = _target(target)
-    if not np.all((t >= box.lower[:2]) & (t <= box.upper[:2])):
+    t = _target(target, model)
+    if not np.all((t >= box.lower[:len(t)]) & (t <= box.upper[:len(t)])):
         raise HybridnavError(
             f"target: {t.tolist()} lies outside the region ({box.to_dict()}); a region of "
             "attraction or a Lyapunov proof is about a region holding the equilibrium")
@@ -382,7 +390,7 @@ def _sample(both, box: Box, level, n: int, rng) -> tuple[np.ndarray, np.ndarray,
 
 def _certificate_inputs(model: Model, target):
     """The closed loop and the admissibility constraints in the state only; periodic states."""
-    f = model.closed_loop_at(_target(target))
+    f = model.closed_loop_at(_target(target, model))
     g = cs.substitute(model.state_constraints(), model.sym.p, cs.DM(model.p_value()))
     return f, g
 
@@ -441,8 +449,9 @@ def _lasalle_route(report, model, v_num, box, level, max_boxes) -> None:
 
 def _target_state(model: Model, target) -> np.ndarray:
     """The state at the target: its position the target's, the other states 0."""
+    t = _target(target, model)
     x = np.zeros(model.nx)
-    x[:2] = _target(target)
+    x[:len(t)] = t
     return x
 
 
@@ -450,7 +459,7 @@ def _equilibrium_guess(model, both, xmin, target, box) -> np.ndarray:
     """Where V vanishes: the minimizer of V, or the same with its position at the target when V
     is smaller there (the certificate's local ball is centred on it)."""
     snapped = np.asarray(xmin, dtype=float).copy()
-    snapped[:2] = _target(target)
+    snapped[:model.target_size] = _target(target, model)
     best = np.asarray(xmin, dtype=float)
     if box.contains(snapped):
         v0 = abs(float(np.asarray(both(best)[0]).item()))
@@ -590,7 +599,19 @@ def _candidate(model: Model, V, orig: Model | None = None) -> cs.SX:
     if expr.shape != (1, 1):
         raise HybridnavError(f"V: expected a scalar expression, got shape {expr.shape}")
     allowed = cs.symvar(cs.vertcat(s.x, s.target, s.p))
-    free = [str(v) for v in cs.symvar(expr) if not any(cs.is_equal(v, a) for a in allowed)]
+    free = [v for v in cs.symvar(expr) if not any(cs.is_equal(v, a) for a in allowed)]
+    if free:
+        # symbols of the same system built again (as_system traces a python-control system on
+        # every call) or the user's own: taken by name when they name a state, target entry or
+        # parameter
+        by_name = {str(a): a for a in allowed}
+        alias = getattr(model, "aliases", {})
+        pairs = [(v, by_name.get(str(v), alias.get(str(v)))) for v in free]
+        pairs = [(v, a) for v, a in pairs if a is not None]
+        if pairs:
+            expr = cs.substitute(expr, cs.vertcat(*[v for v, _ in pairs]),
+                                 cs.vertcat(*[a for _, a in pairs]))
+        free = [str(v) for v in cs.symvar(expr) if not any(cs.is_equal(v, a) for a in allowed)]
     if free:
         raise HybridnavError(
             f"V: depends on symbols that are not the model's state, target or parameters: "

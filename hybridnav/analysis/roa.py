@@ -10,6 +10,7 @@ from typing import Any
 import casadi as cs
 import numpy as np
 
+from hybridnav.analysis.equilibria import resolve
 from hybridnav.analysis.lyapunov import (
     _candidate,
     check_lyapunov,
@@ -78,8 +79,9 @@ def estimate_roa(
     model: Model,
     V=None,
     *,
-    target: Sequence[float],
+    target: Sequence[float] | None = None,
     region: Mapping[str, Sequence[float]] | Box,
+    equilibrium: Sequence[float] | None = None,
     params: Mapping[str, float] | None = None,
     seed: int = 0,
     rtol: float = 1e-3,
@@ -108,13 +110,16 @@ def estimate_roa(
 
     Parameters
     ----------
-    model : Model
+    model : Model or any system :func:`~hybridnav.analysis.as_system` takes
     V : casadi.SX, callable or None
         The Lyapunov candidate (as :func:`hybridnav.analysis.check_lyapunov` accepts it; None:
         the model's own).
-    target : (float, float)
+    target : (float, float), optional
+        A robot model's target.
     region : dict or Box
         Bounds of every state the estimate is taken in.
+    equilibrium : array_like, optional
+        A general system's equilibrium state (default: the one it was built with).
     params : dict, optional
         Model parameters overriding the model's values.
     seed : int
@@ -138,6 +143,7 @@ def estimate_roa(
     RoaEstimate
         ``details["region"]`` is the region the level refers to (grown or not).
     """
+    model, target = resolve(model, target, equilibrium)
     orig = model
     if params:
         model = model.with_params(**params)
@@ -277,16 +283,19 @@ def _lowest_other(eqs, vfun) -> float:
 
 
 def _doubled(box: Box, target) -> Box:
-    """The box with its position bounds (the first two states) twice as far from the target."""
+    """The box with its position bounds (the first two states; a system's every state) twice as
+    far from the target (equilibrium)."""
     t = np.asarray(target, dtype=float)
+    k = len(t)
     lower, upper = box.lower.copy(), box.upper.copy()
-    lower[:2] = t - 2 * (t - lower[:2])
-    upper[:2] = t + 2 * (upper[:2] - t)
+    lower[:k] = t - 2 * (t - lower[:k])
+    upper[:k] = t + 2 * (upper[:k] - t)
     return Box(box.names, lower, upper)
 
 
-def lyapunov_equation_candidate(model: Model, target: Sequence[float], Q=None,
-                                params: Mapping[str, float] | None = None):
+def lyapunov_equation_candidate(model: Model, target: Sequence[float] | None = None, Q=None,
+                                params: Mapping[str, float] | None = None, *,
+                                equilibrium: Sequence[float] | None = None):
     """A quadratic candidate from the linearization at the target: ``V = dx' P dx``.
 
     ``P`` solves the Lyapunov equation ``A' P + P A = -Q`` (``control.lyap``) for the closed
@@ -295,12 +304,15 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float], Q=None,
 
     Parameters
     ----------
-    model : Model
-    target : (2,) array_like
+    model : Model or any system :func:`~hybridnav.analysis.as_system` takes
+    target : (2,) array_like, optional
+        A robot model's target.
     Q : (nx, nx) array_like, optional
         Symmetric positive definite weight (default: the identity).
     params : dict, optional
         Parameter overrides.
+    equilibrium : array_like, optional
+        A general system's equilibrium state.
 
     Returns
     -------
@@ -318,10 +330,12 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float], Q=None,
 
     from hybridnav.analysis.linearization import linearize
 
+    from hybridnav.analysis.lyapunov import _target_state
+
+    model, target = resolve(model, target, equilibrium)
     if params:
         model = model.with_params(**params)
-    x0 = np.zeros(model.nx)
-    x0[:2] = np.asarray(target, dtype=float)
+    x0 = _target_state(model, target)
     A = np.asarray(linearize(model, x0, target=target).A, dtype=float)
     Q = np.eye(model.nx) if Q is None else np.asarray(Q, dtype=float)
     if Q.shape != A.shape or not np.allclose(Q, Q.T) or np.linalg.eigvalsh(Q).min() <= 0:
@@ -337,9 +351,10 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float], Q=None,
     return cs.mtimes([dx.T, cs.DM(P), dx]), P
 
 
-def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, float] | None
-          = None, n: int = 101, horizon: float | None = None, radius: float | None = None,
-          method: str = "continuous"):
+def basin(model: Model, *, target: Sequence[float] | None = None, region,
+          fixed: Mapping[str, float] | None = None, n: int = 101, horizon: float | None = None,
+          radius: float | None = None, method: str = "continuous",
+          equilibrium: Sequence[float] | None = None):
     """The true region of attraction on a grid of the first two states, by batched simulation.
 
     Every grid point (the other states from ``fixed``, default 0; inadmissible points excluded)
@@ -348,12 +363,13 @@ def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, 
 
     Parameters
     ----------
-    model : Model
-    target : (float, float)
+    model : Model or any system :func:`~hybridnav.analysis.as_system` takes
+    target : (float, float), optional
+        A robot model's target.
     region : dict or Box
         Bounds of the plotted states, e.g. ``{"x": (lo, hi), "y": (lo, hi)}``.
     fixed : dict, optional
-        Values of the other states (default 0).
+        Values of the other states (default 0; a system's: the equilibrium's).
     n : int
         Grid points per axis.
     horizon : float, optional
@@ -367,6 +383,8 @@ def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, 
         absolute) mapped over the grid on two threads. ``"simulated"``: the model's own RK4
         control cycle at ``model.dt``, what the planners run (it can differ: large steps near
         LbCS obstacles jump where the flow would not go).
+    equilibrium : array_like, optional
+        A general system's equilibrium state.
 
     Returns
     -------
@@ -375,15 +393,18 @@ def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, 
     """
     if method not in ("continuous", "simulated"):
         raise HybridnavError(f"method: expected 'continuous' or 'simulated', got {method!r}")
+    model, target = resolve(model, target, equilibrium)
     box = as_box(model, region)
     xs = np.linspace(box.lower[0], box.upper[0], n)
     ys = np.linspace(box.lower[1], box.upper[1], n)
     X, Y = np.meshgrid(xs, ys)
     Z = np.zeros((X.size, model.nx))
+    if len(target) == model.nx:          # a system: the other states at the equilibrium's
+        Z[:] = target
     Z[:, 0], Z[:, 1] = X.ravel(), Y.ravel()
     for name, value in (fixed or {}).items():
         Z[:, model.state_names.index(name)] = value
-    t = np.asarray(target, dtype=float)
+    t = target
     tg = np.tile(t, (len(Z), 1))
     Z = model.retarget(Z, tg)
     r = radius if radius is not None else 1e-3 * float(np.hypot(*(box.upper[:2] - box.lower[:2])))
@@ -396,7 +417,7 @@ def basin(model: Model, *, target: Sequence[float], region, fixed: Mapping[str, 
     else:
         end[idx] = _rk4_ends(model, t, Z[idx], int(np.ceil(T / model.dt)), box, r)
     with np.errstate(invalid="ignore"):
-        done = np.hypot(end[:, 0] - t[0], end[:, 1] - t[1]) <= r
+        done = np.linalg.norm(end[:, :len(t)] - t, axis=1) <= r
     return xs, ys, (done & ok).reshape(n, n)
 
 
@@ -441,7 +462,7 @@ def _rk4_ends(model: Model, target, Z: np.ndarray, steps: int, box: Box, radius:
             last = traj[:, -1]
             still = np.max(np.abs(last - traj[:, max(0, k - 100)]), axis=1) < r
             lost = hit | ~np.all(np.isfinite(last), axis=1)
-            arrived = np.hypot(last[:, 0] - target[0], last[:, 1] - target[1]) <= radius
+            arrived = np.linalg.norm(last[:, :len(target)] - target, axis=1) <= radius
             active = active[~(still | lost | arrived)]
     return Z
 

@@ -190,6 +190,11 @@ class Model(ABC):
         )
         self._local = threading.local()
 
+    @property
+    def target_size(self) -> int:
+        """Entries of a target: a robot's ``(x1, y1)``, the first two states' values."""
+        return 2
+
     # ---- what subclasses provide -------------------------------------------------------------
 
     @abstractmethod
@@ -354,20 +359,20 @@ class Model(ABC):
                 return self._step_single().map(n)
 
             fn = _compile(self._key() + ("step", n), build, self._use_jit())
-            b = _Buffered(fn, [(n, nx), (n, 2)], [(n, nx)])
+            b = _Buffered(fn, [(n, nx), (n, self.target_size)], [(n, nx)])
         else:
 
             def build():
                 single = self._step_single()
                 acc = single.mapaccum(f"{self.name}_acc", steps)
                 x0 = cs.MX.sym("x0", nx)
-                tg = cs.MX.sym("target", 2)
+                tg = cs.MX.sym("target", self.target_size)
                 per_robot = cs.Function(f"{self.name}_rollout1", [x0, tg],
                                         [acc(x0, cs.repmat(tg, 1, steps))])
                 return per_robot.map(n)
 
             fn = _compile(self._key() + ("rollout", n, steps), build, self._use_jit())
-            b = _Buffered(fn, [(n, nx), (n, 2)], [(n, steps, nx)])
+            b = _Buffered(fn, [(n, nx), (n, self.target_size)], [(n, steps, nx)])
         if len(cache) > 32:
             cache.pop(next(iter(cache)))
         cache[bkey] = b
@@ -381,10 +386,10 @@ class Model(ABC):
                 f"model {self.name}: X: expected an (N, {self.nx}) array of states "
                 f"({', '.join(self.state_names)}), got shape {X.shape}"
             )
-        if targets.shape != (X.shape[0], 2):
+        if targets.shape != (X.shape[0], self.target_size):
             raise HybridnavError(
-                f"model {self.name}: targets: expected an ({X.shape[0]}, 2) array, got shape "
-                f"{targets.shape}"
+                f"model {self.name}: targets: expected an ({X.shape[0]}, {self.target_size}) "
+                f"array, got shape {targets.shape}"
             )
         return X, targets
 
@@ -516,6 +521,42 @@ class Model(ABC):
         s = self.sym
         values = cs.DM(np.concatenate([np.asarray(target, dtype=float).ravel(), self.p_value()]))
         return cs.substitute(self.closed_loop(), cs.vertcat(s.target, s.p), values)
+
+    def to_nlsys(self, kind: str = "closed_loop", name: str | None = None):
+        """The model as a python-control ``NonlinearIOSystem``.
+
+        ``kind="closed_loop"``: states :attr:`state_names`, inputs the target (``x1, y1``; a
+        general system's: none, its input held), ``xdot = F(x, target)``; ``"open_loop"``: the
+        plant states, inputs :attr:`input_names`, ``xdot = f(x, u)``. Outputs are the states.
+        The update function calls the model's CasADi function (numeric), so
+        ``control.linearize``, ``control.input_output_response`` and friends work on it.
+        """
+        import control
+
+        p = self.p_value()
+        if kind == "closed_loop":
+            f = self.function("closed_loop")
+            target_in = self.target_size != self.nx or not hasattr(self, "u0")
+            inputs = [str(v) for v in cs.vertsplit(self.sym.target)] if target_in else []
+            fixed = getattr(self, "equilibrium", None)
+            fixed = np.zeros(self.target_size) if fixed is None else fixed
+
+            def upd(t, x, u, params):
+                return np.asarray(f(x, u if target_in else fixed, p)).ravel()
+
+            states = list(self.state_names)
+        elif kind == "open_loop":
+            f = self.function("open_loop")
+
+            def upd(t, x, u, params):
+                return np.asarray(f(x, u, p)).ravel()
+
+            states, inputs = list(self.plant_state_names), list(self.input_names)
+        else:
+            raise HybridnavError(f"model {self.name}: kind: expected 'closed_loop' or "
+                                 f"'open_loop', got {kind!r}")
+        return control.nlsys(upd, None, states=states, inputs=inputs, outputs=states,
+                             name=name or f"{self.name}_{kind}")
 
     def numeric_closed_loop(self):
         """A NumPy-callable ``F(x, target) -> xdot`` for one robot (for scipy integrators)."""
