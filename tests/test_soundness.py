@@ -17,6 +17,7 @@ from hybridnav.analysis import Box, certify, check_lyapunov, estimate_roa
 from hybridnav.analysis.interval import IntervalFunction, periodic_in
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
+from hybridnav.params import Param
 
 mpmath.mp.dps = 60
 
@@ -265,3 +266,81 @@ def test_a_target_outside_the_region_is_refused():
     with pytest.raises(HybridnavError, match="target: .* lies outside the region"):
         check_lyapunov(models.get("point_mass"), target=(60, 5),
                        region={"x": (0, 50), "y": (0, 50)})
+
+
+# ---- non-smooth systems: saturations are certified, jumps are not ------------------------------
+
+class SaturatedPoint(Model):
+    """CONTRIBUTING's example: proportional control capped at vmax."""
+
+    name = "saturated_point"
+    plant_state_names = ("x", "y")
+    input_names = ("vx", "vy")
+    parameters = {"k": Param(0.5, "gain", lo=0.0, lo_open=True),
+                  "vmax": Param(1.0, "top speed", lo=0.0, lo_open=True)}
+
+    def open_loop(self, x, u, p):
+        return cs.vertcat(u[0], u[1])
+
+    def controller(self, x, target, p):
+        q = self.p_dict(p)
+        ex, ey = target[0] - x[0], target[1] - x[1]
+        scale = cs.fmin(1, q["vmax"] / (q["k"] * cs.sqrt(ex ** 2 + ey ** 2) + 1e-12))
+        return cs.vertcat(q["k"] * ex * scale, q["k"] * ey * scale)
+
+
+@pytest.mark.parametrize("k,vmax", [(0.5, 1.0), (2.0, 0.1), (0.1, 5.0)])
+def test_the_saturated_point_mass_is_proved(k, vmax):
+    m = SaturatedPoint(k=k, vmax=vmax)
+    rep = check_lyapunov(m, target=(45, 5), region={"x": (0, 50), "y": (0, 50)})
+    assert rep.status == "proved" and rep.route == "certificate", rep.method
+    assert "positively invariant" in rep.claim
+    # independent: Vdot = -k r^2 min(1, vmax / (k r)) < 0 off the target, on a grid
+    g = np.linspace(0, 50, 201)
+    X, Y = np.meshgrid(g, g)
+    r = np.hypot(X - 45, Y - 5)
+    vdot = -k * r ** 2 * np.minimum(1, vmax / (k * r + 1e-12))
+    assert np.all(vdot[r > 0] < 0)
+
+
+def test_box_saturation_and_dead_zone_controllers_are_certified_and_a_jump_is_not():
+    def sat(v):
+        return cs.fmax(-1, cs.fmin(1, v))
+    m = flow(lambda e: cs.vertcat(-sat(2 * e[0]) - 0.1 * e[0],
+                                  -e[1] * (1 + 0.5 * cs.fabs(e[1] - 1))))
+    rep = check_lyapunov(m, target=(0, 0), region={"x": (-3, 3), "y": (-3, 3)})
+    assert rep.status == "proved", rep.method
+    jump = flow(lambda e: cs.vertcat(-cs.sign(e[0]) - e[0], -e[1]))
+    rep = check_lyapunov(jump, target=(0, 0), region={"x": (-3, 3), "y": (-3, 3)},
+                         max_boxes=5_000)
+    assert rep.status != "proved"        # f jumps at x = 0: not a continuous vector field
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_specialize_equals_the_function_on_its_box(seed):
+    rng = np.random.default_rng(seed)
+    x = cs.SX.sym("x", 2)
+    e = cs.vertcat(x[0] * cs.fmin(1, 1 / (cs.sqrt(x[0] ** 2 + x[1] ** 2) + 1e-12)),
+                   cs.fabs(x[1] - 0.5) + (x[0] < 0.3) * cs.fmax(x[0], 2 * x[1]),
+                   cs.if_else(x[1] > -1, cs.sin(x[0]), cs.cos(x[0])))
+    F = IntervalFunction(x, [e])
+    for _ in range(20):
+        c = rng.uniform(-2, 2, 2)
+        h = rng.uniform(1e-3, 0.5, 2)
+        spec = cs.Function("s", [x], [cs.vertcat(*F.specialize(x, c - h, c + h))])
+        orig = cs.Function("o", [x], [e])
+        P = c + h * rng.uniform(-1, 1, (50, 2))
+        # equal in exact arithmetic (the rebuilt expression may round in another order)
+        np.testing.assert_allclose(np.asarray(spec.map(50)(P.T)),
+                                   np.asarray(orig.map(50)(P.T)), rtol=1e-14, atol=1e-15)
+
+
+def test_a_sign_term_does_not_pass_for_a_quadratic_form():
+    """-x^2 + 3|x| has a constant Hessian by automatic differentiation (d sign / dx = 0): the
+    quadratic route must not take it for a quadratic form (it is positive for 0 < |x| < 3)."""
+    m = flow(lambda e: cs.vertcat(-e[0] + 3 * cs.sign(e[0]), -e[1]))
+    rep = check_lyapunov(m, target=(0, 0), region={"x": (-5, 5), "y": (-5, 5)},
+                         max_boxes=5_000)
+    assert rep.status == "counterexample"
+    x, _ = rep.counterexample
+    assert 0 < abs(x) < 3

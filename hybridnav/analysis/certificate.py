@@ -26,12 +26,17 @@ coordinates declared periodic (an angle spanning a whole turn) are skipped only 
 and ``g`` are shown ``2 pi``-periodic in that coordinate
 (:func:`~hybridnav.analysis.interval.periodic_in`); otherwise they are checked.
 
-``Vdot`` and the Lie derivatives are CasADi's derivatives; a box is only decided by them where
-the expressions they differentiate are smooth on it (see
-:class:`~hybridnav.analysis.interval.IntervalFunction`); boxes over a kink stay undecided.
+Non-smooth systems: ``Vdot = grad V . f`` differentiates only ``V``, and it is the derivative of
+``V`` along every solution wherever ``V`` is smooth and ``f`` continuous (solutions exist by Peano's
+theorem; the chain rule needs ``x(t)`` differentiable, which it is). So saturations in ``f``
+(``fmin``, ``fmax``, ``fabs``: kinks, Lipschitz) are certified box by box like smooth dynamics;
+only jumps of ``f`` (``floor``, ``sign``, an undecided comparison, ``atan2`` across its cut) leave a
+box undecided. A saturation that surely holds one side on a box is as smooth there as that side
+(:class:`~hybridnav.analysis.interval.IntervalFunction`). The local ball's Taylor argument and
+LaSalle's Lie derivatives differentiate ``f`` and need it smooth where they are used.
 
 A box that cannot be decided down to ``min_width`` is *undecided*; its centre is evaluated, and a
-centre that violates the condition is returned as a counterexample (re-evaluated in floating point).
+centre where the interval enclosure there shows the violation is returned as a counterexample.
 """
 
 from __future__ import annotations
@@ -207,7 +212,7 @@ def certify(
     # ---- the local ball around x*
     local = None
     if center is not None and not lasalle:
-        local = _local_ball(x, V, vdot, np.asarray(center, dtype=float), width * ball, lower,
+        local = _local_ball(x, V, f, np.asarray(center, dtype=float), width * ball, lower,
                             upper)
         details["ball"] = local["details"]
         if not local["ok"]:
@@ -243,10 +248,13 @@ def certify(
     while stack and evaluated < max_boxes:
         lo, hi, tag = _take(stack, batch)
         evaluated += len(lo)
-        ol, oh, sm = F(lo, hi, clamp)
-        # Vdot = grad V . f is V's derivative where V is smooth; solutions exist and are unique
-        # where f is (a kink or a jump of f leaves the box undecided: conservative)
-        v_smooth = sm[:, iv] & np.all(sm[:, if_], axis=1)
+        ol, oh, sm, ct = F(lo, hi, clamp, continuity=True)
+        # Vdot = grad V . f is the derivative of V along every solution where V is smooth and f
+        # continuous (solutions exist, Peano; the chain rule needs only V's derivative): a kink
+        # of f (a saturation, fmin/fmax/fabs) is allowed, a jump leaves the box undecided
+        v_smooth = sm[:, iv] & np.all(ct[:, if_], axis=1)
+        # LaSalle's Lie derivatives differentiate Vdot, hence f: they need f smooth
+        f_smooth = sm[:, iv] & np.all(sm[:, if_], axis=1) & sm[:, idot]
         v_lo, v_hi = ol[:, iv], oh[:, iv]
         d_hi = oh[:, idot]
         done = np.zeros(len(lo), dtype=bool)
@@ -281,10 +289,12 @@ def certify(
             interior &= ~small
             strict = interior & (d_hi < 0) & v_smooth
             nonzero = np.zeros(len(lo), dtype=bool)
+            lower_smooth = f_smooth.copy()
             for k in range(len(lie)):
                 lk_lo, lk_hi = ol[:, il][:, k], oh[:, il][:, k]
-                nonzero |= ((lk_lo > 0) | (lk_hi < 0)) & sm[:, il][:, k]
-            leaves = interior & ~strict & (d_hi <= 0) & nonzero & v_smooth
+                nonzero |= ((lk_lo > 0) | (lk_hi < 0)) & lower_smooth
+                lower_smooth &= sm[:, il][:, k]
+            leaves = interior & ~strict & (d_hi <= 0) & nonzero & f_smooth
             counts["decreasing"] += int(strict.sum())
             counts["lasalle_lie"] += int(leaves.sum())
             done |= strict | leaves
@@ -447,19 +457,28 @@ def _violations(point, mid, tag, ng, cap, center, width, lasalle, local, zero_to
     return bad, (int(leaving[0]) if len(leaving) else None)
 
 
-def _local_ball(x, V, vdot, center, half, lower, upper) -> dict[str, Any]:
-    """The Taylor argument on the box ``center +- half`` (shrunk up to 3 times by 10)."""
+def _local_ball(x, V, f, center, half, lower, upper) -> dict[str, Any]:
+    """The Taylor argument on the box ``center +- half`` (shrunk up to 3 times by 10).
+
+    ``V`` and ``f`` are first specialized to the box (:meth:`IntervalFunction.specialize`): a
+    saturation that surely holds one side there is replaced by it, so that its Hessians are
+    those of the function on the box (a saturated controller is linear near its target)."""
     nx = int(x.numel())
-    HV, gV = cs.hessian(V, x)
-    HD, gD = cs.hessian(vdot, x)
-    F = IntervalFunction(x, [V, gV, HV, vdot, gD, HD])
+    nf = int(f.numel())
+    whole = IntervalFunction(x, [V, f])
     c = center[None]
-    pl, ph, _ = F(c, c)
     info: dict[str, Any] = {"center": center.tolist()}
     for shrink in range(4):
         h = half / 10.0 ** shrink
         lo = np.maximum(center - h, lower)[None]
         hi = np.minimum(center + h, upper)[None]
+        spec = whole.specialize(x, lo[0], hi[0])
+        Vs, fs = spec[0], cs.vertcat(*spec[1:1 + nf])
+        vdot = cs.jtimes(Vs, x, fs)
+        HV, gV = cs.hessian(Vs, x)
+        HD, gD = cs.hessian(vdot, x)
+        F = IntervalFunction(x, [Vs, gV, HV, vdot, gD, HD])
+        pl, ph, _ = F(c, c)
         ol, oh, smooth = F(lo, hi)
         if not smooth[0].all():          # (undefined outputs are not smooth either)
             info.update(ok=False, reason="V or Vdot is not smooth on the ball")

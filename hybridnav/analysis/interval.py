@@ -213,7 +213,7 @@ class IntervalFunction:
         self.sz_w = fn.sz_w()
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray, clamp: Mapping[int, tuple[float, float]]
-                 | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 | None = None, continuity: bool = False, _record: dict | None = None):
         """Enclosures of the outputs on each box ``[lo[i], hi[i]]``.
 
         Parameters
@@ -226,7 +226,13 @@ class IntervalFunction:
         -------
         out_lo, out_hi : (N, n_out) arrays
         smooth : (N, n_out) bool array
-            Whether every operation each output depends on was smooth on the box.
+            Whether every operation each output depends on was smooth on the box. Where a
+            ``fmin``, ``fmax`` or ``if_else_zero`` surely selects one operand on the box, only
+            that operand counts (a saturation that is inactive on the box is smooth there).
+        continuous : (N, n_out) bool array
+            Only with ``continuity=True``: whether the output is continuous on the box (kinks
+            allowed: ``fmin``, ``fmax``, ``fabs``, ``sqrt`` at 0; jumps not: ``floor``, ``sign``
+            at 0, an undecided comparison or selection, ``atan2`` across its cut).
 
         Where an output may be undefined on a box (an operation it depends on may leave its
         domain: ``log`` or ``sqrt`` of negatives, division by an interval holding zero, ``asin``
@@ -239,6 +245,7 @@ class IntervalFunction:
         wl: list = [None] * self.sz_w
         wh: list = [None] * self.sz_w
         ws: list = [None] * self.sz_w           # smoothness per slot (None: smooth everywhere)
+        wc: list = [None] * self.sz_w           # continuity per slot (None: continuous)
         wd: list = [None] * self.sz_w           # defined per slot (None: defined everywhere)
         wp: list = [None] * self.sz_w           # > 0 though lo = 0 (clamped to an open bound)
         clamp_slot = {self._out_slot[k]: v for k, v in (clamp or {}).items()
@@ -246,6 +253,7 @@ class IntervalFunction:
         out_lo = np.empty((n, self.n_out))
         out_hi = np.empty((n, self.n_out))
         smooth = np.ones((n, self.n_out), dtype=bool)
+        cont = np.ones((n, self.n_out), dtype=bool)
         for name, ins, outs, const, same in self._program:
             if name == "input":
                 wl[outs[0]], wh[outs[0]] = _finite_ends(lo[:, ins[1]], hi[:, ins[1]])
@@ -259,10 +267,13 @@ class IntervalFunction:
                 out_lo[:, outs[1]], out_hi[:, outs[1]] = wl[ins[0]], wh[ins[0]]
                 if ws[ins[0]] is not None:
                     smooth[:, outs[1]] = ws[ins[0]]
+                if wc[ins[0]] is not None:
+                    cont[:, outs[1]] = wc[ins[0]]
                 if wd[ins[0]] is not None:
                     bad = ~wd[ins[0]]
                     out_lo[bad, outs[1]], out_hi[bad, outs[1]] = -np.inf, np.inf
                     smooth[bad, outs[1]] = False
+                    cont[bad, outs[1]] = False
                 continue
             if name == "const":
                 v = np.full(n, float(const))
@@ -280,22 +291,126 @@ class IntervalFunction:
             nan = np.isnan(rl) | np.isnan(rh)
             dom = ~nan if dom is None else dom & ~nan
             defined = _and(defined, dom if not dom.all() else None)
+            if name == "if_else_zero" and defined is not None:
+                # CasADi evaluates cond ? value : 0; a surely false cond gives 0 whatever value is
+                yes, no = _truth(a, b)
+                defined = np.where(no & (wd[ins[0]] if wd[ins[0]] is not None else True), True,
+                                   defined)
             if name not in _EXACT:
                 rl, rh = _round_out(name, rl, rh, (a, b) if c is None else (a, b, c, d))
             if same is not None:
                 # sin/cos of a wrapped angle: that of the angle itself, as smooth as it is
                 rl, rh = np.maximum(rl, wl[same]), np.minimum(rh, wh[same])
-                flag = ws[same]
+                flag, cflag = ws[same], wc[same]
             else:
-                flag = _and(ws[ins[0]], ws[ins[1]] if binary else None)
-                flag = _and(flag, ok)
+                jump = ok if name in _JUMPS else None
+                left, right = _selected(name, a, b, c, d)
+                s0, s1 = ws[ins[0]], ws[ins[1]] if binary else None
+                c0, c1 = wc[ins[0]], wc[ins[1]] if binary else None
+                flag = _and(_and(s0, s1), ok)
+                cflag = _and(_and(c0, c1), jump)
+                if name == "if_else_zero":     # cond surely true: the value; false: 0
+                    flag = _pick(left, s1, right, None, flag, n)
+                    cflag = _pick(left, c1, right, None, cflag, n)
+                elif left is not None:
+                    flag = _pick(left, s0, right, s1, flag, n)
+                    cflag = _pick(left, c0, right, c1, cflag, n)
             slot = outs[0]
             if slot in clamp_slot:
                 cl, ch = clamp_slot[slot]
                 rl, rh = np.maximum(rl, cl), np.minimum(rh, ch)
                 wp[slot] = np.full(n, cl == 0)
-            wl[slot], wh[slot], ws[slot], wd[slot] = rl, rh, flag, defined
+            wl[slot], wh[slot], ws[slot], wd[slot], wc[slot] = rl, rh, flag, defined, cflag
+        if _record is not None:
+            _record.update(lo=wl, hi=wh)
+        if continuity:
+            return out_lo, out_hi, smooth, cont
         return out_lo, out_hi, smooth
+
+    def specialize(self, x: cs.SX, lo, hi) -> list[cs.SX]:
+        """The outputs rebuilt for one box ``[lo, hi]`` with every selection that is decided on
+        it replaced by the side it takes: ``fmin``/``fmax`` by one operand, ``fabs`` by ``+-x``,
+        decided comparisons, ``not``/``and``/``or``, ``sign`` and ``floor`` by constants,
+        ``if_else_zero`` by its value or 0.
+
+        On the box the result equals the original function at every point, and it is smooth
+        where the remaining operations are: CasADi's derivatives of it are the derivatives of
+        the original there (those of the original may be NaN on the box, e.g. ``0 * (x / |x|)``
+        for a saturation that is inactive at ``x = 0``).
+
+        Parameters
+        ----------
+        x : casadi.SX
+            The input symbols the function was built from.
+        lo, hi : (nx,) arrays
+        """
+        rec: dict = {}
+        self(np.asarray(lo, dtype=float)[None], np.asarray(hi, dtype=float)[None], _record=rec)
+        wl, wh = rec["lo"], rec["hi"]
+        ops = {v: k for k, v in _OPS.items()}
+        sx: list = [None] * self.sz_w
+        outs_sx = [cs.SX(0)] * self.n_out
+        for name, ins, outs, const, _same in self._program:
+            if name == "input":
+                sx[outs[0]] = x[ins[1]]
+                continue
+            if name == "output":
+                outs_sx[outs[1]] = sx[ins[0]]
+                continue
+            if name == "const":
+                sx[outs[0]] = cs.SX(float(const))
+                continue
+            binary = len(ins) > 1 and ins[1] >= 0 and name in _BINARY
+            a, b = wl[ins[0]][0], wh[ins[0]][0]
+            c, d = (wl[ins[1]][0], wh[ins[1]][0]) if binary else (None, None)
+            u = sx[ins[0]]
+            v = sx[ins[1]] if binary else None
+            r = None
+            if name in ("fmin", "fmax"):
+                left, right = (b < c, d < a) if name == "fmin" else (a > d, c > b)
+                r = u if left else (v if right else None)
+            elif name == "fabs":
+                r = u if a > 0 else (-u if b < 0 else None)
+            elif name == "if_else_zero":
+                yes, no = _truth(np.array([a]), np.array([b]))
+                r = v if yes[0] else (cs.SX(0) if no[0] else None)
+            elif name in _EXACT - {"neg", "fmin", "fmax", "fabs", "assign"}:
+                rl, rh = wl[outs[0]][0], wh[outs[0]][0]
+                if rl == rh and np.isfinite(rl):
+                    r = cs.SX(float(rl))          # decided: a constant on the box
+            if r is None:
+                op = ops[name]
+                r = cs.SX.binary(op, u, v) if binary else cs.SX.unary(op, u)
+            sx[outs[0]] = r
+        return outs_sx
+
+
+#: operations that may jump where their flag is False (the others are continuous where defined)
+_JUMPS = {"floor", "ceil", "sign", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero",
+          "atan2"}
+
+
+def _selected(name, a, b, c, d):
+    """Where a selection surely takes its first / its second operand (None: not a selection).
+    For ``if_else_zero(cond, value)``: where cond is surely nonzero (the value) / surely zero (0)."""
+    if name == "fmin":
+        return b < c, d < a
+    if name == "fmax":
+        return a > d, c > b
+    if name == "if_else_zero":
+        yes, no = _truth(a, b)
+        return yes, no
+    return None, None
+
+
+def _pick(left, f_left, right, f_right, both, n):
+    """The flag of the operand a selection surely takes; ``both`` where it may take either."""
+    def full(f):
+        return np.ones(n, dtype=bool) if f is None else f
+
+    if left is None:
+        return both
+    return np.where(left, full(f_left), np.where(right, full(f_right), full(both)))
 
 
 def _positive(a, pos):
@@ -560,4 +675,48 @@ def periodic_in(x: cs.SX, outputs: Sequence[cs.SX], i: int) -> bool:
         else:
             out = ("other", 0.0)
         kind[outs[0]] = out
+    return True
+
+
+def is_polynomial(x: cs.SX, outputs: Sequence[cs.SX]) -> bool:
+    """Whether every output is a polynomial in ``x`` by its expression graph: only sums,
+    products, non-negative integer powers and divisions by constants of ``x``.
+
+    ``casadi.is_quadratic`` asks whether the Hessian (by automatic differentiation) is constant,
+    which ``sign``, ``fabs``, ``fmin``, ``floor`` or comparisons fool (their derivatives are 0 or
+    a selection): ``-x^2 + 3 |x|`` has the constant AD Hessian ``-2``. Callers that rely on
+    Taylor's formula being exact check this first.
+    """
+    flat = cs.vertcat(*[cs.vec(cs.densify(cs.SX(o))) for o in outputs])
+    fn = cs.Function("poly", [x], [flat], {"live_variables": False})
+    varying: dict[int, bool] = {}
+    value: dict[int, float] = {}
+    for k in range(fn.n_instructions()):
+        name = _OPS.get(fn.instruction_id(k), "")
+        ins, outs = fn.instruction_input(k), fn.instruction_output(k)
+        if name == "output":
+            continue
+        if name == "input":
+            varying[outs[0]] = True
+            continue
+        if name == "const":
+            varying[outs[0]] = False
+            value[outs[0]] = float(fn.instruction_constant(k))
+            continue
+        args = [a for a in ins if a >= 0][:2 if name in _BINARY else 1]
+        var = [varying.get(a, False) for a in args]
+        if not any(var):
+            varying[outs[0]] = False
+            continue
+        if name in ("add", "sub", "mul", "neg", "twice", "assign", "sq"):
+            pass
+        elif name == "div" and not var[1]:
+            pass
+        elif name == "constpow" and not var[1]:
+            e = value.get(args[1])
+            if e is None or e < 0 or e != round(e):
+                return False
+        else:
+            return False
+        varying[outs[0]] = True
     return True

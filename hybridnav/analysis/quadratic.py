@@ -25,7 +25,7 @@ import logging
 import casadi as cs
 import numpy as np
 
-from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation, is_polynomial
 from hybridnav.analysis.region import Box
 from hybridnav.analysis.verdict import LyapunovReport, _counterexample
 from hybridnav.analysis.witness import Witness
@@ -45,7 +45,10 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
 
     x = model.sym.x
     nx = model.nx
-    if not (cs.is_quadratic(v_num, x) and cs.is_quadratic(vdot_num, x)):
+    # polynomial by the expression graph first: is_quadratic trusts automatic differentiation,
+    # which sign, fabs or fmin fool (-x^2 + 3|x| has the constant AD Hessian -2)
+    if not (is_polynomial(x, [v_num, vdot_num]) and cs.is_quadratic(v_num, x)
+            and cs.is_quadratic(vdot_num, x)):
         return False
     gv, hv_e = cs.gradient(v_num, x), cs.hessian(v_num, x)[0]
     gd, hd_e = cs.gradient(vdot_num, x), cs.hessian(vdot_num, x)[0]
