@@ -344,3 +344,95 @@ def test_a_sign_term_does_not_pass_for_a_quadratic_form():
     assert rep.status == "counterexample"
     x, _ = rep.counterexample
     assert 0 < abs(x) < 3
+
+
+# ---- what a hostile review found (each a class) --------------------------------------------------
+
+class Shear(Model):
+    name = "shear"
+    plant_state_names = ("x", "y")
+    input_names = ("ux", "uy")
+    parameters = {}
+
+    def open_loop(self, x, u, p):
+        return cs.vertcat(u[0], u[1])
+
+    def controller(self, x, t, p):
+        ex, ey = x[0] - t[0], x[1] - t[1]
+        return cs.vertcat(-ex, -ey - 2 * ex)
+
+    def state_constraints(self, x=None, p=None):
+        x = self.sym.x if x is None else x
+        return cs.vertcat(x[1] + 1e-4)                 # a wall at y = -1e-4, near the target
+
+
+def test_an_obstacle_boundary_through_the_local_ball_is_checked():
+    m = Shear()
+    s = m.sym
+    V = cs.log(1 + 2 * (s.x[0] - s.target[0]) ** 2 + (s.x[1] - s.target[1]) ** 2)
+    rep = check_lyapunov(m, V, target=(0, 0), region={"x": (-1, 1), "y": (-1, 1)}, level=6e-6)
+    # independent: from (1e-3, 0), in K, y(t) = -2e-3 t exp(-t) crosses the wall
+    assert -2e-3 * 1.0 * math.exp(-1.0) < -1e-4
+    assert "positively invariant (" not in rep.claim
+
+
+def test_a_non_lipschitz_vector_field_gets_no_invariance_claim():
+    x = cs.SX.sym("x", 2)
+    X, Y = x[0], x[1]
+    f = cs.vertcat(-X + 0.3 * Y, -Y * (1 - Y) - X ** 2 * Y ** 2
+                   + cs.if_else(Y > 1, cs.sqrt(cs.fmax(Y - 1, 0)), 0))
+    from hybridnav.analysis import as_system
+    sysm = as_system((x, f), equilibrium=[0, 0], states=["p", "q"])
+    s = sysm.sym.x
+    rep = check_lyapunov(sysm, s[0] ** 2 - 1.9 * s[0] * s[1] + 3 * s[1] ** 2,
+                         region={"p": (-1, 1), "q": (-1, 1)}, max_boxes=20_000)
+    # through (0, 1) q = 1 + t^2 / 4 is a second solution that leaves K
+    assert "positively invariant (" not in rep.claim
+
+
+def test_underflowed_products_and_powers_keep_their_sign():
+    x = cs.SX.sym("x", 2)
+    F = IntervalFunction(x, [x[0] ** 2, x[0] ** 3, x[0] * x[1], x[0] / (1 / x[1])])
+    for lo, hi, pt in (([0, 1e-200], [1e-170, 1e-200], (1e-170, 1e-200)),
+                       ([-1e-170, 1], [1e-170, 1], (-1e-170, 1.0))):
+        ol, oh, _ = F(np.array([lo]), np.array([hi]))
+        a, b = (mpmath.mpf(v) for v in pt)
+        for k, true in enumerate([a ** 2, a ** 3, a * b, a * b]):
+            assert mpmath.mpf(ol[0, k]) <= true <= mpmath.mpf(oh[0, k]), (k, pt)
+
+
+def test_stationary_points_of_a_gradient_flow_are_proved_and_filtered_by_the_users_level():
+    m = models.get("lbcs", obstacles=[(5.0, 0.0, 1.0)])
+    region = {"x": (-2, 12), "y": (-5, 5)}
+    rep = check_lyapunov(m, target=(10, 0), region=region)
+    assert rep.status == "counterexample" and rep.route == "gradient_flow"
+    box = rep.details["stationary_box"]
+    assert max(box["radius"]) < 1e-3
+    # the user's V = L + 5 below 52 (L below 47) holds no stationary point but the target
+    rep = check_lyapunov(m, m.lyapunov_candidate() + 5, target=(10, 0), region=region, level=52.0)
+    if rep.status == "counterexample":
+        v = rep.details["counterexample_V"]
+        assert v <= 52.0
+
+
+@pytest.mark.parametrize("kw,msg", [({"rtol": -0.1}, "rtol: expected a number in"),
+                                    ({"confirm": -1}, "confirm: expected an integer"),
+                                    ({"grow": 1.5}, "grow: expected an integer")])
+def test_bad_roa_settings_get_a_named_error(kw, msg):
+    with pytest.raises(HybridnavError, match=msg):
+        estimate_roa(models.get("point_mass"), target=(45, 5),
+                     region={"x": (0, 50), "y": (0, 50)}, **kw)
+
+
+def test_a_periodic_angle_a_hair_short_of_a_turn_is_checked_on_a_whole_turn():
+    m = flow(lambda e: cs.vertcat(-e[0], -cs.sin(e[2]), 0 * e[2]), ("x", "th", "z"),
+             angles=("th",))
+    x = m.sym.x
+    f = m.closed_loop_at((0.0, 0.0))
+    V = x[0] ** 2 / 2 + 1 - cs.cos(x[1]) + x[2] ** 2
+    box = Box(("x", "th", "z"), np.array([-1.0, -3.0, -1]),
+              np.array([1.0, -3.0 + 2 * np.pi * (1 - 1e-12), 1]))
+    cert = certify(x, f, V, box, level=1.995, periodic=[1], max_boxes=2_000)
+    # the certified box covers the whole turn (the same states again)
+    top = cert.details["region"]["th"][1]
+    assert Fraction(top) - Fraction(-3.0) >= Fraction(mpmath.nstr(2 * mpmath.pi, 30))

@@ -35,6 +35,7 @@ from hybridnav.analysis.region import Box, as_box
 from hybridnav.analysis.roa import (
     RoaEstimate,
     basin,
+    basin_share,
     estimate_roa,
     lyapunov_equation_candidate,
 )
@@ -46,7 +47,9 @@ from hybridnav.analysis.system import System, as_system
 _sys.modules[__name__ + ".linearize"] = _linearization
 
 __all__ = ["Box", "Certificate", "DiscreteStepReport", "Equilibrium", "LinearizationReport",
-           "LyapunovReport", "RoaEstimate", "System", "as_box", "as_system", "basin", "certify", "check_lyapunov",
-           "closed_loop_sweep", "controllability_rank", "discrete_step", "estimate_roa",
-           "find_equilibria", "grid_starts", "is_stable", "linearize", "linearize_expression",
-           "lyapunov_equation_candidate", "lyapunov_functions", "rk4_stability_limit", "summarize"]
+           "LyapunovReport", "RoaEstimate", "System", "as_box", "as_system", "basin",
+           "basin_share", "certify", "check_lyapunov", "closed_loop_sweep",
+           "controllability_rank", "discrete_step", "estimate_roa", "find_equilibria",
+           "grid_starts", "is_stable", "linearize", "linearize_expression",
+           "lyapunov_equation_candidate", "lyapunov_functions", "rk4_stability_limit",
+           "summarize"]

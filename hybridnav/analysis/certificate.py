@@ -27,11 +27,12 @@ and ``g`` are shown ``2 pi``-periodic in that coordinate
 (:func:`~hybridnav.analysis.interval.periodic_in`); otherwise they are checked.
 
 Non-smooth systems: ``Vdot = grad V . f`` differentiates only ``V``, and it is the derivative of
-``V`` along every solution wherever ``V`` is smooth and ``f`` continuous (solutions exist by Peano's
-theorem; the chain rule needs ``x(t)`` differentiable, which it is). So saturations in ``f``
-(``fmin``, ``fmax``, ``fabs``: kinks, Lipschitz) are certified box by box like smooth dynamics;
-only jumps of ``f`` (``floor``, ``sign``, an undecided comparison, ``atan2`` across its cut) leave a
-box undecided. A saturation that surely holds one side on a box is as smooth there as that side
+``V`` along every solution wherever ``V`` is smooth and ``f`` continuous (the chain rule needs
+``x(t)`` differentiable, which it is); with ``f`` Lipschitz, solutions are also unique, which the
+faces' invariance argument needs. So saturations in ``f`` (``fmin``, ``fmax``, ``fabs``: kinks,
+Lipschitz) are certified box by box like smooth dynamics; jumps of ``f`` (``floor``, ``sign``,
+an undecided comparison, ``atan2`` across its cut) and non-Lipschitz points (``sqrt`` or a
+fractional power at 0) leave a box undecided. A saturation that surely holds one side on a box is as smooth there as that side
 (:class:`~hybridnav.analysis.interval.IntervalFunction`). The local ball's Taylor argument and
 LaSalle's Lie derivatives differentiate ``f`` and need it smooth where they are used.
 
@@ -176,8 +177,10 @@ def certify(
             d = cs.jtimes(d, x, f)
             lie.append(d)
         outs += lie
+    outs.append(cs.gradient(vdot, x))       # the mean-value form of Vdot (below)
     try:
         F = IntervalFunction(x, outs)
+        F_centre = IntervalFunction(x, [vdot])
     except UnsupportedOperation as exc:
         return Certificate("not_applicable", "", f"interval arithmetic: {exc}")
     # a coordinate's faces are identified only where V, f and g are 2 pi-periodic in it (shown
@@ -185,12 +188,22 @@ def certify(
     asked = sorted({int(i) for i in periodic})
     periodic = [i for i in asked if periodic_in(x, [V, f, g], i)]
     refused = [i for i in asked if i not in periodic]
+    if periodic:
+        # identified faces need the box to cover a whole turn: the float 2 pi is short of it
+        # (and a declared range may be a hair short), so such a side is widened to
+        # lower + 2 pi rounded up (the same states again, V and f being periodic)
+        up = box.upper.astype(float).copy()
+        for i in periodic:
+            up[i] = max(up[i], np.nextafter(box.lower[i] + np.nextafter(2 * np.pi, np.inf),
+                                            np.inf))
+        box = Box(box.names, box.lower.astype(float), up)
     point = cs.Function("point", [x], [V, vdot, g, f])
     iv, idot = 0, 1
     ig = slice(2, 2 + ng)
     if_ = slice(2 + ng, 2 + ng + nx)
     igd = slice(2 + ng + nx, 2 + 2 * ng + nx)
     il = slice(2 + 2 * ng + nx, 2 + 2 * ng + nx + len(lie))
+    igrad = slice(il.stop, il.stop + nx)
     clamp = {2 + j: (0.0, np.inf) for j in range(ng)}
     lower, upper = box.lower.astype(float), box.upper.astype(float)
     width = np.where(upper > lower, upper - lower, 1.0)
@@ -250,13 +263,15 @@ def certify(
         evaluated += len(lo)
         ol, oh, sm, ct = F(lo, hi, clamp, continuity=True)
         # Vdot = grad V . f is the derivative of V along every solution where V is smooth and f
-        # continuous (solutions exist, Peano; the chain rule needs only V's derivative): a kink
-        # of f (a saturation, fmin/fmax/fabs) is allowed, a jump leaves the box undecided
+        # continuous (the chain rule needs only V's derivative); f Lipschitz makes solutions
+        # unique, which the faces' invariance argument needs: a kink of f (a saturation,
+        # fmin/fmax/fabs) is allowed, a jump or a square root at 0 leaves the box undecided
         v_smooth = sm[:, iv] & np.all(ct[:, if_], axis=1)
         # LaSalle's Lie derivatives differentiate Vdot, hence f: they need f smooth
         f_smooth = sm[:, iv] & np.all(sm[:, if_], axis=1) & sm[:, idot]
         v_lo, v_hi = ol[:, iv], oh[:, iv]
-        d_hi = oh[:, idot]
+        d_hi = _mean_value_bound(F_centre, lo, hi, oh[:, idot], ol[:, igrad], oh[:, igrad],
+                                 sm[:, idot] & (np.all(ol[:, ig] > 0, axis=1) if ng else True))
         done = np.zeros(len(lo), dtype=bool)
         if ng:
             out = np.any(oh[:, ig] <= 0, axis=1)
@@ -274,6 +289,18 @@ def certify(
             fl, fh = ol[rows, if_][np.arange(len(rows)), dim[rows]], \
                 oh[rows, if_][np.arange(len(rows)), dim[rows]]
             inward = np.where(side[rows] == 0, fl >= 0, fh <= 0)
+            if inward.any():
+                # Nagumo's condition (f_i >= 0 allowed, not > 0) keeps every solution in K only
+                # where solutions are unique: f Lipschitz on the face thickened outwards (the
+                # face alone cannot see sqrt(x - 1) beyond it)
+                r = rows[inward]
+                tl, th = lo[r].copy(), hi[r].copy()
+                k = np.arange(len(r))
+                thick = 1e-9 * width[dim[r]]
+                tl[k, dim[r]] -= np.where(side[r] == 0, thick, 0.0)
+                th[k, dim[r]] += np.where(side[r] == 1, thick, 0.0)
+                _, _, _, tct = F(tl, th, clamp, continuity=True)
+                inward[np.flatnonzero(inward)] &= np.all(tct[:, if_], axis=1)
             done[rows[inward]] = True
             counts["face_inward"] += int(inward.sum())
         interior = ~is_face & ~done
@@ -309,9 +336,8 @@ def certify(
             # be, left undecided)
             decided = done & ~is_face & ~np.any(oh[:, ig] <= 0, axis=1) & ~(v_lo > cap)
             straddle = (ol[:, ig] == 0) & (oh[:, ig] > 0)
+            # (the local ball too: an obstacle boundary through it is as much K's boundary)
             unsafe = decided & np.any(straddle & ~(ol[:, igd] > 0), axis=1)
-            if local is not None:
-                unsafe &= ~np.all((lo >= local["lo"]) & (hi <= local["hi"]), axis=1)
             counts["obstacle_boundary_split"] += int(unsafe.sum())
             done &= ~unsafe
         rest = np.flatnonzero(~done)
@@ -331,6 +357,14 @@ def certify(
                 break
         if bad_face is not None and face_cex is None:
             face_cex = mid[bad_face]
+        if face_cex is not None:
+            # the flow leaves through a face: K is not shown invariant whatever the other faces
+            # do, so no budget is spent on them
+            keep_interior = tag < 0
+            lo, hi, tag = lo[keep_interior], hi[keep_interior], tag[keep_interior]
+            stack[:] = [(a[t < 0], b[t < 0], t[t < 0]) for a, b, t in stack if np.any(t < 0)]
+            if not len(lo):
+                continue
         rel = (hi - lo) / width
         tiny = rel.max(axis=1) < min_width
         if tiny.any():
@@ -408,6 +442,25 @@ def certify(
 
 
 # ---------------------------------------------------------------------------------------------
+
+
+def _mean_value_bound(F_centre, lo, hi, d_hi, g_lo, g_hi, smooth):
+    """The upper bound of Vdot on each box: the smaller of its natural enclosure ``d_hi`` and the
+    mean-value form ``Vdot(c) + sum_i |dVdot/dx_i|(box) * r_i`` (centre ``c``, half-widths ``r``),
+    which is second-order accurate on small boxes where terms cancel (a quadratic candidate's
+    cross terms); used where Vdot is smooth on the box (its gradient is then the derivative
+    there) and, with constraints, the box lies in the free space."""
+    if not np.any(smooth):
+        return d_hi
+    mid = (lo + hi) / 2
+    _, c_hi, _ = F_centre(mid, mid)
+    r = (hi - lo) / 2
+    with np.errstate(invalid="ignore", over="ignore"):
+        s = np.sum(np.maximum(np.abs(g_lo), np.abs(g_hi)) * r, axis=1)
+        mv = c_hi[:, 0] + s
+        mv = mv + 8 * np.finfo(float).eps * (np.abs(c_hi[:, 0]) + s) + 1e-300
+    ok = smooth & np.isfinite(mv)
+    return np.where(ok, np.minimum(d_hi, mv), d_hi)
 
 
 def _take(stack, n):

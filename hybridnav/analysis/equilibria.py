@@ -75,6 +75,11 @@ def find_equilibria(
     """
     model, tgt = resolve(model, target, equilibrium)
     box = as_box(model, region)
+    for key, v in (("seed", seed), ("starts", starts)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (1 if key ==
+                                                                                 "starts" else 0):
+            raise HybridnavError(f"{key}: expected a {'positive' if key == 'starts' else 'non-negative'} "
+                                 f"integer, got {v!r}")
     key = (model._key(), tuple(tgt), tuple(box.lower), tuple(box.upper), int(seed), int(starts))
     if key not in _EQUILIBRIA:
         if len(_EQUILIBRIA) >= 32:
@@ -178,3 +183,62 @@ def resolve(model, target=None, equilibrium=None) -> tuple[Model, np.ndarray]:
                 else "target: required (the point (x1, y1) the closed loop drives to)")
         raise HybridnavError(what)
     return model, _target(t, model)
+
+
+def verify_zero(x, f, c, radii=(1e-10, 1e-8, 1e-6, 1e-4)) -> dict[str, Any] | None:
+    """A box around ``c`` that provably holds exactly one zero of ``f`` (the Krawczyk test).
+
+    With ``Y`` the inverse of the Jacobian at ``c`` and ``X = c + [-r, r]``,
+    ``K(X) = c - Y f(c) + (I - Y J(X)) (X - c)`` is enclosed by interval arithmetic
+    (:class:`~hybridnav.analysis.interval.IntervalFunction`); ``K(X)`` inside ``X`` proves a
+    unique zero of ``f`` in ``X`` (Krawczyk 1969, Moore 1977).
+
+    Parameters
+    ----------
+    x : casadi.SX
+        The symbols.
+    f : casadi.SX
+        As many expressions as symbols.
+    c : array_like
+        The approximate zero.
+    radii : sequence of float
+        Half-widths tried, relative to ``1 + |c|``.
+
+    Returns
+    -------
+    dict or None
+        ``{"center", "radius"}`` of the box, or None when no radius passes.
+    """
+    from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+
+    c = np.asarray(c, dtype=float).ravel()
+    n = len(c)
+    try:
+        F = IntervalFunction(x, [f, cs.jacobian(f, x)])
+    except UnsupportedOperation:
+        return None
+    pl, ph, _ = F(c[None], c[None])
+    J = (pl[0, n:] + ph[0, n:]).reshape(n, n, order="F") / 2
+    try:
+        Y = np.linalg.inv(J)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(Y)):
+        return None
+    fm, fr = (pl[0, :n] + ph[0, :n]) / 2, (ph[0, :n] - pl[0, :n]) / 2
+    aY = np.abs(Y)
+    for rel in radii:
+        r = rel * (1.0 + np.abs(c))
+        ol, oh, _ = F((c - r)[None], (c + r)[None])
+        if not (np.all(np.isfinite(ol)) and np.all(np.isfinite(oh))):
+            continue
+        Jl = ol[0, n:].reshape(n, n, order="F")
+        Jh = oh[0, n:].reshape(n, n, order="F")
+        Jm, Jr = (Jl + Jh) / 2, (Jh - Jl) / 2
+        M = np.eye(n) - Y @ Jm
+        R = aY @ Jr
+        reach = np.abs(Y @ fm) + aY @ fr + (np.abs(M) + R) @ r
+        reach = reach * (1 + 1e-12) + 1e-300      # the float sums and products rounded up
+        if np.all(reach < r):
+            return {"center": c.tolist(), "radius": r.tolist()}
+    return None

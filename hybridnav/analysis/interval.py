@@ -63,8 +63,10 @@ def _widen(lo, hi):
                 np.where((hi != 0) & np.isfinite(hi), hi + _EPS * np.abs(hi) + _TINY, hi))
 
 
-#: operations whose zero results are always exact (IEEE sums are zero only when exact)
-_ZERO_EXACT = {"add", "sub"}
+#: operations whose zero endpoints are always valid bounds: IEEE sums are zero only when exact;
+#: products, quotients and integer powers replace an underflow by +-_TINY on its outer side
+#: (:func:`_underflow`), so a zero left is exact or an inner bound
+_ZERO_EXACT = {"add", "sub", "mul", "div", "sq", "constpow"}
 
 
 def _round_out(name, lo, hi, inputs):
@@ -82,8 +84,6 @@ def _round_out(name, lo, hi, inputs):
         exact = np.zeros(lo.shape, dtype=bool)
         for arr in inputs:
             exact |= arr == 0
-        if name in ("sq", "constpow"):
-            exact |= (inputs[0] <= 0) & (inputs[1] >= 0)
     lo, hi = _widen(lo, hi)
     return (np.where((lo == 0) & ~exact, -_TINY, lo),
             np.where((hi == 0) & ~exact, _TINY, hi))
@@ -91,13 +91,27 @@ def _round_out(name, lo, hi, inputs):
 
 def _times(x, y):
     """Endpoint products with 0 * inf = 0 (a zero endpoint is a value, an infinite one a limit)."""
-    with np.errstate(invalid="ignore", over="ignore"):
+    with np.errstate(invalid="ignore", over="ignore", under="ignore"):
         return np.where((x == 0) | (y == 0), 0.0, x * y)
 
 
+def _underflow(q, x, y):
+    """``(lower, upper)`` bounds of ``x * y`` (or ``x / y``) computed as ``q``: where it
+    underflowed to 0 from nonzero ``x`` and ``y``, the true value has the sign of ``x y`` and
+    a magnitude below the smallest normal float: 0 bounds it on one side, ``+-_TINY`` on the
+    other. Everywhere else ``q`` bounds itself (rounding is widened later)."""
+    under = (q == 0) & (x != 0) & (y != 0) & ~np.isnan(x) & ~np.isnan(y)
+    neg = (x < 0) != (y < 0)
+    return (np.where(under & neg, -_TINY, q), np.where(under & ~neg, _TINY, q))
+
+
 def _mul(a, b, c, d):
-    p = np.stack([_times(a, c), _times(a, d), _times(b, c), _times(b, d)])
-    return p.min(axis=0), p.max(axis=0)
+    lo, hi = [], []
+    for x, y in ((a, c), (a, d), (b, c), (b, d)):
+        pl, ph = _underflow(_times(x, y), x, y)
+        lo.append(pl)
+        hi.append(ph)
+    return np.min(lo, axis=0), np.max(hi, axis=0)
 
 
 def _inv(a, b):
@@ -151,13 +165,15 @@ def _powi(a, b, n: int):
     if n < 0:
         lo, hi = _powi(a, b, -n)
         return _inv(lo, hi)
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", under="ignore"):
         pa, pb = a ** n, b ** n
+    # an underflow to 0 from a nonzero base: 0 bounds the true power on one side only
+    ua, ub = (pa == 0) & (a != 0), (pb == 0) & (b != 0)
     if n % 2:
-        return pa, pb
+        return np.where(ua & (a < 0), -_TINY, pa), np.where(ub & (b > 0), _TINY, pb)
     contains = (a <= 0) & (b >= 0)
     lo = np.where(contains, 0.0, np.minimum(pa, pb))
-    return lo, np.maximum(pa, pb)
+    return lo, np.maximum(np.where(ua, _TINY, pa), np.where(ub, _TINY, pb))
 
 
 class IntervalFunction:
@@ -230,9 +246,10 @@ class IntervalFunction:
             ``fmin``, ``fmax`` or ``if_else_zero`` surely selects one operand on the box, only
             that operand counts (a saturation that is inactive on the box is smooth there).
         continuous : (N, n_out) bool array
-            Only with ``continuity=True``: whether the output is continuous on the box (kinks
-            allowed: ``fmin``, ``fmax``, ``fabs``, ``sqrt`` at 0; jumps not: ``floor``, ``sign``
-            at 0, an undecided comparison or selection, ``atan2`` across its cut).
+            Only with ``continuity=True``: whether the output is Lipschitz continuous on the box
+            (kinks allowed: ``fmin``, ``fmax``, ``fabs``; not jumps: ``floor``, ``sign`` at 0,
+            an undecided comparison or selection, ``atan2`` across its cut; nor ``sqrt`` or a
+            fractional power at 0, where solutions of ``xdot = f(x)`` need not be unique).
 
         Where an output may be undefined on a box (an operation it depends on may leave its
         domain: ``log`` or ``sqrt`` of negatives, division by an interval holding zero, ``asin``
@@ -385,9 +402,11 @@ class IntervalFunction:
         return outs_sx
 
 
-#: operations that may jump where their flag is False (the others are continuous where defined)
+#: operations that may jump, or lose Lipschitz continuity (sqrt, fractional powers, asin, acos
+#: at the ends of their domains: solutions may not be unique there), where their flag is False;
+#: the others are Lipschitz continuous where defined (fmin, fmax, fabs: kinks)
 _JUMPS = {"floor", "ceil", "sign", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero",
-          "atan2"}
+          "atan2", "sqrt", "pow", "constpow", "asin", "acos"}
 
 
 def _selected(name, a, b, c, d):
@@ -479,8 +498,10 @@ def _apply(name, a, b, c, d):
             direct = (np.isfinite(a) & np.isfinite(b) & np.isfinite(c) & np.isfinite(d)
                       & ((c > 0) | (d < 0)))
             if direct.any():
-                q = np.stack([a / c, a / d, b / c, b / d])
-                lo, hi = np.where(direct, q.min(axis=0), lo), np.where(direct, q.max(axis=0), hi)
+                ql, qh = zip(*(_underflow(x / y, x, y) for x, y in ((a, c), (a, d), (b, c),
+                                                                     (b, d))))
+                lo = np.where(direct, np.min(ql, axis=0), lo)
+                hi = np.where(direct, np.max(qh, axis=0), hi)
         elif name == "inv":
             lo, hi = _inv(a, b)
         elif name == "neg":
@@ -496,6 +517,8 @@ def _apply(name, a, b, c, d):
                 lo, hi = _powi(a, b, int(c[0]))
             else:
                 lo, hi = _pow(a, b, c, d)
+                # x**0.5 or x**1.5 at 0: not smooth (nor Lipschitz below exponent 1)
+                ok = (a > 0) | ((c == d) & (c == np.round(c)))
         elif name == "pow":
             lo, hi = _pow(a, b, c, d)
             ok = a > 0
@@ -524,8 +547,10 @@ def _apply(name, a, b, c, d):
             lo, hi = _monotone(np.arctan, a, b)
         elif name == "asin":
             lo, hi = _monotone(np.arcsin, np.clip(a, -1, 1), np.clip(b, -1, 1))
+            ok = (a > -1) & (b < 1)
         elif name == "acos":
             lo, hi = _monotone(np.arccos, np.clip(a, -1, 1), np.clip(b, -1, 1), False)
+            ok = (a > -1) & (b < 1)
         elif name == "sinh":
             lo, hi = _monotone(np.sinh, a, b)
         elif name == "cosh":
@@ -589,6 +614,7 @@ def _pow(a, b, c, d):
     ll, lh = _widen(*_monotone(np.log, np.maximum(a, 0.0), b))
     pl, ph = _widen(*_mul(ll, lh, c, d))
     lo, hi = np.exp(pl), np.exp(ph)
+    hi = np.where(hi == 0, _TINY, hi)           # x**y > 0 for x > 0: an underflow bounds it below
     bad = a <= 0
     return np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
 

@@ -88,6 +88,7 @@ def linearize(
         f = cs.substitute(model.open_loop(xs, s.u, s.p), s.p, pval)
         fn = cs.Function("lin", [xs, s.u], [f, cs.jacobian(f, xs), cs.jacobian(f, s.u)])
         rate, A, B = (np.asarray(a, dtype=float) for a in fn(x0, u0))
+        A, B = A.reshape(model.n_plant, model.n_plant), B.reshape(model.n_plant, model.nu)
         states, inputs = list(model.plant_state_names), list(model.input_names)
         point, args = (x0, u0), cs.Function("f", [xs, s.u], [f])
         expr = ([xs, s.u], f)
@@ -112,11 +113,23 @@ def linearize(
             f"{', '.join(bad)} are not finite there"
         )
     _one_sided(model.name, args, point, [states, inputs], x0, expr=expr)
-    n = len(states)
-    sys = control.ss(A, B, np.eye(n), np.zeros((n, B.shape[1])), states=states, inputs=inputs,
-                     outputs=list(states), name=name or f"{model.name}_lin")
+    sys = _ss(A, B, states, inputs, name or f"{model.name}_lin")
     sys.nominal_rate = rate.ravel()
     return sys
+
+
+def _ss(A, B, states, inputs, name) -> control.StateSpace:
+    """``control.ss(A, B, I, 0)`` with named signals; also for one state and no input, which
+    python-control 0.10 refuses to build (it reads a (1, 0) matrix as (0, 0))."""
+    n, m = A.shape[0], B.shape[1]
+    if n == 1 and m == 0:
+        sys = control.ss(A, np.zeros((1, 1)), np.eye(1), np.zeros((1, 1)), states=list(states),
+                         outputs=list(states), name=name)
+        sys.B, sys.D = np.zeros((1, 0)), np.zeros((1, 0))
+        sys.ninputs, sys.input_index = 0, {}
+        return sys
+    return control.ss(A, B, np.eye(n), np.zeros((n, m)), states=list(states),
+                      inputs=list(inputs), outputs=list(states), name=name)
 
 
 def _one_sided(what: str, f: cs.Function, point, names, x0, rtol: float = 1e-3,
@@ -158,9 +171,13 @@ def _one_sided(what: str, f: cs.Function, point, names, x0, rtol: float = 1e-3,
                 quot.append(sign * (np.asarray(f(*q), dtype=float).ravel() - f0) / h)
             dp, dm = quot
             gap = np.abs(dp - dm)
-            bad = gap > rtol * (1.0 + np.abs(dp) + np.abs(dm))
             if rows is not None:
+                # rows that pass through a kink here: any slope change beyond rounding counts,
+                # relative to the slopes themselves (a jump from 5e-5 to -1.5e-4 is a kink)
+                bad = gap > rtol * (np.abs(dp) + np.abs(dm)) + 1e-300
                 bad &= np.isin(np.arange(len(bad)), rows)
+            else:
+                bad = gap > rtol * (1.0 + np.abs(dp) + np.abs(dm))
             if np.any(bad):
                 i = int(np.argmax(np.where(bad, gap, -np.inf)))
                 raise HybridnavError(
@@ -201,9 +218,7 @@ def linearize_expression(
         raise HybridnavError(f"z0: the vector field is not differentiable at {list(z0)}")
     _one_sided("the vector field", cs.Function("f", [z], [zdot]), (_vector(z0, "z0"),),
                [list(names)], list(z0), expr=([z], zdot))
-    n = A.shape[0]
-    sys = control.ss(A, np.zeros((n, 0)), np.eye(n), np.zeros((n, 0)), states=list(names),
-                     outputs=list(names), name=name)
+    sys = _ss(A, np.zeros((A.shape[0], 0)), names, [], name)
     sys.nominal_rate = rate.ravel()
     return sys
 

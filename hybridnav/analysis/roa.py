@@ -24,7 +24,7 @@ from hybridnav.models.base import Model
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RoaEstimate", "basin", "estimate_roa", "lyapunov_equation_candidate"]
+__all__ = ["RoaEstimate", "basin", "basin_share", "estimate_roa", "lyapunov_equation_candidate"]
 
 
 @dataclass
@@ -144,6 +144,7 @@ def estimate_roa(
         ``details["region"]`` is the region the level refers to (grown or not).
     """
     model, target = resolve(model, target, equilibrium)
+    _check_roa_settings(rtol=rtol, samples=samples, confirm=confirm, grow=grow, horizon=horizon)
     orig = model
     if params:
         model = model.with_params(**params)
@@ -221,6 +222,16 @@ def estimate_roa(
         # every level tried holds a state with Vdot >= 0 (V's minimum is not where Vdot's is):
         # no sublevel set is certified
         level = 0.0
+    if (final is not None and status in ("no_counterexample", "undecided") and level > 0
+            and (certificate if certificate is not None else model.nx <= 3)):
+        # the sampled level is not proved (it may sit a hair above the largest valid level,
+        # where Vdot > 0 on a sliver no sample hit): the largest of a few lower levels that is
+        for frac in (0.999, 0.99, 0.95, 0.9, 0.75, 0.5):
+            rep = check_lyapunov(model, V, level=level * frac, certificate=True, **check)
+            if rep.status == "proved":
+                details["lowered_to_prove"] = {"from": float(level), "fraction": frac}
+                level, status, final = level * frac, "proved", rep
+                break
     dfun = cs.Function("Vdot", [model.sym.x], [vdot_num])
     sim = (_confirm(model, vfun, box, target, level, confirm, rng, horizon, dfun)
            if level > 0 else {})
@@ -255,6 +266,37 @@ def estimate_roa(
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
                        details={**details, **sim.get("details", {})})
+
+
+def _check_roa_settings(*, rtol, samples, confirm, grow, horizon) -> None:
+    """Refuse settings estimate_roa cannot use, naming the key."""
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 < rtol < 1:
+        raise HybridnavError(f"rtol: expected a number in (0, 1), got {rtol!r}")
+    for key, v, low in (("samples", samples, 1), ("confirm", confirm, 0), ("grow", grow, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+            raise HybridnavError(f"{key}: expected an integer >= {low}, got {v!r}")
+    if horizon is not None and (isinstance(horizon, bool)
+                                or not isinstance(horizon, (int, float))
+                                or not (np.isfinite(horizon) and horizon > 0)):
+        raise HybridnavError(f"horizon: expected a number > 0, got {horizon!r}")
+
+
+def _check_grid(model, n, fixed) -> None:
+    if model.nx < 2:
+        raise HybridnavError(f"model {model.name}: a basin grid needs two states, it has "
+                             f"{model.nx}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise HybridnavError(f"n: expected an integer >= 2, got {n!r}")
+    for key, value in (fixed or {}).items():
+        if key not in model.state_names:
+            raise HybridnavError(f"fixed.{key}: not a state of {model.name}; expected one of: "
+                                 + ", ".join(model.state_names))
+        try:
+            ok = np.isfinite(float(value))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise HybridnavError(f"fixed.{key}: expected a finite number, got {value!r}")
 
 
 def _quadratic_proof(model, v_num, vdot_num, box: Box, target):
@@ -337,7 +379,11 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float] | None = N
         model = model.with_params(**params)
     x0 = _target_state(model, target)
     A = np.asarray(linearize(model, x0, target=target).A, dtype=float)
-    Q = np.eye(model.nx) if Q is None else np.asarray(Q, dtype=float)
+    try:
+        Q = np.eye(model.nx) if Q is None else np.asarray(Q, dtype=float)
+    except (TypeError, ValueError):
+        raise HybridnavError(f"Q: expected a symmetric positive definite {A.shape} matrix, got "
+                             f"{Q!r}") from None
     if Q.shape != A.shape or not np.allclose(Q, Q.T) or np.linalg.eigvalsh(Q).min() <= 0:
         raise HybridnavError(f"Q: expected a symmetric positive definite {A.shape} matrix")
     eig = np.linalg.eigvals(A)
@@ -394,6 +440,7 @@ def basin(model: Model, *, target: Sequence[float] | None = None, region,
     if method not in ("continuous", "simulated"):
         raise HybridnavError(f"method: expected 'continuous' or 'simulated', got {method!r}")
     model, target = resolve(model, target, equilibrium)
+    _check_grid(model, n, fixed)
     box = as_box(model, region)
     xs = np.linspace(box.lower[0], box.upper[0], n)
     ys = np.linspace(box.lower[1], box.upper[1], n)
@@ -512,6 +559,8 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
     ``stuck_V``; a run whose ``V`` rises is checked at the state before its largest rise: where the
     continuous ``Vdot`` (``dfun``) is >= 0 there it is a counterexample the search missed
     (``rise_V``, ``rise_state``), otherwise the rise is the RK4 step's (counted in details)."""
+    if n <= 0:
+        return {}
     starts = []
     tries = 0
     while sum(len(s) for s in starts) < n and tries < 200:
@@ -551,3 +600,61 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
             "details": {"simulated_time": float(traj.shape[1] - 1) * model.dt,
                         "worst_final_V": float(np.max(V[:, -1])),
                         "rises_of_the_rk4_step": step_rises}}
+
+
+def basin_share(model: Model, V=None, level: float = np.inf, *,
+                target: Sequence[float] | None = None, region,
+                equilibrium: Sequence[float] | None = None, n: int = 201,
+                horizon: float | None = None, method: str = "simulated") -> dict[str, float]:
+    """How much of the true region of attraction a certified level set covers, on a grid of the
+    first two states (the others at the target's / equilibrium's values).
+
+    The true basin is :func:`basin` (CVODES from every grid point); the certified set is
+    ``{V <= level}``. Areas are grid-cell counts times the cell area.
+
+    Parameters
+    ----------
+    model : Model or any system :func:`~hybridnav.analysis.as_system` takes
+    V : casadi.SX, callable or None
+        The candidate (None: the model's own).
+    level : float
+        The certified level (e.g. ``estimate_roa(...).level``).
+    target, equilibrium : array_like, optional
+        As for :func:`estimate_roa`.
+    region : dict or Box
+        The grid's bounds (every state).
+    n : int
+        Grid points per axis.
+    horizon : float, optional
+        Simulated time per start (see :func:`basin`).
+    method : str
+        :func:`basin`'s: ``"simulated"`` (default; RK4 at ``model.dt``, runs that diverge are
+        dropped early) or ``"continuous"`` (CVODES, slow where many starts diverge).
+
+    Returns
+    -------
+    dict
+        ``certified_area``, ``basin_area``, ``share`` (certified / basin) and
+        ``certified_in_basin`` (the fraction of certified grid points that converged: 1 unless
+        the certificate or the simulation is wrong).
+    """
+    model, target = resolve(model, target, equilibrium)
+    _, v_num, _, _, _ = lyapunov_functions(model, V, target=target)
+    xs, ys, conv = basin(model, target=target, region=region, n=n, horizon=horizon,
+                         method=method)
+    box = as_box(model, region)
+    X, Y = np.meshgrid(xs, ys)
+    Z = np.zeros((X.size, model.nx))
+    if len(target) == model.nx:
+        Z[:] = target
+    Z[:, 0], Z[:, 1] = X.ravel(), Y.ravel()
+    vfun = cs.Function("V", [model.sym.x], [v_num])
+    v = np.asarray(vfun.map(len(Z))(Z.T)).reshape(n, n)
+    cert = np.isfinite(v) & (v <= level)
+    cell = float((box.upper[0] - box.lower[0]) * (box.upper[1] - box.lower[1])) / (n - 1) ** 2
+    basin_area = float(conv.sum()) * cell
+    cert_area = float(cert.sum()) * cell
+    return {"certified_area": cert_area, "basin_area": basin_area,
+            "share": cert_area / basin_area if basin_area else float("nan"),
+            "certified_in_basin": float((cert & conv).sum() / cert.sum()) if cert.any()
+            else float("nan")}

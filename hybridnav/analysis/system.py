@@ -28,6 +28,7 @@ CasADi ``Function``) directly::
 from __future__ import annotations
 
 import hashlib
+import re
 import threading
 import warnings
 from collections.abc import Mapping, Sequence
@@ -91,10 +92,19 @@ class System(Model):
             raise HybridnavError(
                 f"rhs: depends on symbols that are neither states nor inputs: {', '.join(free)} "
                 "(substitute parameter values first, or pass them as params=)")
-        self.name = str(name)
-        self.dt = float(dt)
-        if not (np.isfinite(self.dt) and self.dt > 0):
+        # CasADi function names are identifiers ("sys[0]" is python-control's default name)
+        # (non-consecutive underscores, not ending in one: CasADi appends "_step")
+        self.name = re.sub(r"_+", "_", re.sub(r"\W", "_", str(name))).strip("_") or "system"
+        if not (self.name[0].isalpha()):
+            self.name = "s_" + self.name
+        try:
+            self.dt = float(dt)
+        except (TypeError, ValueError):
+            self.dt = float("nan")
+        if isinstance(dt, bool) or not (np.isfinite(self.dt) and self.dt > 0):
             raise HybridnavError(f"system {name}: dt: expected a number > 0, got {dt!r}")
+        if x.numel() == 0:
+            raise HybridnavError(f"system {name}: expected at least one state, got none")
         self.jit = jit
         self._radius = 0.0
         self.options, self.values = {}, {}
@@ -209,6 +219,21 @@ def as_system(obj: Any, *, states: Sequence[str] | None = None,
     """
     if isinstance(obj, Model):
         return obj
+    plain = (states is None and inputs is None and u0 is None and params is None
+             and equilibrium is None and not angles and dt == 0.01 and name is None)
+    cached = getattr(obj, "__dict__", {}).get("_hybridnav_system") if plain else None
+    if cached is not None:
+        return cached
+    system = _convert(obj, states=states, inputs=inputs, u0=u0, params=params,
+                      equilibrium=equilibrium, angles=angles, dt=dt, name=name)
+    if plain and hasattr(obj, "__dict__"):
+        # the same object gives the same System (its symbols), so a candidate built from one
+        # call's result serves the next call
+        obj.__dict__["_hybridnav_system"] = system
+    return system
+
+
+def _convert(obj, *, states, inputs, u0, params, equilibrium, angles, dt, name) -> System:
     common = dict(u0=u0, equilibrium=equilibrium, angles=angles, dt=dt)
     import control as ct
 
@@ -245,7 +270,8 @@ def as_system(obj: Any, *, states: Sequence[str] | None = None,
             raise HybridnavError("system: expected (x, rhs) or (x, u, rhs) as CasADi SX "
                                  "expressions")
         return System(x, u, rhs, states=states, inputs=inputs, name=name or "system", **common)
-    if hasattr(obj, "_rhs") and hasattr(obj, "x") and hasattr(obj, "model_type"):
+    if type(obj).__module__.startswith("do_mpc") or (
+            hasattr(obj, "_rhs") and hasattr(obj, "model_type")):
         return _from_do_mpc(obj, states, inputs, params, name, common)
     raise HybridnavError(
         f"system: expected a hybridnav model, a python-control NonlinearIOSystem or StateSpace, a "
@@ -253,6 +279,10 @@ def as_system(obj: Any, *, states: Sequence[str] | None = None,
 
 
 def _from_nlsys(sys, states, inputs, params, name, common) -> System:
+    if not sys.isctime():
+        raise HybridnavError(
+            f"system {sys.name}: expected a continuous-time system (dt = 0), got dt = {sys.dt}; "
+            "the analysis is of ODEs xdot = f(x, u)")
     n, m = sys.nstates, sys.ninputs
     p = {**(sys.params or {}), **(params or {})}
     x, u = cs.SX.sym("x", n), cs.SX.sym("u", m)
@@ -269,6 +299,11 @@ def _from_nlsys(sys, states, inputs, params, name, common) -> System:
             break
         except Exception as exc:       # noqa: BLE001 - any failure of the user's function
             errors.append(f"{type(exc).__name__}: {exc}")
+    if rhs is not None and _has_nan_constant(rhs):
+        # float(symbol) and math.sin(symbol) give NaN silently in CasADi
+        errors.append("a state or input was turned into a number (float(), int() or math.*) "
+                      "and became NaN")
+        rhs = None
     if rhs is None:
         raise HybridnavError(
             f"system {sys.name}: its update function cannot be traced with CasADi symbols "
@@ -283,6 +318,8 @@ def _from_do_mpc(model, states, inputs, params, name, common) -> System:
     if getattr(model, "model_type", "") != "continuous":
         raise HybridnavError("system: expected a continuous do-mpc model (model_type "
                              f"'continuous'), got {model.model_type!r}")
+    if not getattr(model, "flags", {}).get("setup", True):
+        raise HybridnavError("system: the do-mpc model is not set up; call model.setup() first")
     try:
         x, u, rhs = model.x.cat, model.u.cat, model._rhs.cat
     except Exception as exc:            # noqa: BLE001
@@ -300,8 +337,16 @@ def _from_do_mpc(model, states, inputs, params, name, common) -> System:
                 raise HybridnavError(
                     f"params.{key}: the do-mpc model's {kind} variable {key!r} needs a value "
                     "(pass params={...})")
-            value = np.asarray((params or {})[key], dtype=float).ravel()
             idx = int(label.strip("[]").split(",")[1]) if "," in label else 0
+            try:
+                value = np.asarray((params or {})[key], dtype=float).ravel()
+            except (TypeError, ValueError):
+                value = np.empty(0)
+            if not (value.size in (1, idx + 1) or value.size > idx) or not np.all(
+                    np.isfinite(value)) or value.size == 0:
+                raise HybridnavError(
+                    f"params.{key}: expected finite numbers for the do-mpc model's {kind} "
+                    f"variable (entry {idx}), got {(params or {})[key]!r}")
             subs.append(sym)
             vals.append(float(value[idx] if value.size > idx else value[0]))
     if subs:
@@ -314,6 +359,13 @@ def _from_do_mpc(model, states, inputs, params, name, common) -> System:
         m.startswith(lab[:-2] + "_") for m in ulabels) == 1 else lab for lab in ulabels]
     return System(x, u, rhs, states=states or labels, inputs=inputs or ulabels,
                   name=name or "do_mpc_model", source=(model, dict(params or {})), **common)
+
+
+def _has_nan_constant(expr: cs.SX) -> bool:
+    fn = cs.Function("nan_check", cs.symvar(expr), [expr], {"allow_free": True}) \
+        if cs.symvar(expr) else cs.Function("nan_check", [], [expr])
+    return any(fn.instruction_id(k) == cs.OP_CONST and np.isnan(fn.instruction_constant(k))
+               for k in range(fn.n_instructions()))
 
 
 def _column(v, key: str) -> cs.SX:
