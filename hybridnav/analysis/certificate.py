@@ -177,10 +177,12 @@ def certify(
             d = cs.jtimes(d, x, f)
             lie.append(d)
         outs += lie
-    outs.append(cs.gradient(vdot, x))       # the mean-value form of Vdot (below)
     try:
         F = IntervalFunction(x, outs)
-        F_centre = IntervalFunction(x, [vdot])
+        # the mean-value form of Vdot (its value and gradient), and f alone (faces' Lipschitz
+        # check): smaller functions, evaluated only on the boxes that need them
+        F_mv = IntervalFunction(x, [vdot, cs.gradient(vdot, x)])
+        F_f = IntervalFunction(x, [f])
     except UnsupportedOperation as exc:
         return Certificate("not_applicable", "", f"interval arithmetic: {exc}")
     # a coordinate's faces are identified only where V, f and g are 2 pi-periodic in it (shown
@@ -203,7 +205,6 @@ def certify(
     if_ = slice(2 + ng, 2 + ng + nx)
     igd = slice(2 + ng + nx, 2 + 2 * ng + nx)
     il = slice(2 + 2 * ng + nx, 2 + 2 * ng + nx + len(lie))
-    igrad = slice(il.stop, il.stop + nx)
     clamp = {2 + j: (0.0, np.inf) for j in range(ng)}
     lower, upper = box.lower.astype(float), box.upper.astype(float)
     width = np.where(upper > lower, upper - lower, 1.0)
@@ -270,8 +271,18 @@ def certify(
         # LaSalle's Lie derivatives differentiate Vdot, hence f: they need f smooth
         f_smooth = sm[:, iv] & np.all(sm[:, if_], axis=1) & sm[:, idot]
         v_lo, v_hi = ol[:, iv], oh[:, iv]
-        d_hi = _mean_value_bound(F_centre, lo, hi, oh[:, idot], ol[:, igrad], oh[:, igrad],
-                                 sm[:, idot] & (np.all(ol[:, ig] > 0, axis=1) if ng else True))
+        # boxes the natural enclosure leaves undecided only because of Vdot
+        # (on small boxes only: the form is second-order accurate there, and on large ones it
+        # costs an evaluation of Vdot's gradient for little)
+        need = (~(tag >= 0) & (oh[:, idot] >= 0) & v_smooth & sm[:, idot]
+                & ~(ol[:, iv] > cap) & ((ol[:, iv] > 0) | bool(lasalle))
+                & (np.max((hi - lo) / width, axis=1) <= MV_WIDTH))
+        if ng:
+            need &= np.all(ol[:, ig] > 0, axis=1)
+        d_hi = oh[:, idot].copy()
+        if need.any():
+            k = np.flatnonzero(need)
+            d_hi[k] = _mean_value_bound(F_mv, lo[k], hi[k], d_hi[k])
         done = np.zeros(len(lo), dtype=bool)
         if ng:
             out = np.any(oh[:, ig] <= 0, axis=1)
@@ -299,8 +310,8 @@ def certify(
                 thick = 1e-9 * width[dim[r]]
                 tl[k, dim[r]] -= np.where(side[r] == 0, thick, 0.0)
                 th[k, dim[r]] += np.where(side[r] == 1, thick, 0.0)
-                _, _, _, tct = F(tl, th, clamp, continuity=True)
-                inward[np.flatnonzero(inward)] &= np.all(tct[:, if_], axis=1)
+                _, _, _, tct = F_f(tl, th, continuity=True)
+                inward[np.flatnonzero(inward)] &= np.all(tct, axis=1)
             done[rows[inward]] = True
             counts["face_inward"] += int(inward.sum())
         interior = ~is_face & ~done
@@ -444,16 +455,22 @@ def certify(
 # ---------------------------------------------------------------------------------------------
 
 
-def _mean_value_bound(F_centre, lo, hi, d_hi, g_lo, g_hi, smooth):
+#: boxes at most this wide (relative to the region's sides) also get the mean-value form of Vdot
+MV_WIDTH = 1 / 256
+
+
+def _mean_value_bound(F_mv, lo, hi, d_hi):
     """The upper bound of Vdot on each box: the smaller of its natural enclosure ``d_hi`` and the
     mean-value form ``Vdot(c) + sum_i |dVdot/dx_i|(box) * r_i`` (centre ``c``, half-widths ``r``),
     which is second-order accurate on small boxes where terms cancel (a quadratic candidate's
-    cross terms); used where Vdot is smooth on the box (its gradient is then the derivative
-    there) and, with constraints, the box lies in the free space."""
-    if not np.any(smooth):
-        return d_hi
+    cross terms). The caller uses it where Vdot is smooth on the box (its gradient is then the
+    derivative there) and, with constraints, the box lies in the free space."""
     mid = (lo + hi) / 2
-    _, c_hi, _ = F_centre(mid, mid)
+    both_lo, both_hi, sm = F_mv(np.vstack([lo, mid]), np.vstack([hi, mid]))
+    n = len(lo)
+    g_lo, g_hi = both_lo[:n, 1:], both_hi[:n, 1:]
+    c_hi = both_hi[n:, :1]
+    smooth = sm[:n, 0]
     r = (hi - lo) / 2
     with np.errstate(invalid="ignore", over="ignore"):
         s = np.sum(np.maximum(np.abs(g_lo), np.abs(g_hi)) * r, axis=1)

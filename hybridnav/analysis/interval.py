@@ -53,14 +53,17 @@ def _finite_ends(lo, hi):
     """Directed overflow: a lower end at ``+inf`` (an overflowed value, or an overflowed constant
     such as CasADi's folded ``exp(800)``) is only known to exceed the largest float, so it
     becomes that float; an upper end at ``-inf`` likewise. Every interval then holds reals."""
-    return np.where(lo == np.inf, _MAX, lo), np.where(hi == -np.inf, -_MAX, hi)
+    if (lo == np.inf).any():
+        lo = np.where(lo == np.inf, _MAX, lo)
+    if (hi == -np.inf).any():
+        hi = np.where(hi == -np.inf, -_MAX, hi)
+    return lo, hi
 
 
 def _widen(lo, hi):
     """Outward by 4 ulp (and 1e-300); zero and infinite endpoints stay (see :func:`_round_out`)."""
-    with np.errstate(invalid="ignore"):
-        return (np.where((lo != 0) & np.isfinite(lo), lo - _EPS * np.abs(lo) - _TINY, lo),
-                np.where((hi != 0) & np.isfinite(hi), hi + _EPS * np.abs(hi) + _TINY, hi))
+    return (np.where((lo != 0) & np.isfinite(lo), lo - _EPS * np.abs(lo) - _TINY, lo),
+            np.where((hi != 0) & np.isfinite(hi), hi + _EPS * np.abs(hi) + _TINY, hi))
 
 
 #: operations whose zero endpoints are always valid bounds: IEEE sums are zero only when exact;
@@ -91,8 +94,11 @@ def _round_out(name, lo, hi, inputs):
 
 def _times(x, y):
     """Endpoint products with 0 * inf = 0 (a zero endpoint is a value, an infinite one a limit)."""
-    with np.errstate(invalid="ignore", over="ignore", under="ignore"):
-        return np.where((x == 0) | (y == 0), 0.0, x * y)
+    p = x * y
+    nan = np.isnan(p)
+    if nan.any():                      # only 0 * inf makes a NaN of two non-NaN ends
+        p = np.where(nan & ((x == 0) | (y == 0)), 0.0, p)
+    return p
 
 
 def _underflow(q, x, y):
@@ -100,7 +106,12 @@ def _underflow(q, x, y):
     underflowed to 0 from nonzero ``x`` and ``y``, the true value has the sign of ``x y`` and
     a magnitude below the smallest normal float: 0 bounds it on one side, ``+-_TINY`` on the
     other. Everywhere else ``q`` bounds itself (rounding is widened later)."""
-    under = (q == 0) & (x != 0) & (y != 0) & ~np.isnan(x) & ~np.isnan(y)
+    zero = q == 0
+    if not zero.any():
+        return q, q
+    under = zero & (x != 0) & (y != 0) & ~np.isnan(x) & ~np.isnan(y)
+    if not under.any():
+        return q, q
     neg = (x < 0) != (y < 0)
     return (np.where(under & neg, -_TINY, q), np.where(under & ~neg, _TINY, q))
 
@@ -116,8 +127,7 @@ def _mul(a, b, c, d):
 
 def _inv(a, b):
     """1 / [a, b]; unbounded where the interval holds 0."""
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        ra, rb = 1.0 / a, 1.0 / b
+    ra, rb = 1.0 / a, 1.0 / b
     pos, neg = a > 0, b < 0
     lo = np.where(pos | neg, rb, np.where((a == 0) & (b > 0), rb, -np.inf))
     hi = np.where(pos | neg, ra, np.where((b == 0) & (a < 0), ra, np.inf))
@@ -142,8 +152,7 @@ def _trig(fn, a, b, peak: float, trough: float):
 
 
 def _monotone(fn, a, b, increasing=True):
-    with np.errstate(all="ignore"):
-        fa, fb = fn(a), fn(b)
+    fa, fb = fn(a), fn(b)
     return (fa, fb) if increasing else (fb, fa)
 
 
@@ -165,8 +174,7 @@ def _powi(a, b, n: int):
     if n < 0:
         lo, hi = _powi(a, b, -n)
         return _inv(lo, hi)
-    with np.errstate(over="ignore", under="ignore"):
-        pa, pb = a ** n, b ** n
+    pa, pb = a ** n, b ** n
     # an underflow to 0 from a nonzero base: 0 bounds the true power on one side only
     ua, ub = (pa == 0) & (a != 0), (pb == 0) & (b != 0)
     if n % 2:
@@ -256,6 +264,10 @@ class IntervalFunction:
         beyond 1, a power of a base that may be <= 0, ``atan2`` at the origin, or a NaN), its
         enclosure is ``[-inf, inf]`` and it is not smooth: nothing can be decided from it.
         """
+        with np.errstate(all="ignore"):       # once: overflow and NaN are handled per operation
+            return self._call(lo, hi, clamp, continuity, _record)
+
+    def _call(self, lo, hi, clamp, continuity, _record):
         lo = np.asarray(lo, dtype=float)
         hi = np.asarray(hi, dtype=float)
         n = lo.shape[0]
@@ -482,125 +494,124 @@ def _truth(a, b):
 
 def _apply(name, a, b, c, d):
     ok = None
-    with np.errstate(all="ignore"):
-        if name == "add":
-            lo, hi = a + c, b + d
-        elif name == "sub":
-            lo, hi = a - d, b - c
-        elif name == "mul":
-            lo, hi = _mul(a, b, c, d)
-        elif name == "div":
-            il, ih = _finite_ends(*_inv(c, d))
-            lo, hi = _mul(a, b, il, ih)
-            lo, hi = _widen(lo, hi)          # two roundings (1/y, then the product)
-            # finite ends and a divisor away from 0: the endpoint quotients, rounded once
-            # (1/y alone may overflow where x/y does not: 5.39e-295 / 2.4e-310)
-            direct = (np.isfinite(a) & np.isfinite(b) & np.isfinite(c) & np.isfinite(d)
-                      & ((c > 0) | (d < 0)))
-            if direct.any():
-                ql, qh = zip(*(_underflow(x / y, x, y) for x, y in ((a, c), (a, d), (b, c),
-                                                                     (b, d))))
-                lo = np.where(direct, np.min(ql, axis=0), lo)
-                hi = np.where(direct, np.max(qh, axis=0), hi)
-        elif name == "inv":
-            lo, hi = _inv(a, b)
-        elif name == "neg":
-            lo, hi = -b, -a
-        elif name == "twice":
-            lo, hi = 2 * a, 2 * b
-        elif name == "assign":
-            lo, hi = a, b
-        elif name == "sq":
-            lo, hi = _powi(a, b, 2)
-        elif name == "constpow":
-            if np.all(c == d) and np.all(c == np.round(c)) and np.all(c == c[0]):
-                lo, hi = _powi(a, b, int(c[0]))
-            else:
-                lo, hi = _pow(a, b, c, d)
-                # x**0.5 or x**1.5 at 0: not smooth (nor Lipschitz below exponent 1)
-                ok = (a > 0) | ((c == d) & (c == np.round(c)))
-        elif name == "pow":
+    if name == "add":
+        lo, hi = a + c, b + d
+    elif name == "sub":
+        lo, hi = a - d, b - c
+    elif name == "mul":
+        lo, hi = _mul(a, b, c, d)
+    elif name == "div":
+        il, ih = _finite_ends(*_inv(c, d))
+        lo, hi = _mul(a, b, il, ih)
+        lo, hi = _widen(lo, hi)          # two roundings (1/y, then the product)
+        # finite ends and a divisor away from 0: the endpoint quotients, rounded once
+        # (1/y alone may overflow where x/y does not: 5.39e-295 / 2.4e-310)
+        direct = (np.isfinite(a) & np.isfinite(b) & np.isfinite(c) & np.isfinite(d)
+                  & ((c > 0) | (d < 0)))
+        if direct.any():
+            ql, qh = zip(*(_underflow(x / y, x, y) for x, y in ((a, c), (a, d), (b, c),
+                                                                 (b, d))))
+            lo = np.where(direct, np.min(ql, axis=0), lo)
+            hi = np.where(direct, np.max(qh, axis=0), hi)
+    elif name == "inv":
+        lo, hi = _inv(a, b)
+    elif name == "neg":
+        lo, hi = -b, -a
+    elif name == "twice":
+        lo, hi = 2 * a, 2 * b
+    elif name == "assign":
+        lo, hi = a, b
+    elif name == "sq":
+        lo, hi = _powi(a, b, 2)
+    elif name == "constpow":
+        if np.all(c == d) and np.all(c == np.round(c)) and np.all(c == c[0]):
+            lo, hi = _powi(a, b, int(c[0]))
+        else:
             lo, hi = _pow(a, b, c, d)
-            ok = a > 0
-        elif name == "sqrt":
-            lo, hi = np.sqrt(np.maximum(a, 0.0)), np.sqrt(np.maximum(b, 0.0))
-            bad = b < 0
-            lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
-            ok = a > 0
-        elif name == "exp":
-            lo, hi = _monotone(np.exp, a, b)
-        elif name == "log":
-            lo, hi = _monotone(np.log, np.maximum(a, 0.0), b)
-            bad = b <= 0
-            lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
-        elif name == "tan":
-            lo, hi = _monotone(np.tan, a, b)
-            # a pole pi/2 + k pi inside (tested with a margin) or beyond 1e8: unbounded
-            pole = (np.ceil((a - np.pi / 2) / np.pi - 1e-9) <= np.floor((b - np.pi / 2) / np.pi
-                                                                          + 1e-9))
-            pole |= ~np.isfinite(a) | ~np.isfinite(b) | (np.maximum(np.abs(a), np.abs(b)) > 1e8)
-            lo, hi = np.where(pole, -np.inf, lo), np.where(pole, np.inf, hi)
-            ok = ~pole
-        elif name == "tanh":
-            lo, hi = _monotone(np.tanh, a, b)
-        elif name == "atan":
-            lo, hi = _monotone(np.arctan, a, b)
-        elif name == "asin":
-            lo, hi = _monotone(np.arcsin, np.clip(a, -1, 1), np.clip(b, -1, 1))
-            ok = (a > -1) & (b < 1)
-        elif name == "acos":
-            lo, hi = _monotone(np.arccos, np.clip(a, -1, 1), np.clip(b, -1, 1), False)
-            ok = (a > -1) & (b < 1)
-        elif name == "sinh":
-            lo, hi = _monotone(np.sinh, a, b)
-        elif name == "cosh":
-            lo, hi = _powi_like_cosh(a, b)
-        elif name == "cos":
-            lo, hi = _trig(np.cos, a, b, 0.0, np.pi)
-        elif name == "sin":
-            lo, hi = _trig(np.sin, a, b, np.pi / 2, -np.pi / 2)
-        elif name == "atan2":
-            lo, hi, ok = _atan2(a, b, c, d)
-            ok = ok & ~((a <= 0) & (b >= 0) & (c <= 0) & (d >= 0))
-        elif name == "fabs":
-            lo = np.where((a <= 0) & (b >= 0), 0.0, np.minimum(np.abs(a), np.abs(b)))
-            hi = np.maximum(np.abs(a), np.abs(b))
-            ok = (a > 0) | (b < 0)
-        elif name == "fmin":
-            lo, hi = np.minimum(a, c), np.minimum(b, d)
-            ok = (b < c) | (d < a)
-        elif name == "fmax":
-            lo, hi = np.maximum(a, c), np.maximum(b, d)
-            ok = (b < c) | (d < a)
-        elif name == "sign":
-            lo, hi = np.sign(a), np.sign(b)
-            ok = (a > 0) | (b < 0)
-        elif name in ("floor", "ceil"):
-            f = np.floor if name == "floor" else np.ceil
-            lo, hi = f(a), f(b)
-            ok = lo == hi
-        elif name in ("lt", "le", "eq", "ne"):
-            lo, hi, ok = _compare(name, a, b, c, d)
-        elif name == "not":
-            yes, no = _truth(a, b)
-            lo, hi = np.where(yes, 0.0, np.where(no, 1.0, 0.0)), np.where(yes, 0.0, 1.0)
-            ok = yes | no
-        elif name in ("and", "or"):
-            y1, n1 = _truth(a, b)
-            y2, n2 = _truth(c, d)
-            if name == "and":
-                sure1, sure0 = y1 & y2, n1 | n2
-            else:
-                sure1, sure0 = y1 | y2, n1 & n2
-            lo, hi = np.where(sure1, 1.0, 0.0), np.where(sure0, 0.0, 1.0)
-            ok = sure1 | sure0
-        elif name == "if_else_zero":
-            yes, no = _truth(a, b)
-            lo = np.where(yes, c, np.where(no, 0.0, np.minimum(c, 0.0)))
-            hi = np.where(yes, d, np.where(no, 0.0, np.maximum(d, 0.0)))
-            ok = yes | no
-        else:                                 # pragma: no cover - filtered at construction
-            raise UnsupportedOperation(name)
+            # x**0.5 or x**1.5 at 0: not smooth (nor Lipschitz below exponent 1)
+            ok = (a > 0) | ((c == d) & (c == np.round(c)))
+    elif name == "pow":
+        lo, hi = _pow(a, b, c, d)
+        ok = a > 0
+    elif name == "sqrt":
+        lo, hi = np.sqrt(np.maximum(a, 0.0)), np.sqrt(np.maximum(b, 0.0))
+        bad = b < 0
+        lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
+        ok = a > 0
+    elif name == "exp":
+        lo, hi = _monotone(np.exp, a, b)
+    elif name == "log":
+        lo, hi = _monotone(np.log, np.maximum(a, 0.0), b)
+        bad = b <= 0
+        lo, hi = np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)
+    elif name == "tan":
+        lo, hi = _monotone(np.tan, a, b)
+        # a pole pi/2 + k pi inside (tested with a margin) or beyond 1e8: unbounded
+        pole = (np.ceil((a - np.pi / 2) / np.pi - 1e-9) <= np.floor((b - np.pi / 2) / np.pi
+                                                                      + 1e-9))
+        pole |= ~np.isfinite(a) | ~np.isfinite(b) | (np.maximum(np.abs(a), np.abs(b)) > 1e8)
+        lo, hi = np.where(pole, -np.inf, lo), np.where(pole, np.inf, hi)
+        ok = ~pole
+    elif name == "tanh":
+        lo, hi = _monotone(np.tanh, a, b)
+    elif name == "atan":
+        lo, hi = _monotone(np.arctan, a, b)
+    elif name == "asin":
+        lo, hi = _monotone(np.arcsin, np.clip(a, -1, 1), np.clip(b, -1, 1))
+        ok = (a > -1) & (b < 1)
+    elif name == "acos":
+        lo, hi = _monotone(np.arccos, np.clip(a, -1, 1), np.clip(b, -1, 1), False)
+        ok = (a > -1) & (b < 1)
+    elif name == "sinh":
+        lo, hi = _monotone(np.sinh, a, b)
+    elif name == "cosh":
+        lo, hi = _powi_like_cosh(a, b)
+    elif name == "cos":
+        lo, hi = _trig(np.cos, a, b, 0.0, np.pi)
+    elif name == "sin":
+        lo, hi = _trig(np.sin, a, b, np.pi / 2, -np.pi / 2)
+    elif name == "atan2":
+        lo, hi, ok = _atan2(a, b, c, d)
+        ok = ok & ~((a <= 0) & (b >= 0) & (c <= 0) & (d >= 0))
+    elif name == "fabs":
+        lo = np.where((a <= 0) & (b >= 0), 0.0, np.minimum(np.abs(a), np.abs(b)))
+        hi = np.maximum(np.abs(a), np.abs(b))
+        ok = (a > 0) | (b < 0)
+    elif name == "fmin":
+        lo, hi = np.minimum(a, c), np.minimum(b, d)
+        ok = (b < c) | (d < a)
+    elif name == "fmax":
+        lo, hi = np.maximum(a, c), np.maximum(b, d)
+        ok = (b < c) | (d < a)
+    elif name == "sign":
+        lo, hi = np.sign(a), np.sign(b)
+        ok = (a > 0) | (b < 0)
+    elif name in ("floor", "ceil"):
+        f = np.floor if name == "floor" else np.ceil
+        lo, hi = f(a), f(b)
+        ok = lo == hi
+    elif name in ("lt", "le", "eq", "ne"):
+        lo, hi, ok = _compare(name, a, b, c, d)
+    elif name == "not":
+        yes, no = _truth(a, b)
+        lo, hi = np.where(yes, 0.0, np.where(no, 1.0, 0.0)), np.where(yes, 0.0, 1.0)
+        ok = yes | no
+    elif name in ("and", "or"):
+        y1, n1 = _truth(a, b)
+        y2, n2 = _truth(c, d)
+        if name == "and":
+            sure1, sure0 = y1 & y2, n1 | n2
+        else:
+            sure1, sure0 = y1 | y2, n1 & n2
+        lo, hi = np.where(sure1, 1.0, 0.0), np.where(sure0, 0.0, 1.0)
+        ok = sure1 | sure0
+    elif name == "if_else_zero":
+        yes, no = _truth(a, b)
+        lo = np.where(yes, c, np.where(no, 0.0, np.minimum(c, 0.0)))
+        hi = np.where(yes, d, np.where(no, 0.0, np.maximum(d, 0.0)))
+        ok = yes | no
+    else:                                 # pragma: no cover - filtered at construction
+        raise UnsupportedOperation(name)
     nan = np.isnan(lo) | np.isnan(hi)
     if nan.any():
         lo, hi = np.where(nan, -np.inf, lo), np.where(nan, np.inf, hi)
