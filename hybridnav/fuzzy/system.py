@@ -218,6 +218,35 @@ class FuzzySystem:
 
     # --------------------------------------------------------------------------- evaluation
 
+    def to_casadi(self, **inputs: Any):
+        """The crisp output as one exact CasADi SX expression of the given input expressions.
+
+        The same scikit-fuzzy semantics as :meth:`evaluate` (equal in real arithmetic, to
+        rounding in floating point; see :mod:`hybridnav.fuzzy.symbolic`), so a fuzzy controller
+        closed around a model can be simulated, linearized and certified by
+        :mod:`hybridnav.analysis`. Inputs must be finite.
+
+        Parameters
+        ----------
+        **inputs : casadi.SX or float
+            One keyword per input variable (see :attr:`input_names`).
+
+        Returns
+        -------
+        casadi.SX
+
+        Raises
+        ------
+        TypeError
+            Missing or unexpected keyword.
+        """
+        from hybridnav.fuzzy.symbolic import to_casadi
+
+        if inputs.keys() != self._names:
+            raise TypeError(f"to_casadi() of fuzzy system {self.name!r} takes the inputs "
+                            f"{', '.join(self.input_names)}")
+        return to_casadi(self, [inputs[n] for n in self.input_names])
+
     def evaluate(self, **inputs: ArrayLike) -> NDArray[np.float64] | np.float64:
         """Crisp output for crisp inputs, batched, exactly as scikit-fuzzy computes it.
 
