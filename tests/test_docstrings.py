@@ -13,6 +13,7 @@ import tempfile
 import warnings
 from pathlib import Path
 
+import casadi as cs
 import numpy as np
 import pytest
 from numpydoc.docscrape import NumpyDocString
@@ -174,8 +175,14 @@ def _kwargs_calls():
 
     for name, cls in OPTIMIZERS.items():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
+    from hybridnav.analysis import as_system
     from hybridnav.tuner import DataCost, learn
 
+    x = cs.SX.sym("x")
+    calls["hybridnav.analysis.system.System.with_params"] = lambda: as_system(
+        (x, -x)).with_params(bogus=1.0)
+    calls["hybridnav.fuzzy.system.FuzzySystem.to_casadi"] = lambda: fuzzy.builtin(
+        "effc-5rule").to_casadi(dtheta=0.1, alpha=0.5, bogus=1.0)
     calls["hybridnav.tuner.core.learn"] = lambda: learn(
         fuzzy.builtin("effc-2rule"), DataCost([[0.1, 0.5]], [0.5]), max_rules=2, bogus=1.0)
     return calls

@@ -50,7 +50,11 @@ from typing import Any
 import casadi as cs
 import numpy as np
 
-from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation, periodic_in
+from hybridnav.analysis.interval import (
+    IntervalFunction,
+    UnsupportedOperation,
+    periodic_in,
+)
 from hybridnav.analysis.region import Box
 
 log = logging.getLogger(__name__)
@@ -596,8 +600,10 @@ def _min_eig(lo, hi, n) -> float:
     if np.abs(rad).max() > 1e150:
         return -np.inf
     ev = float(np.linalg.eigvalsh(mid).min())
+    # (the norms below may overflow to inf for huge radii: then no bound, which is right)
     # eigvalsh's backward error is a few ulp of |mid|: relative, so tiny Hessians keep their sign
-    return ev - float(np.linalg.norm(rad, "fro")) - 1e-12 * np.abs(mid).max() - 1e-300
+    with np.errstate(over="ignore"):
+        return ev - float(np.linalg.norm(rad, "fro")) - 1e-12 * np.abs(mid).max() - 1e-300
 
 
 def _max_eig(lo, hi, n) -> float:

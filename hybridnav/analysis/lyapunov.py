@@ -81,12 +81,15 @@ def lyapunov_functions(model: Model, V=None, *, target=None,
 
     Parameters
     ----------
-    model : Model
+    model : Model or any system :func:`~hybridnav.analysis.as_system` takes
     V : casadi.SX, callable or None
         The candidate (None: the model's own, :meth:`Model.lyapunov_candidate`).
-    target : (float, float)
+    target : (float, float), optional
+        A robot model's target.
     params : dict, optional
         Model parameters overriding the model's values.
+    equilibrium : array_like, optional
+        A general system's equilibrium state.
 
     Returns
     -------

@@ -25,7 +25,11 @@ import logging
 import casadi as cs
 import numpy as np
 
-from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation, is_polynomial
+from hybridnav.analysis.interval import (
+    IntervalFunction,
+    UnsupportedOperation,
+    is_polynomial,
+)
 from hybridnav.analysis.region import Box
 from hybridnav.analysis.verdict import LyapunovReport, _counterexample
 from hybridnav.analysis.witness import Witness

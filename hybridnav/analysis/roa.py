@@ -371,7 +371,6 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float] | None = N
     import control
 
     from hybridnav.analysis.linearization import linearize
-
     from hybridnav.analysis.lyapunov import _target_state
 
     model, target = resolve(model, target, equilibrium)

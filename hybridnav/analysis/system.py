@@ -66,6 +66,11 @@ class System(Model):
         Step of simulations (RK4): confirmations of regions of attraction, basins, the runs that
         seed the equilibrium search.
     name : str
+    jit : bool or None
+        JIT-compile the rollouts (as for the robot models).
+    source : tuple, optional
+        ``(python-control or do-mpc object, params)`` it was traced from (:meth:`with_params`
+        traces it again).
     """
 
     name = "system"

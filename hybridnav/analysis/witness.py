@@ -28,6 +28,8 @@ class Witness:
     V, vdot : casadi.SX
         In ``x`` only.
 
+    Notes
+    -----
     Where an expression has no interval extension, the floating-point value stands in (and
     :attr:`exact` is False).
     """

@@ -243,8 +243,10 @@ class FuzzySystem:
         from hybridnav.fuzzy.symbolic import to_casadi
 
         if inputs.keys() != self._names:
+            extra = [n for n in inputs if n not in self._names]
             raise TypeError(f"to_casadi() of fuzzy system {self.name!r} takes the inputs "
-                            f"{', '.join(self.input_names)}")
+                            f"{', '.join(self.input_names)}"
+                            + (f"; unexpected {', '.join(extra)}" if extra else ""))
         return to_casadi(self, [inputs[n] for n in self.input_names])
 
     def evaluate(self, **inputs: ArrayLike) -> NDArray[np.float64] | np.float64:
