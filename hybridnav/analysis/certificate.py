@@ -430,7 +430,8 @@ def certify(
         return Certificate("undecided", "", f"interval branch and bound: {interior_left} of "
                            f"{evaluated} boxes undecided ({why})", invariant=invariant,
                            boxes=evaluated, undecided=undecided, details=details)
-    ball_text, except_text = "", "except at x*"
+    # without a centre nothing is excluded: the claim holds on all of K
+    ball_text, except_text = "", ("except at x*" if center is not None else "everywhere")
     if local is not None:
         r0 = local["details"]["r0"]
         if r0 > 0:
@@ -450,6 +451,9 @@ def certify(
                  f"{{V <= {eps:.3g}}}")
     else:
         claim = f"V > 0 and Vdot < 0 on K = {where}, {except_text}{ball_text}{inv_text}"
+        if not invariant and face_cex is not None:
+            claim += (f" (the flow leaves K through a face, e.g. at "
+                      f"{np.array2string(np.asarray(face_cex), precision=6)})")
     method = (f"interval branch and bound over {evaluated} boxes "
               f"({', '.join(f'{k} {v}' for k, v in counts.items() if v)})")
     return Certificate("proved", claim, method, invariant=invariant, boxes=evaluated,
