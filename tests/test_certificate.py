@@ -233,7 +233,8 @@ _LINE = Box(("y",), np.array([-1.0]), np.array([1.0]))
                                                      np.array([-0.6]))),   # V is NaN there
 ])
 def test_nothing_is_proved_where_the_expressions_are_undefined(f, V, box):
-    assert certify(_y, f, V, box, center=np.zeros(1), max_boxes=5_000).status != "proved"
+    center = np.zeros(1) if box.contains(np.zeros(1)) else None   # (a centre must be in the box)
+    assert certify(_y, f, V, box, center=center, max_boxes=5_000).status != "proved"
 
 
 def test_enclosures_of_powers_huge_sines_infinities_and_underflows():

@@ -89,3 +89,36 @@ def test_to_casadi_names_its_inputs():
     s = fuzzy.builtin("effc-tuned")
     with pytest.raises(TypeError, match="takes the inputs dtheta, alpha"):
         s.to_casadi(dtheta=cs.SX.sym("d"))
+
+
+def _one_input(term, out_term, default, points=101, rule=None):
+    return FuzzySystem.from_dict({
+        "format": "hybridnav-fis/1", "name": "one",
+        "inputs": [{"name": "x", "range": [0.0, 1.0], "points": points, "terms": [term]}],
+        "output": {"name": "y", "range": [0.0, 1.0], "points": 101, "terms": [out_term],
+                   "defuzz": "centroid", "default": default},
+        "rules": [{"if": rule or ["x", term["name"]], "then": out_term["name"]}]})
+
+
+def test_a_plateau_at_one_stays_one_and_a_gaussian_tail_keeps_its_value():
+    """NOT of a full membership is exactly 0 (no rule fires: the default), and a membership of
+    1e-22 still fires with its value (scikit-fuzzy's answers, checked by the engine's tests)."""
+    s = _one_input({"name": "high", "mf": "smf", "params": [0.1, 0.37]},
+                   {"name": "low", "mf": "trimf", "params": [0.0, 0.0, 0.5]}, 0.5,
+                   rule={"not": ["x", "high"]})
+    x = cs.SX.sym("x")
+    f = cs.Function("f", [x], [s.to_casadi(x=x)])
+    pts = np.linspace(0.37, 1.0, 301)
+    np.testing.assert_array_equal(np.asarray(f.map(301)(pts[None])).ravel(), 0.5)
+    np.testing.assert_array_equal(s.evaluate(x=pts), 0.5)
+    g = FuzzySystem.from_dict({
+        "format": "hybridnav-fis/1", "name": "tail",
+        "inputs": [{"name": "x", "range": [-1.0, 1.0], "points": 11,
+                    "terms": [{"name": "t", "mf": "gaussmf", "params": [0.0, 0.1]}]}],
+        "output": {"name": "y", "range": [0.0, 1.0], "points": 101,
+                   "terms": [{"name": "o", "mf": "trimf", "params": [0.0, 0.5, 1.0]}],
+                   "defuzz": "centroid", "default": 0.9},
+        "rules": [{"if": ["x", "t"], "then": "o"}]})
+    h = cs.Function("h", [x], [g.to_casadi(x=x)])
+    assert float(h(1.0)) == pytest.approx(float(g.evaluate(x=1.0)), rel=1e-12)
+    assert float(g.evaluate(x=1.0)) == pytest.approx(4.299871734759334e-07, rel=1e-12)

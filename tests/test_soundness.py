@@ -436,3 +436,22 @@ def test_a_periodic_angle_a_hair_short_of_a_turn_is_checked_on_a_whole_turn():
     # the certified box covers the whole turn (the same states again)
     top = cert.details["region"]["th"][1]
     assert Fraction(top) - Fraction(-3.0) >= Fraction(mpmath.nstr(2 * mpmath.pi, 30))
+
+
+def test_krawczyk_refuses_a_jump_and_certify_refuses_bad_arguments():
+    from hybridnav.analysis.equilibria import verify_zero
+
+    x = cs.SX.sym("x", 1)
+    for f in (x[0] + cs.if_else(x[0] < 0, -1e-5, 1e-5), x[0] + 1e-11 * cs.sign(x[0])):
+        assert verify_zero(x, f, [0.0]) is None          # no zero: f jumps over it
+    assert verify_zero(x, x[0] ** 3 - 2 * x[0] + 1, [1.0]) is not None
+    box = Box(("x",), np.array([0.0]), np.array([1.0]))
+    for kw, msg in (({"center": [-5e-4]}, "lies outside the box"),
+                    ({"center": [0.1, 0.2]}, "center: expected 1 finite"),
+                    ({"periodic": [5]}, "periodic: \\[5\\] are not coordinates")):
+        with pytest.raises(HybridnavError, match=msg):
+            certify(x, -x, x[0] ** 2, box, **kw)
+    with pytest.raises(HybridnavError, match="lo <= hi"):
+        certify(x, -x, x[0] ** 2, Box(("x",), np.array([1.0]), np.array([-1.0])))
+    with pytest.raises(HybridnavError, match="expected a scalar V"):
+        certify(x, -x, cs.vertcat(x[0], x[0]), box)

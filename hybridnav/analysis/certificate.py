@@ -168,7 +168,29 @@ def certify(
     -------
     Certificate
     """
+    from hybridnav.errors import HybridnavError
+
     nx = int(x.numel())
+    if cs.SX(V).numel() != 1 or cs.SX(f).numel() != nx or len(box.lower) != nx:
+        raise HybridnavError(
+            f"certify: expected a scalar V, f with {nx} entries and a box over {nx} states, got "
+            f"V {cs.SX(V).shape}, f {cs.SX(f).shape}, box of {len(box.lower)}")
+    if not (np.all(np.isfinite(box.lower)) and np.all(np.isfinite(box.upper))
+            and np.all(box.lower <= box.upper)):
+        raise HybridnavError(f"certify: expected finite bounds lo <= hi, got {box.to_dict()}")
+    bad = [i for i in periodic if not 0 <= int(i) < nx]
+    if bad:
+        raise HybridnavError(f"certify: periodic: {bad} are not coordinates 0..{nx - 1}")
+    if center is not None:
+        center = np.asarray(center, dtype=float).ravel()
+        if center.shape != (nx,) or not np.all(np.isfinite(center)):
+            raise HybridnavError(f"certify: center: expected {nx} finite numbers, got "
+                                 f"{center.tolist()}")
+        if not box.contains(center):
+            # the Taylor ball is expanded from x*: outside the box it would be clipped away
+            # from its own centre
+            raise HybridnavError(f"certify: center {center.tolist()} lies outside the box "
+                                 f"{box.to_dict()}")
     g = cs.SX(0, 1) if constraints is None else cs.vec(cs.SX(constraints))
     ng = int(g.numel())
     vdot = cs.jtimes(V, x, f)

@@ -7,10 +7,10 @@ model can be simulated, differentiated, linearized and certified by the analysis
 
 1. inputs clipped to their ranges: ``fmin(fmax(x, lo), hi)``;
 2. memberships: ``np.interp`` on each input's sampled universe is the polyline through the
-   samples, written exactly as a sum of hinges ``F_0 + S_0 (x - x_0) + sum_j (S_j - S_{j-1})
-   fmax(0, x - x_j)`` (one per change of slope), anchored at the side where the samples are zero
-   (and for a triangle the ``fmin`` of both), so that a membership that is 0 in the engine is
-   exactly 0 here and a rule that does not fire does not fire;
+   samples, written as a sum of trapezoids over the runs of equal samples (a hat per sample where
+   the samples differ), so that it is exact in real arithmetic and, in floating point, exactly
+   0 in a zero tail and exactly 1 on a plateau (a rule that does not fire does not fire, ``NOT``
+   of a full membership is 0) and relatively accurate in a Gaussian's tiny tail;
 3. AND = ``fmin``, OR = ``fmax``, NOT = ``1 - x``; firing strength times weight; each output
    term's cut is the largest strength of its rules;
 4. the aggregated output ``A(y) = max_t min(c_t, g_t(y))`` integrated as scikit-fuzzy's polyline
@@ -21,8 +21,13 @@ model can be simulated, differentiated, linearized and certified by the analysis
 5. centroid ``moment / fmax(area, eps)``, or the output's ``default`` where no term with a
    positive sample has a positive cut.
 
-Equal in real arithmetic to the engine; in floating point the two agree to rounding (the tests
-compare them at random points, and against scikit-fuzzy). Inputs must be finite (a NaN input gives
+Memberships are the exact polylines in real arithmetic (``np.interp``'s own formula is not quite:
+its rounded slopes leave ulp-sized steps at the samples), so in floating point a membership here
+and in the engine differ by about 1e-16 absolute. The output agrees to the same order wherever
+the cuts are well above that (the built-in systems: 2e-15 over their whole input ranges). Where
+a term's cut is itself tiny (a ``NOT`` of a membership 1e-13 short of 1), scikit-fuzzy's centroid
+moves its crossing points by amounts set by that rounding, and the two can differ by 1e-5 of the
+output range: there neither is more exact than the other. Inputs must be finite (a NaN input gives
 NaN in ``evaluate`` but not here: CasADi's ``fmin`` drops NaNs).
 """
 
@@ -38,46 +43,33 @@ __all__ = ["to_casadi"]
 _EPS = float(np.finfo(float).eps)
 
 
-def _left(v, xs, F, S, lo: int, hi: int):
-    """The polyline on samples ``lo..hi`` at ``v``, hinges anchored at ``xs[lo]`` (continued
-    linearly beyond ``xs[hi]``): exactly ``F[lo]`` left of the first slope change."""
-    out = F[lo] + S[lo] * (v - xs[lo]) if S[lo] != 0.0 else cs.SX(F[lo])
-    for j in range(lo + 1, hi):
-        ds = S[j] - S[j - 1]
-        if ds != 0.0:
-            out = out + ds * cs.fmax(0.0, v - xs[j])
-    return out
-
-
-def _right(v, xs, F, S, lo: int, hi: int):
-    """The same anchored at ``xs[hi]``: exactly ``F[hi]`` right of the last slope change."""
-    out = F[hi] - S[hi - 1] * (xs[hi] - v) if S[hi - 1] != 0.0 else cs.SX(F[hi])
-    for j in range(lo + 1, hi):
-        ds = S[j] - S[j - 1]
-        if ds != 0.0:
-            out = out + ds * cs.fmax(0.0, xs[j] - v)
-    return out
-
-
-def _membership(v, xs: Sequence[float], F: Sequence[float], S: Sequence[float]):
-    """``np.interp(v, xs, F)`` for ``v`` in ``[xs[0], xs[-1]]``: the polyline as hinge sums, laid
-    out so that where the samples are exactly 0 (a Z/S curve's tail, a triangle's feet) the value
-    is exactly 0 in floating point too — a cut that is exactly 0 must stay 0, or a rule that does
-    not fire would take the output away from its default."""
+def _membership(v, xs: Sequence[float], F: Sequence[float]):
+    """``np.interp(v, xs, F)`` for ``v`` in ``[xs[0], xs[-1]]``, exactly in real arithmetic and
+    faithfully in floating point: the polyline through the samples as ``sum_r c_r T_r(v)`` over
+    the runs ``r`` of equal samples (value ``c_r``), ``T_r`` the trapezoid that is 1 on the run
+    and falls linearly to 0 at the neighbouring samples (a hat for a run of one sample). Inside a
+    run the value is exactly ``c_r`` (a plateau at 1 stays 1, so ``NOT`` of it is exactly 0; a
+    zero tail stays 0, so a rule that does not fire does not fire), and a tiny value (a Gaussian's
+    tail) keeps its relative accuracy. Continuous, with kinks (``fmin``/``fmax``) at the samples.
+    """
     M = len(xs)
-    zl = F[0] == 0.0 and F[1] == 0.0
-    zr = F[-1] == 0.0 and F[-2] == 0.0
-    if zl and zr:
-        k = int(np.argmax(F))
-        rising = all(F[j] <= F[j + 1] for j in range(k))
-        falling = all(F[j] >= F[j + 1] for j in range(k, M - 1))
-        if rising and falling and 0 < k < M - 1:
-            # unimodal: the rising part continued rightwards meets the falling part continued
-            # leftwards at the peak; each is above the polyline on the other's side
-            return cs.fmin(_left(v, xs, F, S, 0, k + 1), _right(v, xs, F, S, k - 1, M - 1))
-    if zr and not zl:
-        return _right(v, xs, F, S, 0, M - 1)
-    return _left(v, xs, F, S, 0, M - 1)
+    runs = []
+    a = 0
+    for k in range(1, M + 1):
+        if k == M or F[k] != F[a]:
+            runs.append((a, k - 1, F[a]))
+            a = k
+    out = cs.SX(0)
+    for lo, hi, c in runs:
+        if c == 0.0:
+            continue
+        up = 1.0 if lo == 0 else cs.fmin(1.0, (v - xs[lo - 1]) / (xs[lo] - xs[lo - 1]))
+        down = 1.0 if hi == M - 1 else cs.fmin(1.0, (xs[hi + 1] - v) / (xs[hi + 1] - xs[hi]))
+        if isinstance(up, float) and isinstance(down, float):
+            out = out + c
+        else:
+            out = out + c * cs.fmax(0.0, cs.fmin(up, down))
+    return out
 
 
 def _sort(values: list):
@@ -110,11 +102,11 @@ def to_casadi(system, inputs: Sequence) -> cs.SX:
         raise ValueError(f"to_casadi: fuzzy system {system.name!r} takes the inputs "
                          f"{', '.join(eng.input_names)}, got {len(inputs)} expressions")
     mu: list = []
-    for (lo, hi, xs, F, S), x in zip(eng._in_py, inputs):
+    for (lo, hi, xs, F, _S), x in zip(eng._in_py, inputs):
         v = cs.fmin(cs.fmax(cs.SX(x), lo), hi)
         T = len(F[0])
         for t in range(T):
-            mu.append(_membership(v, xs, [row[t] for row in F], [row[t] for row in S]))
+            mu.append(_membership(v, xs, [row[t] for row in F]))
     for op, kids in eng._prog:
         if op == 0:
             e = mu[kids[0]]
