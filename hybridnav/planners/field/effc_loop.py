@@ -111,7 +111,7 @@ def effc_closed_loop(model, fis, goal: Sequence[float], circle: Sequence[float] 
     target = x[:2] + cs.mtimes(cs.DM(G), force)
     rhs = cs.substitute(model.closed_loop(x, target, s.p), s.p, cs.DM(model.p_value()))
     system = System(x, None, rhs, states=model.state_names, angles=model.angle_state_names,
-                    dt=model.dt, name=name)
+                    dt=model.dt, name=name, jit=model.jit)
     sx = system.sym.x
     system.parts = {k: cs.substitute(v, x, sx) for k, v in parts.items()}
     return system
