@@ -32,7 +32,7 @@ def _pendulum():
     def upd(t, x, u, p):
         return [x[1], -p["g"] / p["l"] * np.sin(x[0]) - p["b"] * x[1] + u[0]]
     return ct.nlsys(upd, None, states=["theta", "omega"], inputs=["tau"],
-                    outputs=["theta", "omega"], params=PARAMS, name="pendulum")
+                    outputs=["theta", "omega"], params=dict(PARAMS), name="pendulum")
 
 
 def _vdp():
@@ -221,3 +221,12 @@ def test_do_mpc_models_not_set_up_or_without_parameter_values_are_refused():
         with pytest.raises(HybridnavError, match="params.k: expected finite numbers"):
             as_system(m, params={"k": bad})
     assert linearize(as_system(m, params={"k": 2.0}), [0.0], []).A[0, 0] == -2.0
+
+
+def test_a_changed_python_control_system_is_traced_again():
+    pend = _pendulum()
+    a = linearize(pend, [0.0, 0.0], [0.0]).A
+    pend.params["b"] = 2.0                    # the user changes a parameter afterwards
+    b = linearize(pend, [0.0, 0.0], [0.0]).A
+    assert a[1, 1] == -0.5 and b[1, 1] == -2.0
+    assert as_system(pend) is as_system(pend)    # unchanged: the same System (its symbols)

@@ -226,16 +226,29 @@ def as_system(obj: Any, *, states: Sequence[str] | None = None,
         return obj
     plain = (states is None and inputs is None and u0 is None and params is None
              and equilibrium is None and not angles and dt == 0.01 and name is None)
+    # the same object gives the same System (its symbols), so a candidate built from one call's
+    # result serves the next call — unless what it was traced from changed since (a
+    # python-control system's params or update function are mutable)
+    key = _source_key(obj)
     cached = getattr(obj, "__dict__", {}).get("_hybridnav_system") if plain else None
-    if cached is not None:
-        return cached
+    if cached is not None and cached[0] == key:
+        return cached[1]
     system = _convert(obj, states=states, inputs=inputs, u0=u0, params=params,
                       equilibrium=equilibrium, angles=angles, dt=dt, name=name)
     if plain and hasattr(obj, "__dict__"):
-        # the same object gives the same System (its symbols), so a candidate built from one
-        # call's result serves the next call
-        obj.__dict__["_hybridnav_system"] = system
+        obj.__dict__["_hybridnav_system"] = (key, system)
     return system
+
+
+def _source_key(obj) -> tuple:
+    """What a cached conversion depends on besides the object's identity."""
+    params = getattr(obj, "params", None)
+    try:
+        ptext = repr(sorted((str(k), repr(v)) for k, v in dict(params or {}).items()))
+    except (TypeError, ValueError):
+        ptext = repr(params)
+    return (id(getattr(obj, "updfcn", None)), ptext, getattr(obj, "nstates", None),
+            getattr(obj, "ninputs", None))
 
 
 def _convert(obj, *, states, inputs, u0, params, equilibrium, angles, dt, name) -> System:
