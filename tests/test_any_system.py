@@ -35,6 +35,18 @@ def _pendulum():
                     outputs=["theta", "omega"], params=dict(PARAMS), name="pendulum")
 
 
+def _do_mpc_model(build, setup=True):
+    """A continuous do-mpc model with the variables and right-hand sides ``build(m)`` sets."""
+    do_mpc = pytest.importorskip("do_mpc")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = do_mpc.model.Model("continuous")
+        build(m)
+        if setup:
+            m.setup()
+    return m
+
+
 def _vdp():
     x = cs.SX.sym("x", 2)
     return cs.Function("vdp", [x], [cs.vertcat(-x[1], x[0] + (x[0] ** 2 - 1) * x[1])])
@@ -115,17 +127,13 @@ def test_expressions_statespace_and_do_mpc_give_the_same_linearization():
         np.testing.assert_allclose(sys.B, ref.B, rtol=1e-14)
     ss = ct.ss([[0, 1], [-2, -3]], [[0], [1]], np.eye(2), 0)
     np.testing.assert_allclose(linearize(ss, [1.0, 2.0], [0.5]).A, [[0, 1], [-2, -3]])
-    do_mpc = pytest.importorskip("do_mpc")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        m = do_mpc.model.Model("continuous")
-        th = m.set_variable("_x", "theta")
-        om = m.set_variable("_x", "omega")
-        tau = m.set_variable("_u", "tau")
-        b = m.set_variable("_p", "b")
+    def pendulum(m):
+        th, om = m.set_variable("_x", "theta"), m.set_variable("_x", "omega")
+        tau, b = m.set_variable("_u", "tau"), m.set_variable("_p", "b")
         m.set_rhs("theta", om)
         m.set_rhs("omega", -9.81 * cs.sin(th) - b * om + tau)
-        m.setup()
+
+    m = _do_mpc_model(pendulum)
     with pytest.raises(HybridnavError, match=r"params.b: the do-mpc model's p variable"):
         linearize(m, [0.2, 0.0], [0.0])
     sys = as_system(m, params={"b": 0.5})
@@ -207,13 +215,11 @@ def test_bad_arguments_get_named_errors(call, msg):
 
 
 def test_do_mpc_models_not_set_up_or_without_parameter_values_are_refused():
-    do_mpc = pytest.importorskip("do_mpc")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        m = do_mpc.model.Model("continuous")
-        th = m.set_variable("_x", "theta")
-        k = m.set_variable("_p", "k")
+    def decay(m):
+        th, k = m.set_variable("_x", "theta"), m.set_variable("_p", "k")
         m.set_rhs("theta", -k * th)
+
+    m = _do_mpc_model(decay, setup=False)
     with pytest.raises(HybridnavError, match="not set up"):
         as_system(m)
     m.setup()

@@ -426,7 +426,7 @@ def certify(
             # only if that ball lies inside {V < level}, off its boundary
             r0 = local["details"]["r0"]
             c = local["center"]
-            bl, bh, _ = F((c - r0)[None], (c + r0)[None], clamp)
+            _, bh, _ = F((c - r0)[None], (c + r0)[None], clamp)
             if not bh[0, iv] < cap:
                 invariant = False
                 details["invariance_refused"] = (

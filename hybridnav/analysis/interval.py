@@ -322,7 +322,7 @@ class IntervalFunction:
             defined = _and(defined, dom if not dom.all() else None)
             if name == "if_else_zero" and defined is not None:
                 # CasADi evaluates cond ? value : 0; a surely false cond gives 0 whatever value is
-                yes, no = _truth(a, b)
+                _, no = _truth(a, b)
                 defined = np.where(no & (wd[ins[0]] if wd[ins[0]] is not None else True), True,
                                    defined)
             if name not in _EXACT:

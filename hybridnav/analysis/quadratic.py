@@ -96,8 +96,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
             return _centred(report, fn, witness, c, ev_v, ev_d, vec_d, m_v, M_d, box, level)
     # not centred on one point: V's minimum below zero, or Vdot's maximum above it, is a
     # counterexample where the enclosure shows it (inside the region)
-    vl, vh, _ = F(xs[None], xs[None])
-    if vh[0, 0] < 0 and box.contains(xs):
+    if box.contains(xs) and witness.v_negative(xs)[0]:
         report.route = "quadratic"
         _counterexample(report, _both(fn), xs, "exact: V is a quadratic form whose minimum, at "
                         "this state, is negative", witness)
@@ -105,8 +104,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
     if ev_d.max() < 0:
         xd = np.linalg.solve(hd, -gd0.ravel())
         if box.contains(xd) and (level is None or float(np.asarray(fn(xd)[0]).item()) <= level):
-            sign, lo, hi = witness.vdot_sign(xd)
-            if sign == "positive":
+            if witness.vdot_sign(xd)[0] == "positive":
                 report.route = "quadratic"
                 _counterexample(report, _both(fn), xd, "exact: Vdot is a quadratic form whose "
                                 "maximum, at this state, is positive (V and Vdot are not centred "

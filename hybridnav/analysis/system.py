@@ -369,14 +369,16 @@ def _from_do_mpc(model, states, inputs, params, name, common) -> System:
             vals.append(float(value[idx] if value.size > idx else value[0]))
     if subs:
         rhs = cs.substitute(rhs, cs.vertcat(*subs), cs.DM(vals))
-    labels = [lab.strip("[]").replace(",", "_") for lab in model.x.labels()]
-    labels = [lab[:-2] if lab.endswith("_0") and sum(
-        m.startswith(lab[:-2] + "_") for m in labels) == 1 else lab for lab in labels]
-    ulabels = [lab.strip("[]").replace(",", "_") for lab in model.u.labels()]
-    ulabels = [lab[:-2] if lab.endswith("_0") and sum(
-        m.startswith(lab[:-2] + "_") for m in ulabels) == 1 else lab for lab in ulabels]
-    return System(x, u, rhs, states=states or labels, inputs=inputs or ulabels,
+    return System(x, u, rhs, states=states or _do_mpc_names(model.x),
+                  inputs=inputs or _do_mpc_names(model.u),
                   name=name or "do_mpc_model", source=(model, dict(params or {})), **common)
+
+
+def _do_mpc_names(struct) -> list[str]:
+    """do-mpc's labels ``[name,i]`` as ``name_i``; a scalar variable keeps its plain name."""
+    labels = [lab.strip("[]").replace(",", "_") for lab in struct.labels()]
+    return [lab[:-2] if lab.endswith("_0") and sum(
+        m.startswith(lab[:-2] + "_") for m in labels) == 1 else lab for lab in labels]
 
 
 def _has_nan_constant(expr: cs.SX) -> bool:

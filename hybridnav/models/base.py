@@ -536,7 +536,7 @@ class Model(ABC):
         p = self.p_value()
         if kind == "closed_loop":
             f = self.function("closed_loop")
-            target_in = self.target_size != self.nx or not hasattr(self, "u0")
+            target_in = not hasattr(self, "u0")       # a general system holds its input
             inputs = [str(v) for v in cs.vertsplit(self.sym.target)] if target_in else []
             fixed = getattr(self, "equilibrium", None)
             fixed = np.zeros(self.target_size) if fixed is None else fixed
