@@ -456,3 +456,18 @@ def test_krawczyk_refuses_a_jump_and_certify_refuses_bad_arguments():
         certify(x, -x, x[0] ** 2, Box(("x",), np.array([1.0]), np.array([-1.0])))
     with pytest.raises(HybridnavError, match="expected a scalar V"):
         certify(x, -x, cs.vertcat(x[0], x[0]), box)
+
+
+def test_a_region_of_attraction_around_tiny_limit_cycles_is_not_certified():
+    """Two limit cycles inside radius 1.5e-4 and Vdot = 0 on b = 0: the simulated runs do not
+    converge, so no level is certified (this used to end in a NaN level)."""
+    from hybridnav.analysis import as_system
+
+    x = cs.SX.sym("x", 3)
+    a, b, c = x[0], x[1], x[2]
+    d, r2 = 1e-8, x[0] ** 2 + x[1] ** 2
+    s = as_system((x, cs.vertcat(b, -a - b * (d - r2) * (2 * d - r2) / d, -c)),
+                  equilibrium=[0, 0, 0], states=["a", "b", "c"])
+    r = estimate_roa(s, cs.sumsqr(x), equilibrium=[0, 0, 0],
+                     region={"a": (-1, 1), "b": (-1, 1), "c": (-1, 1)}, confirm=50)
+    assert r.status != "proved" and np.isfinite(r.level)

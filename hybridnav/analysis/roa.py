@@ -252,6 +252,10 @@ def estimate_roa(
             cex, low = sim["stuck_state"], float(stuck.min())
         bounded = "simulation"
         level = low * (1 - rtol)
+        if not (np.isfinite(level) and level > 0):
+            # the run ended where V is not a number or at V = 0: no level is certified
+            level, status = 0.0, "counterexample"
+            break
         final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
         status = final.status
         sim = _confirm(model, vfun, box, target, level, confirm, rng, horizon, dfun)
@@ -266,6 +270,12 @@ def estimate_roa(
                                      "that the set is positively invariant: "
                                      + cert.get("details", {}).get("invariance_refused",
                                                                    "faces undecided"))
+        if status == "proved" and final.route == "lasalle":
+            # LaSalle's claim is that trajectories enter {V < eps}, which may hold other
+            # attractors: not that they converge to the equilibrium
+            status = "no_counterexample"
+            details["not_proved"] = ("LaSalle's route shows that trajectories from the set enter "
+                                     "{V < eps}, not that they converge to the equilibrium")
     return RoaEstimate(level=float(level), status=status, bounded_by=bounded, counterexample=cex,
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
