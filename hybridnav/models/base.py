@@ -492,7 +492,14 @@ class Model(ABC):
         can be inverted exactly override it.
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2)
+        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / np.array(
+            self.carrot_divisor())
+
+    def carrot_divisor(self) -> tuple[float, float]:
+        """``(dx, dy)`` with :meth:`carrot` ``= X[:, :2] + velocity / (dx, dy)``: one second of
+        the velocity ahead (``(1, 1)``) unless a model's controller is inverted exactly (the
+        compiled control cycle uses the same numbers)."""
+        return (1.0, 1.0)
 
     def retarget(self, X, targets) -> np.ndarray:
         """Reset the controller states of a batch for new targets (identity without any)."""

@@ -9,7 +9,6 @@ Open loop: the robot's velocity is its input, ``xdot = u1``, ``ydot = u2``. Go-t
 from __future__ import annotations
 
 import casadi as cs
-import numpy as np
 
 from hybridnav.models.base import Model
 from hybridnav.params import Param
@@ -33,11 +32,9 @@ class PointMass(Model):
         "alpha2": Param(0.1, "convergence gain along y (1/s)"),
     }
 
-    def carrot(self, X, velocity):
+    def carrot_divisor(self) -> tuple[float, float]:
         """``x + (vx / alpha1, vy / alpha2)``: the controller then commands exactly ``velocity``."""
-        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        gains = np.array([self.values["alpha1"], self.values["alpha2"]])
-        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / gains
+        return (float(self.values["alpha1"]), float(self.values["alpha2"]))
 
     def open_loop(self, x, u, p):
         return cs.vertcat(u[0], u[1])

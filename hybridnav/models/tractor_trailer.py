@@ -112,10 +112,9 @@ class TractorTrailer(Model):
             ) + th0
         return q["k_xi"] * (wrap_angle(cs.atan2(dy, dx) - th0) - xi)
 
-    def carrot(self, X, velocity):
+    def carrot_divisor(self) -> tuple[float, float]:
         """``x + velocity / alpha``: the speed ``alpha * distance`` is then ``|velocity|``."""
-        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        return X[:, :2] + np.asarray(velocity, dtype=float).reshape(-1, 2) / self.values["alpha"]
+        return (float(self.values["alpha"]),) * 2
 
     def retarget(self, X, targets) -> np.ndarray:
         """Set ``xi = wrap(atan2(y1 - y, x1 - x) - theta0)`` for each robot's new target."""

@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 
 import casadi as cs
-import numpy as np
 
 from hybridnav.models.base import Model, wrap_angle
 from hybridnav.params import Param
@@ -65,16 +64,13 @@ class Unicycle(Model):
     def hold(self) -> str:  # type: ignore[override]
         return "zoh" if self.options["controller"] == "heading" else "continuous"
 
-    def carrot(self, X, velocity):
-        """Heading controller: the direction of ``velocity`` (its speed is the ``speed`` param).
-
-        Go-to-point: ``x + velocity / k_rho`` (that speed once the robot faces that way).
-        """
-        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        V = np.asarray(velocity, dtype=float).reshape(-1, 2)
+    def carrot_divisor(self) -> tuple[float, float]:
+        """Heading controller: ``x + velocity`` (its direction; the speed is the ``speed``
+        param). Go-to-point: ``x + velocity / k_rho`` (that speed once the robot faces that
+        way)."""
         if self.options["controller"] == "heading":
-            return X[:, :2] + V
-        return X[:, :2] + V / self.values["k_rho"]
+            return (1.0, 1.0)
+        return (float(self.values["k_rho"]),) * 2
 
     def polar_error_dynamics(self) -> tuple[cs.SX, cs.SX, tuple[str, str]]:
         """The go-to-point closed loop in polar error coordinates ``(rho, e)``.

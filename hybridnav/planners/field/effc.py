@@ -26,7 +26,7 @@ import numpy as np
 from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param
 from hybridnav.planners.field.base import COMMON, FieldPlanner
-from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field
+from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field, prepare
 from hybridnav.planners.simulate import Simulation
 
 __all__ = ["EFFC", "effc_inputs", "effc_inputs_from", "effc_force", "effc_lockstep"]
@@ -96,6 +96,15 @@ def effc_lockstep(st, family, tables, n_members: int,
     dt = scenarios[0].dt
     radius = st.radius
     last = None if noise is None else noise.shape[3] - 1
+    overrides = {"controller": "heading", "speed": planner["speed"],
+                 "max_turn": planner["max_turn"]}
+    batch = prepare(scenarios, n_members, overrides, st.stack)
+    from hybridnav.native.lockstep import effc_run
+
+    res = effc_run(batch, family, tables, planner, repeats=repeats, noise=noise, radius=radius,
+                   record_paths=record_paths)
+    if res is not None:                  # the compiled control cycle
+        return res
 
     def field(env, members, P, goals, t):
         clear, near = st.stack.nearest(P, env, t)
@@ -113,8 +122,6 @@ def effc_lockstep(st, family, tables, n_members: int,
             F = np.stack([c * F[:, 0] - s_ * F[:, 1], s_ * F[:, 0] + c * F[:, 1]], axis=1)
         return F
 
-    overrides = {"controller": "heading", "speed": planner["speed"],
-                 "max_turn": planner["max_turn"]}
     return lockstep_field(scenarios, n_members, field, model_overrides=overrides,
                           speed=planner["speed"], stuck_window=planner["stuck_window"],
                           stuck_radius=planner["stuck_radius"], record_paths=record_paths,

@@ -17,7 +17,7 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["LockstepResult", "lockstep_field"]
+__all__ = ["Batch", "LockstepResult", "finish", "lockstep_field", "prepare"]
 
 OUTCOME_CODES = ("running", "reached", "collided", "out_of_bounds", "stuck", "timeout")
 
@@ -79,35 +79,9 @@ def lockstep_field(
         Pass the robots' whole states ``(m, nx)`` (x, y, heading, ...) to ``field`` instead of
         their positions (controllers that steer relative to the heading).
     """
-    if not scenarios:
-        raise HybridnavError("scenarios: expected at least one training scenario")
-    models = []
-    for s in scenarios:
-        if len(s.robots) != 1 or s.robots[0].goal is None:
-            raise HybridnavError(
-                f"{s.source or s.name}: robots: lockstep training needs exactly one robot with a "
-                "fixed goal")
-        models.append(s.model(s.robots[0], **(model_overrides or {})))
-    model = models[0]
-    if any(m._key() != model._key() for m in models):
-        raise HybridnavError(
-            "scenarios: the training scenarios' robots must share one model, its parameters and "
-            "dt (one batched step serves them all)")
-    if stack is None:
-        from hybridnav.planners.field.worldstack import WorldStack
-
-        stack = WorldStack([s.world for s in scenarios])
-    E, M = len(scenarios), int(n_members)
-    N = E * M
-    dt = model.dt
-    steps = int(math.ceil(max(s.max_time for s in scenarios) / dt - 1e-9))
-    budget = np.repeat([int(math.ceil(s.max_time / dt - 1e-9)) for s in scenarios], M)
-    env = np.repeat(np.arange(E), M)
-    member = np.tile(np.arange(M), E)
-    goals = np.repeat([s.robots[0].goal for s in scenarios], M, axis=0).astype(float)
-    goal_r = np.repeat([s.robots[0].goal_radius for s in scenarios], M)
-    X = np.vstack([np.tile(model.initial_state(s.robots[0].start, s.robots[0].goal,
-                                               s.robots[0].initial), (M, 1)) for s in scenarios])
+    b = prepare(scenarios, n_members, model_overrides, stack)
+    model, stack, N, dt, steps = b.model, b.stack, b.N, b.dt, b.steps
+    budget, env, member, goals, goal_r, X = b.budget, b.env, b.member, b.goals, b.goal_r, b.X
     status = np.zeros(N, dtype=int)              # index into OUTCOME_CODES
     last = np.zeros((N, 2))                      # last non-zero command per robot
     length = np.zeros(N)
@@ -162,16 +136,77 @@ def lockstep_field(
         over = (status == 0) & (k + 1 >= budget)
         status[over] = OUTCOME_CODES.index("timeout")
         t_end[over] = tn
+    return finish(b, status, length, t_end, min_clear, paths)
+
+@dataclass
+class Batch:
+    """The robots of a lockstep run, row ``n = env * M + member`` (what :func:`prepare` sets
+    up; the NumPy loop and the compiled control cycle start from it)."""
+
+    scenarios: Sequence
+    model: object
+    stack: object
+    E: int
+    M: int
+    N: int
+    dt: float
+    steps: int
+    budget: np.ndarray
+    env: np.ndarray
+    member: np.ndarray
+    goals: np.ndarray
+    goal_r: np.ndarray
+    X: np.ndarray
+
+
+def prepare(scenarios: Sequence, n_members: int, model_overrides: dict | None = None,
+            stack=None) -> Batch:
+    """Check the scenarios and lay out their robots (see :func:`lockstep_field`)."""
+    if not scenarios:
+        raise HybridnavError("scenarios: expected at least one training scenario")
+    models = []
+    for s in scenarios:
+        if len(s.robots) != 1 or s.robots[0].goal is None:
+            raise HybridnavError(
+                f"{s.source or s.name}: robots: lockstep training needs exactly one robot with a "
+                "fixed goal")
+        models.append(s.model(s.robots[0], **(model_overrides or {})))
+    model = models[0]
+    if any(m._key() != model._key() for m in models):
+        raise HybridnavError(
+            "scenarios: the training scenarios' robots must share one model, its parameters and "
+            "dt (one batched step serves them all)")
+    if stack is None:
+        from hybridnav.planners.field.worldstack import WorldStack
+        stack = WorldStack([s.world for s in scenarios])
+    E, M = len(scenarios), int(n_members)
+    N = E * M
+    dt = model.dt
+    steps = int(math.ceil(max(s.max_time for s in scenarios) / dt - 1e-9))
+    budget = np.repeat([int(math.ceil(s.max_time / dt - 1e-9)) for s in scenarios], M)
+    env = np.repeat(np.arange(E), M)
+    member = np.tile(np.arange(M), E)
+    goals = np.repeat([s.robots[0].goal for s in scenarios], M, axis=0).astype(float)
+    goal_r = np.repeat([s.robots[0].goal_radius for s in scenarios], M)
+    X = np.vstack([np.tile(model.initial_state(s.robots[0].start, s.robots[0].goal,
+                                               s.robots[0].initial), (M, 1)) for s in scenarios])
+    return Batch(list(scenarios), model, stack, E, M, N, dt, steps, budget, env, member, goals,
+                 goal_r, X)
+
+
+def finish(b: Batch, status: np.ndarray, length: np.ndarray, t_end: np.ndarray,
+           min_clear: np.ndarray, paths: np.ndarray | None) -> LockstepResult:
+    """The result of a run whose loop has ended: robots still running time out."""
     left = status == 0
     status[left] = OUTCOME_CODES.index("timeout")
-    t_end[left] = steps * dt
-    shape = (E, M)
+    t_end[left] = b.steps * b.dt
+    shape = (b.E, b.M)
     return LockstepResult(
         outcome=np.array(OUTCOME_CODES, dtype=object)[status].reshape(shape),
         path_length=length.reshape(shape), time=t_end.reshape(shape),
         min_clearance=min_clear.reshape(shape),
-        final_distance=np.hypot(*(X[:, :2] - goals).T).reshape(shape),
-        paths=None if paths is None else [paths[env == e] for e in range(E)],
+        final_distance=np.hypot(*(b.X[:, :2] - b.goals).T).reshape(shape),
+        paths=None if paths is None else [paths[b.env == e] for e in range(b.E)],
     )
 
 

@@ -1,0 +1,95 @@
+"""Compiled kernels: C sources shipped with the package, built once per machine with the system C
+compiler and loaded through :mod:`ctypes`.
+
+:func:`build` compiles a source (plus generated code, e.g. a model step from CasADi's code
+generator) into a shared library in the cache folder — ``$HYBRIDNAV_CACHE/native`` or
+``~/.cache/hybridnav/native`` — named by the hash of the source, the compiler and its flags, so
+every process of a job (workers included) loads the same file and a changed source is rebuilt.
+The file is written to a temporary name and renamed: two processes building at once both end up
+with a whole library. Without a compiler, or with ``HYBRIDNAV_NATIVE=0``, :func:`build` returns
+``None`` and callers use their NumPy path (same results to rounding, slower).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import logging
+import os
+import shutil
+import subprocess
+import tempfile
+import threading
+from importlib import resources
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+__all__ = ["build", "cache_dir", "enabled", "source"]
+
+FLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
+_LOADED: dict[str, ctypes.CDLL | None] = {}
+_LOCK = threading.Lock()
+
+
+def enabled() -> bool:
+    """Whether compiled kernels may be used (``HYBRIDNAV_NATIVE=0`` switches them off)."""
+    return os.environ.get("HYBRIDNAV_NATIVE", "1").strip().lower() not in ("0", "false", "no",
+                                                                         "off")
+
+
+def cache_dir() -> Path:
+    """Where built libraries are kept."""
+    base = os.environ.get("HYBRIDNAV_CACHE")
+    root = Path(base) if base else Path(os.path.expanduser("~")) / ".cache" / "hybridnav"
+    return root / "native"
+
+
+def source(name: str) -> str:
+    """The text of a C source shipped in this package."""
+    return resources.files(__name__).joinpath(name).read_text(encoding="utf-8")
+
+
+def build(name: str, code: str) -> ctypes.CDLL | None:
+    """The library compiled from ``code`` (loaded once per process), or ``None`` where it cannot
+    be built (no compiler, a compile error — logged — or kernels switched off)."""
+    if not enabled():
+        return None
+    compiler = os.environ.get("CC", "gcc")
+    digest = hashlib.sha256("\0".join((code, compiler, *FLAGS)).encode()).hexdigest()[:20]
+    key = f"{name}-{digest}"
+    with _LOCK:
+        if key in _LOADED:
+            return _LOADED[key]
+        lib = _build(key, code, compiler)
+        _LOADED[key] = lib
+        return lib
+
+
+def _build(key: str, code: str, compiler: str) -> ctypes.CDLL | None:
+    folder = cache_dir()
+    target = folder / f"{key}.so"
+    if not target.exists():
+        if shutil.which(compiler) is None:
+            log.info("no C compiler (%s): compiled kernels unavailable", compiler)
+            return None
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
+                src = Path(tmp) / f"{key}.c"
+                src.write_text(code, encoding="utf-8")
+                out = Path(tmp) / f"{key}.so"
+                proc = subprocess.run([compiler, *FLAGS, "-o", str(out), str(src), "-lm"],
+                                      capture_output=True, text=True, timeout=300)
+                if proc.returncode != 0:
+                    log.warning("compiling %s failed: %s", key, proc.stderr.strip()[-2000:])
+                    return None
+                os.replace(out, target)
+        except (OSError, subprocess.SubprocessError) as exc:
+            log.info("compiled kernel %s unavailable: %s", key, exc)
+            return None
+    try:
+        return ctypes.CDLL(str(target))
+    except OSError as exc:
+        log.info("cannot load %s: %s", target, exc)
+        return None

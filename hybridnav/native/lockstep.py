@@ -1,0 +1,294 @@
+"""The compiled control cycle (``lockstep.c``) bound to NumPy: a fuzzy family's batched evaluation
+and the whole EFFC lockstep run in one call.
+
+:func:`family_evaluate` is :meth:`hybridnav.fuzzy.family.SystemFamily.evaluate` in C;
+:func:`effc_run` is :func:`hybridnav.planners.field.effc.effc_lockstep` — nearest obstacle,
+EFFC's inputs, the fuzzy blend weight, the force, the model step (CasADi's generated C for the
+model, compiled into the same library) and the outcome tests, every control cycle of every robot —
+without returning to Python. Both return ``None`` where they do not apply (no compiler, kernels
+switched off, a model whose body is not one disk, a family beyond the kernel's fixed sizes), and
+the caller runs its NumPy path. Results agree with the NumPy path to rounding (sums in another
+order; the tests compare them).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from ctypes import POINTER, Structure, c_double, c_int, c_int64, c_void_p
+from typing import Any
+
+import numpy as np
+
+from hybridnav import native
+from hybridnav.fuzzy.spec import And, Not, Or, TermRef
+
+__all__ = ["available", "effc_run", "family_evaluate"]
+
+_MAX_IN, _MAX_TERMS, _MAX_STACK, _MAX_T = 16, 64, 64, 64
+
+
+class _Family(Structure):
+    _fields_ = [("n_in", c_int), ("n_terms", c_void_p), ("n_pts", c_void_p),
+                ("xin", c_void_p), ("tin", c_void_p), ("inv", c_void_p), ("T", c_int), ("M", c_int),
+                ("xout", c_void_p), ("dxh", c_void_p), ("c1", c_void_p), ("c2", c_void_p),
+                ("wt", c_void_p), ("wm", c_void_p),
+                ("tout", c_void_p), ("tmax", c_void_p), ("R", c_int), ("weights", c_void_p),
+                ("cons", c_void_p), ("ante", c_void_p), ("prog", c_void_p),
+                ("prog_start", c_void_p), ("default_out", c_double)]
+
+
+class _Stack(Structure):
+    _fields_ = [("E", c_int), ("C", c_int), ("G", c_int), ("Ed", c_int), ("Kp", c_int),
+                ("moving", c_int), ("c0", c_void_p), ("cv", c_void_p), ("cr", c_void_p),
+                ("eA", c_void_p), ("eB", c_void_p), ("owner", c_void_p), ("closed", c_void_p),
+                ("perm", c_void_p), ("has", c_void_p), ("ws", c_void_p)]
+
+
+class _Run(Structure):
+    _fields_ = [("N", c_int64), ("nx", c_int), ("steps", c_int), ("window", c_int),
+                ("dt", c_double), ("speed", c_double), ("stuck_radius", c_double),
+                ("foot_radius", c_double), ("div_x", c_double), ("div_y", c_double),
+                ("env", c_void_p), ("member", c_void_p), ("repeats", c_int64),
+                ("in_dtheta", c_int), ("in_alpha", c_int), ("X", c_void_p),
+                ("goals", c_void_p), ("goal_r", c_void_p), ("budget", c_void_p),
+                ("radius", c_void_p), ("noise", c_void_p), ("noise_members", c_int64),
+                ("noise_steps", c_int64), ("status", c_void_p), ("length", c_void_p),
+                ("t_end", c_void_p), ("min_clear", c_void_p), ("paths", c_void_p)]
+
+
+class _Keep:
+    """Arrays whose memory a structure points into (kept alive with it)."""
+
+    def __init__(self) -> None:
+        self.arrays: list[Any] = []
+
+    def ptr(self, a, dtype) -> int:
+        a = np.ascontiguousarray(a, dtype=dtype)
+        self.arrays.append(a)
+        return a.ctypes.data
+
+    def ptrs(self, arrays, dtype) -> int:
+        held = [np.ascontiguousarray(a, dtype=dtype) for a in arrays]
+        self.arrays += held
+        table = (c_void_p * max(1, len(held)))(*[h.ctypes.data for h in held])
+        self.arrays.append(table)
+        return ctypes.addressof(table)
+
+
+def _library(model=None) -> ctypes.CDLL | None:
+    code = native.source("lockstep.c")
+    if model is None:
+        lib = native.build("family", "#define HN_NO_MODEL 1\n" + code)
+    else:
+        lib = native.build(f"lockstep-{model.name}", _model_code(model) + "\n" + code)
+    if lib is not None and not getattr(lib, "_hn_typed", False):
+        lib.hn_family_eval.argtypes = [POINTER(_Family), c_int64, c_void_p, c_void_p, c_void_p]
+        lib.hn_family_eval.restype = c_int
+        if model is not None:
+            lib.hn_effc_run.argtypes = [POINTER(_Family), POINTER(_Stack), POINTER(_Run)]
+            lib.hn_effc_run.restype = c_int
+        lib._hn_typed = True
+    return lib
+
+
+_MODEL_CODE: dict[tuple, str] = {}
+
+
+def _model_code(model) -> str:
+    """CasADi's generated C for one control cycle of ``model`` as ``hn_model_step``."""
+    key = model._key()
+    if key not in _MODEL_CODE:
+        import casadi as cs
+
+        single = model._step_single()
+        x = cs.SX.sym("x", model.nx)
+        tg = cs.SX.sym("target", model.target_size)
+        fn = cs.Function("hn_model_step", [x, tg], [single(x, tg)])
+        cg = cs.CodeGenerator("hn_model_step.c", {"with_header": False})
+        cg.add(fn)
+        _MODEL_CODE[key] = cg.dump()
+    return _MODEL_CODE[key]
+
+
+def _program(family) -> tuple[list[int], list[int]] | None:
+    """Each template rule's antecedent as a postfix program (term, NOT, AND n, OR n)."""
+    prog: list[int] = []
+    starts = [0]
+    depth_max = 0
+
+    def emit(a, depth: int) -> int:
+        nonlocal depth_max
+        depth_max = max(depth_max, depth + 1)
+        if isinstance(a, TermRef):
+            i, j = family._term_index[(a.input, a.term)]
+            prog.extend((1, i, j))
+        elif isinstance(a, Not):
+            emit(a.item, depth)
+            prog.append(2)
+        else:
+            for n, item in enumerate(a.items):
+                emit(item, depth + n)
+            prog.extend((3 if isinstance(a, And) else 4, len(a.items)))
+            assert isinstance(a, (And, Or))
+        return depth_max
+
+    for rule in family.rules:
+        emit(rule.antecedent, 0)
+        starts.append(len(prog))
+    if depth_max > _MAX_STACK:
+        return None
+    return prog, starts
+
+
+def _family_struct(family, tables, keep: _Keep) -> _Family | None:
+    terms = [len(v.terms) for v in family.inputs]
+    T = len(family.output.terms)
+    if len(terms) > _MAX_IN or max(terms) > _MAX_TERMS or T > _MAX_T:
+        return None
+    prog = None
+    if tables.antecedents is None:
+        prog = getattr(family, "_native_program", False)
+        if prog is False:
+            prog = family._native_program = _program(family)
+        if prog is None:
+            return None
+    f = _Family()
+    f.n_in = len(terms)
+    f.n_terms = keep.ptr(terms, np.int32)
+    f.n_pts = keep.ptr([len(x) for x in family.x_in], np.int32)
+    f.xin = keep.ptrs(family.x_in, np.float64)
+    f.tin = keep.ptrs(tables.inputs, np.float64)
+    f.inv = keep.ptr([(len(x) - 1) / (x[-1] - x[0]) if len(x) > 1 and x[-1] > x[0] else 0.0
+                      for x in family.x_in], np.float64)
+    f.T, f.M = T, len(family.x_out)
+    f.xout = keep.ptr(family.x_out, np.float64)
+    xs = family.x_out
+    x0, dx = xs[:-1], np.diff(xs)              # the coefficients upsampled_centroid uses
+    dxh, c1, c2 = dx / 2.0, dx * x0 / 2.0, dx * dx / 6.0
+    f.dxh, f.c1, f.c2 = keep.ptr(dxh, np.float64), keep.ptr(c1, np.float64), keep.ptr(c2, np.float64)
+    wt, wm = np.zeros(len(xs)), np.zeros(len(xs))
+    wt[:-1] += dxh                             # sample m opens interval m ...
+    wt[1:] += dxh                              # ... and closes interval m - 1
+    wm[:-1] += c1 + c2
+    wm[1:] += c1 + 2.0 * c2
+    f.wt, f.wm = keep.ptr(wt, np.float64), keep.ptr(wm, np.float64)
+    f.tout = keep.ptr(tables.output, np.float64)
+    f.tmax = keep.ptr(tables.output.max(axis=2), np.float64)
+    f.R = len(family.rules)
+    f.weights = keep.ptr(tables.weights, np.float64)
+    f.cons = keep.ptr(tables.consequents, np.int64)
+    f.ante = None if tables.antecedents is None else keep.ptr(tables.antecedents, np.int64)
+    if prog is not None:
+        f.prog = keep.ptr(prog[0] or [0], np.int32)
+        f.prog_start = keep.ptr(prog[1], np.int32)
+    f.default_out = float(family.output.default)
+    return f
+
+
+def family_evaluate(family, tables, member: np.ndarray, inputs) -> np.ndarray | None:
+    """:meth:`SystemFamily.evaluate` compiled, or ``None`` where the kernel does not apply."""
+    lib = _library()
+    if lib is None:
+        return None
+    keep = _Keep()
+    f = _family_struct(family, tables, keep)
+    if f is None:
+        return None
+    B = len(member)
+    X = np.empty((len(family.inputs), B))
+    for i, v in enumerate(family.inputs):
+        X[i] = np.broadcast_to(np.asarray(inputs[v.name], dtype=float).ravel(), (B,))
+    member = np.ascontiguousarray(member, dtype=np.int64)
+    out = np.empty(B)
+    if lib.hn_family_eval(ctypes.byref(f), B, member.ctypes.data, X.ctypes.data,
+                          out.ctypes.data) < 0:
+        raise MemoryError("the compiled fuzzy evaluation could not allocate its work memory")
+    return out
+
+
+def _stack_struct(stack, keep: _Keep) -> _Stack:
+    s = _Stack()
+    s.E = len(stack.worlds)
+    s.C, s.G, s.Ed, s.Kp = stack.C, stack.G, stack.eA.shape[1], stack.perm.shape[1]
+    if not stack.K:
+        s.Kp = 0
+    s.moving = int(bool(stack.moving))
+    s.c0, s.cv, s.cr = (keep.ptr(stack.c0, np.float64), keep.ptr(stack.cv, np.float64),
+                        keep.ptr(stack.cr, np.float64))
+    s.eA, s.eB = keep.ptr(stack.eA, np.float64), keep.ptr(stack.eB, np.float64)
+    s.owner = keep.ptr(stack.owner, np.int64)
+    s.closed = keep.ptr(stack.closed, np.uint8)
+    s.perm = keep.ptr(stack.perm, np.int64)
+    s.has = keep.ptr(stack.has_obstacles, np.uint8)
+    s.ws = keep.ptr(stack.ws, np.float64)
+    return s
+
+
+def _single_disk(model) -> bool:
+    from hybridnav.models.base import Model
+
+    return type(model).footprint is Model.footprint
+
+
+def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, noise,
+             radius: np.ndarray, record_paths: bool):
+    """The EFFC lockstep run of ``batch`` (:func:`hybridnav.planners.field.lockstep.prepare`)
+    compiled: the arrays of :func:`hybridnav.planners.field.lockstep.finish`, or ``None``."""
+    from hybridnav.planners.field.lockstep import finish
+
+    model = batch.model
+    names = [v.name for v in family.inputs]
+    if not _single_disk(model) or sorted(names) != ["alpha", "dtheta"]:
+        return None
+    lib = _library(model)
+    if lib is None:
+        return None
+    keep = _Keep()
+    f = _family_struct(family, tables, keep)
+    if f is None:
+        return None
+    s = _stack_struct(batch.stack, keep)
+    N = batch.N
+    X = np.ascontiguousarray(batch.X, dtype=np.float64)
+    status = np.zeros(N, dtype=np.int32)
+    length = np.zeros(N)
+    t_end = np.full(N, np.nan)
+    min_clear = np.full(N, np.inf)
+    paths = None
+    if record_paths:
+        paths = np.zeros((N, batch.steps + 1, 2))
+        paths[:, 0] = X[:, :2]
+    stuck_window = planner["stuck_window"]
+    r = _Run()
+    r.N, r.nx, r.steps = N, model.nx, batch.steps
+    r.window = int(round(stuck_window / batch.dt)) if stuck_window > 0 else 0
+    r.dt, r.speed = batch.dt, float(planner["speed"])
+    r.stuck_radius = float(planner["stuck_radius"])
+    r.foot_radius = float(model.radius)
+    r.div_x, r.div_y = (float(d) for d in model.carrot_divisor())
+    r.env = keep.ptr(batch.env, np.int64)
+    r.member = keep.ptr(batch.member, np.int64)
+    r.repeats = int(repeats)
+    r.in_dtheta, r.in_alpha = names.index("dtheta"), names.index("alpha")
+    r.X = X.ctypes.data
+    r.goals = keep.ptr(batch.goals, np.float64)
+    r.goal_r = keep.ptr(batch.goal_r, np.float64)
+    r.budget = keep.ptr(batch.budget, np.int64)
+    r.radius = keep.ptr(radius, np.float64)
+    if noise is not None:
+        r.noise = keep.ptr(noise, np.float64)
+        r.noise_members, r.noise_steps = noise.shape[2], noise.shape[3]
+    r.status = status.ctypes.data
+    r.length, r.t_end = length.ctypes.data, t_end.ctypes.data
+    r.min_clear = min_clear.ctypes.data
+    r.paths = None if paths is None else paths.ctypes.data
+    code = lib.hn_effc_run(ctypes.byref(f), ctypes.byref(s), ctypes.byref(r))
+    if code < 0:
+        raise MemoryError("the compiled control cycle could not allocate its work memory")
+    batch.X[...] = X
+    return finish(batch, status.astype(int), length, t_end, min_clear, paths)
+
+
+def available() -> bool:
+    """Whether the compiled kernels can be built here."""
+    return _library() is not None

@@ -1,0 +1,234 @@
+"""The compiled control cycle (hybridnav.native) against the NumPy path it replaces.
+
+The kernels compute what the NumPy code computes, operation for operation, except that sums run
+in another order: the fuzzy family's outputs agree to rounding (1e-12 of the universe), and a
+short lockstep run (before rounding differences can grow through a closed loop) gives the same
+states, outcomes, lengths and clearances. Without a compiler, or switched off, every caller
+falls back to NumPy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hybridnav import fuzzy, native
+from hybridnav.fuzzy.family import SystemFamily
+from hybridnav.native import lockstep as kernel
+from hybridnav.planners.field.effc import effc_lockstep
+from hybridnav.tuner.evaluate import scenario_set
+from hybridnav.world import load_scenario
+from hybridnav.world.schema import scenario_from_dict
+from hybridnav.world.writer import scenario_to_dict
+from hybridnav.worldgen import WorldGenerator
+
+from fuzzy_strategies import antecedents, variables
+
+pytestmark = pytest.mark.skipif(not kernel.available(), reason="no C compiler: NumPy path only")
+
+
+def numpy_path(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` with the compiled kernels switched off."""
+    old = os.environ.get("HYBRIDNAV_NATIVE")
+    os.environ["HYBRIDNAV_NATIVE"] = "0"
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        if old is None:
+            del os.environ["HYBRIDNAV_NATIVE"]
+        else:
+            os.environ["HYBRIDNAV_NATIVE"] = old
+
+
+@st.composite
+def families(draw):
+    """A random template (2-3 inputs, AND/OR/NOT rules, weights) and 1-4 members whose MF
+    parameters, weights and consequents differ."""
+    n_in = draw(st.integers(1, 3))
+    ins = [draw(variables(f"x{i}")) for i in range(n_in)]
+    out = draw(variables("y", min_points=21))
+    rules = draw(st.lists(st.fixed_dictionaries({
+        "if": antecedents(ins), "then": st.sampled_from([t["name"] for t in out["terms"]]),
+        "weight": st.sampled_from([1.0, 0.5, 0.0, 0.25])}), min_size=1, max_size=5))
+    spec = {"format": "hybridnav-fis/1", "name": "random", "inputs": ins,
+            "output": {**out, "defuzz": "centroid", "default": draw(st.floats(out["range"][0], out["range"][1]))},
+            "rules": [{"if": r["if"], "then": r["then"], "weight": r["weight"]} for r in rules]}
+    template = fuzzy.FuzzySystem.from_dict(spec)
+    fam = SystemFamily(template)
+    K = draw(st.integers(1, 4))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    T = len(template.output.terms)
+    tables = fam.tables(
+        [[[t.params for t in v.terms] for v in template.inputs]] * K,
+        [[t.params for t in template.output.terms]] * K,
+        weights=rng.choice([0.0, 0.3, 1.0], (K, len(template.rules))),
+        consequents=rng.integers(0, T, (K, len(template.rules))))
+    # members differ in their sampled tables too (scaled copies stay in [0, 1])
+    for k in range(1, K):
+        tables.output[k] *= rng.uniform(0.2, 1.0)
+        for table in tables.inputs:
+            table[k] *= rng.uniform(0.2, 1.0)
+    return fam, tables, rng
+
+
+def _inputs(fam, rng, B):
+    X = {}
+    for v in fam.inputs:
+        lo, hi = v.range
+        x = rng.uniform(lo - 0.2 * (hi - lo), hi + 0.2 * (hi - lo), B)
+        x[rng.random(B) < 0.05] = np.nan
+        x[rng.random(B) < 0.05] = lo
+        x[rng.random(B) < 0.05] = hi
+        X[v.name] = x
+    return X
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(families())
+def test_family_kernel_equals_the_numpy_evaluation(case):
+    fam, tables, rng = case
+    B = 400
+    member = rng.integers(0, tables.size, B)
+    X = _inputs(fam, rng, B)
+    want = numpy_path(fam.evaluate, tables, member, X)
+    got = kernel.family_evaluate(fam, tables, member, X)
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    scale = 1.0 + np.max(np.abs(fam.output.range))
+    assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-12 * scale
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(families(), st.integers(0, 2**32 - 1))
+def test_family_kernel_equals_numpy_with_learned_antecedents(case, seed):
+    fam, tables, _ = case
+    rng = np.random.default_rng(seed)
+    top = [2 * len(v.terms) for v in fam.inputs]
+    codes = np.stack([rng.integers(0, t + 1, (tables.size, len(fam.rules))) for t in top],
+                     axis=2)
+    codes[rng.random(codes.shape[:2]) < 0.1] = 0            # rules that fire fully
+    tables = dataclasses.replace(tables, antecedents=codes)
+    member = rng.integers(0, tables.size, 300)
+    X = _inputs(fam, rng, 300)
+    want = numpy_path(fam.evaluate, tables, member, X)
+    got = kernel.family_evaluate(fam, tables, member, X)
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    scale = 1.0 + np.max(np.abs(fam.output.range))
+    assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-12 * scale
+
+
+def test_family_kernel_keeps_the_edge_cases():
+    """Nothing fires: the default; a NaN input: NaN; inputs beyond the range: clipped."""
+    fis = fuzzy.builtin("effc-2rule")
+    fam = SystemFamily(fis)
+    tables = fam.tables_of([fis])
+    tables.weights[:] = 0.0                                  # no rule fires
+    out = kernel.family_evaluate(fam, tables, np.zeros(3, int),
+                                 {"dtheta": [0.1, np.nan, 1.0], "alpha": [0.5, 0.5, np.nan]})
+    assert out[0] == fis.output.default and np.isnan(out[1:]).all()
+    tables = fam.tables_of([fis])
+    a = kernel.family_evaluate(fam, tables, np.zeros(2, int),
+                               {"dtheta": [-5.0, 50.0], "alpha": [1e300, -1.0]})
+    r = fis.inputs
+    b = kernel.family_evaluate(fam, tables, np.zeros(2, int),
+                               {"dtheta": [r[0].range[0], r[0].range[1]],
+                                "alpha": [r[1].range[1], r[1].range[0]]})
+    assert np.array_equal(a, b)
+
+
+def _scenarios(max_time):
+    gen = WorldGenerator(segments=(1, 2), rectangles=(0, 2))
+    scen = [load_scenario("effc-env-a"), load_scenario("effc-env-b")] + gen.generate(4, seed=5)
+    d = scenario_to_dict(scen[-1])              # a world with a moving circle as well
+    d["name"] = "moving"
+    d["obstacles"].append({"type": "moving_circle", "center": [2.0, 2.0], "radius": 0.3,
+                           "velocity": 0.05, "heading": 0.7})
+    scen.append(scenario_from_dict(d))
+    return [dataclasses.replace(s, max_time=max_time) for s in scen]
+
+
+PLANNER = {"speed": 0.1, "max_turn": np.pi / 4, "stuck_window": 5.0, "stuck_radius": 2.0}
+
+
+@pytest.mark.parametrize("noise", [False, True])
+def test_compiled_cycle_equals_the_numpy_cycle(noise):
+    """Every state of a 20-second run (200 cycles, outcomes tested every cycle) of 3 systems on
+    7 worlds (circles, polygons, segments, a moving circle), with and without noise."""
+    scen = _scenarios(20.0)
+    st_ = scenario_set(scen)
+    fis = fuzzy.builtin("effc-5rule")
+    fam = SystemFamily(fis)
+    tables = fam.tables_of([fis] * 3)
+    tables.output[1] *= 0.7                      # three different members
+    tables.weights[2, :2] = 0.3
+    repeats = 2
+    nz = None
+    if noise:
+        rng = np.random.default_rng(3)
+        nz = rng.normal(0.0, 1.0, (3, len(scen), 3 * repeats, 201)) * np.array(
+            [0.2, 0.1, 0.1])[:, None, None, None]
+    args = (st_, fam, tables, 3 * repeats, PLANNER)
+    kw = {"repeats": repeats, "noise": nz, "record_paths": True}
+    want = numpy_path(effc_lockstep, *args, **kw)
+    got = effc_lockstep(*args, **kw)
+    assert (got.outcome == want.outcome).all()
+    assert set(want.outcome.ravel()) >= {"collided", "timeout", "stuck"} or noise
+    for a, b in zip(got.paths, want.paths):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got.path_length, want.path_length, rtol=1e-9)
+    np.testing.assert_allclose(got.min_clearance, want.min_clearance, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got.final_distance, want.final_distance, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(got.time, want.time)
+
+
+def test_compiled_cycle_finds_the_same_stuck_and_reached_robots():
+    """A full-length run: outcomes agree (rounding differences may grow through the closed loop
+    but do not change what happens on these worlds)."""
+    scen = _scenarios(60.0)
+    st_ = scenario_set(scen)
+    fis = fuzzy.builtin("effc-5rule")
+    fam = SystemFamily(fis)
+    args = (st_, fam, fam.tables_of([fis]), 1, {**PLANNER, "stuck_window": 10.0})
+    want = numpy_path(effc_lockstep, *args)
+    got = effc_lockstep(*args)
+    assert (got.outcome == want.outcome).all()
+    np.testing.assert_allclose(got.path_length, want.path_length, rtol=1e-6)
+
+
+def test_without_a_compiler_every_caller_falls_back(monkeypatch, tmp_path, caplog):
+    monkeypatch.setenv("HYBRIDNAV_CACHE", str(tmp_path))
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    monkeypatch.setattr(native, "_LOADED", {})
+    assert native.build("probe", "int f(void) { return 1; }") is None
+    assert kernel.family_evaluate(*_one_member(), {"dtheta": [0.1], "alpha": [0.2]}) is None
+    fam, tables, member = _one_member()
+    out = fam.evaluate(tables, member, {"dtheta": [0.1], "alpha": [0.2]})    # NumPy
+    assert np.isfinite(out).all()
+    monkeypatch.setenv("CC", "gcc")
+    with caplog.at_level(logging.WARNING, logger="hybridnav.native"):
+        assert native.build("broken", "this is not C") is None
+    assert "compiling broken" in caplog.text
+    assert not list(tmp_path.glob("native/*.so"))
+
+
+def test_a_built_library_is_reused_and_a_changed_source_rebuilt(monkeypatch, tmp_path):
+    monkeypatch.setenv("HYBRIDNAV_CACHE", str(tmp_path))
+    monkeypatch.setattr(native, "_LOADED", {})
+    a = native.build("probe", "int f(void) { return 1; }")
+    assert a is not None and a.f() == 1
+    monkeypatch.setattr(native, "_LOADED", {})
+    b = native.build("probe", "int f(void) { return 1; }")
+    assert len(list(tmp_path.glob("native/probe-*.so"))) == 1 and b.f() == 1
+    c = native.build("probe", "int f(void) { return 2; }")
+    assert c.f() == 2 and len(list(tmp_path.glob("native/probe-*.so"))) == 2
+
+
+def _one_member():
+    fis = fuzzy.builtin("effc-2rule")
+    fam = SystemFamily(fis)
+    return fam, fam.tables_of([fis]), np.zeros(1, int)
