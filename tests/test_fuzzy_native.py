@@ -275,9 +275,11 @@ def test_a_build_runs_in_the_background_and_no_call_waits(tmp_path, monkeypatch)
     assert not list(tmp_path.rglob("*.lock")) and not list(tmp_path.rglob("*.tmp"))
 
 
-def test_no_compiler_keeps_the_python_path(tmp_path, monkeypatch):
+@pytest.mark.parametrize("missing", ["_compiler", "_include"])
+def test_no_compiler_keeps_the_python_path(tmp_path, monkeypatch, missing):
+    """No C compiler, or no Python.h: never built, never asked for again."""
     _reset(monkeypatch, tmp_path)
-    monkeypatch.setattr(_native, "_compiler", lambda: None)
+    monkeypatch.setattr(_native, missing, lambda: None)
     monkeypatch.setattr(_native, "AFTER", 3)
     fs = fuzzy.builtin("effc-5rule")
     ref = fuzzy.builtin("effc-5rule")._engine
