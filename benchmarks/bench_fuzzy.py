@@ -5,15 +5,31 @@ random input every call, input assignment not counted), ``evaluate`` at batch 1 
 call per sample) and at batch 1000 (one call on arrays, best of ``--repeat``), as evaluations per
 second and as ratios to scikit-fuzzy (targets: >= 20x at batch 1, >= 1000x per evaluation at batch
 1000), and the largest difference from scikit-fuzzy over the reference samples (where
-scikit-fuzzy gives no output, ``evaluate`` must give the file's ``default``).
-Run: ``python benchmarks/bench_fuzzy.py [--systems effc-2rule effc-5rule] [--ref 300]``.
+scikit-fuzzy gives no output, ``evaluate`` must give the file's ``default``). At batch 1 a system
+switches to the C evaluator after ``hybridnav.fuzzy._native.AFTER`` calls (if it is built; the
+first system of a run with an empty cache starts its build and keeps the Python path meanwhile).
+Then, per system, one sample per call against the exported C: ``FuzzySystem.evaluate`` on the
+Python path and with the compiled C evaluator (``use_native()``; called with literal keywords, as
+the planners call it, and with ``**dict``), and the C export (``hybridnav.fuzzy.export.to_c``)
+compiled and called through ctypes (``export.sil.CompiledFIS``'s function, on input buffers filled
+beforehand: the bare ctypes call), as ns per sample (best of ``--repeat`` passes over
+``--samples`` random inputs) and the ratio to ctypes (target: at most 2); and whether the C
+evaluator's outputs equal the Python path's bit for bit. The load average is printed first and
+last (``os.getloadavg``): the machine is shared.
+Run: ``python benchmarks/bench_fuzzy.py [--systems effc-2rule effc-5rule] [--ref 300]``
+(``--one-sample-only`` skips the scikit-fuzzy table).
 """
 
 from __future__ import annotations
 
 import argparse
+import keyword
+import os
+import sys
+import tempfile
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -74,6 +90,74 @@ def bench(fs: fuzzy.FuzzySystem, n_ref: int, repeat: int, rng: np.random.Generat
             "default_ok": default_ok, "n": n_ref}
 
 
+def _best(fn, repeat: int, n: int) -> float:
+    """Best seconds per sample of ``fn()`` (one pass over ``n`` samples) over ``repeat`` runs."""
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, (time.perf_counter() - t0) / n)
+    return best
+
+
+def bench_one_sample(name: str, n: int, repeat: int, rng: np.random.Generator,
+                     workdir: Path) -> dict:
+    from hybridnav.fuzzy.export import to_c
+    from hybridnav.fuzzy.export.sil import CompiledFIS
+
+    fs = fuzzy.load(name)
+    names = fs.input_names
+    lo = np.array([v.range[0] for v in fs.inputs])
+    hi = np.array([v.range[1] for v in fs.inputs])
+    rows = rng.uniform(lo, hi, (n, len(names))).tolist()
+    kws = [dict(zip(names, r)) for r in rows]
+
+    # the C export through ctypes: the bare call on prefilled buffers
+    code = to_c(fs)
+    (workdir / f"{code.basename}.h").write_text(code.header)
+    (workdir / f"{code.basename}.c").write_text(code.source)
+    cfis = CompiledFIS(workdir / f"{code.basename}.c")
+    fn, real = cfis._fn, cfis._real
+    bufs = [(real * len(names))(*r) for r in rows]
+
+    def run_ctypes():
+        for b in bufs:
+            fn(b)
+
+    # evaluate called as the planners call it: literal keywords (generated for these names)
+    literal = all(k.isidentifier() and not keyword.iskeyword(k) for k in names)
+    args = ", ".join(f"x{j}" for j in range(len(names)))
+    if literal:
+        ns: dict = {}
+        exec(f"def run(fs, rows):\n    for {args}, in rows:\n"
+             f"        fs.evaluate({', '.join(f'{k}=x{j}' for j, k in enumerate(names))})\n", ns)
+        run_literal = ns["run"]
+
+    def run_dict(fs):
+        for k in kws:
+            fs.evaluate(**k)
+
+    py = fuzzy.load(name)
+    py._countdown = sys.maxsize       # stays on the Python path (never asks for the C one)
+    t_py = _best(lambda: run_dict(py), max(2, repeat // 2), n)
+    native = fs.use_native()
+    r = {"native": native, "py": t_py}
+    # interleaved, so that a load change on the shared machine hits all of them alike
+    t_c, t_lit, t_dict = np.inf, np.inf, np.inf
+    for _ in range(repeat):
+        t_c = min(t_c, _best(run_ctypes, 1, n))
+        if literal:
+            t_lit = min(t_lit, _best(lambda: run_literal(fs, rows), 1, n))
+        t_dict = min(t_dict, _best(lambda: run_dict(fs), 1, n))
+    r.update(ctypes=t_c, literal=t_lit, dict=t_dict)
+    ours = np.array([fs.evaluate(**k) for k in kws])
+    ref = np.array([py._engine.evaluate_scalar(list(rw)) for rw in rows])
+    c_out = np.array([fn(b) for b in bufs])
+    r["equal"] = bool(np.array_equal(ours, ref, equal_nan=True))
+    r["c_diff"] = float(np.max(np.abs(c_out - ours)))
+    return r
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--systems", nargs="+", default=fuzzy.builtin_names(),
@@ -81,8 +165,41 @@ def main() -> None:
     ap.add_argument("--ref", type=int, default=300, help="scikit-fuzzy evaluations per system")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--samples", type=int, default=2000,
+                    help="random inputs per pass of the one-sample table")
+    ap.add_argument("--one-sample-only", action="store_true",
+                    help="skip the scikit-fuzzy table")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
+    print("load average (1, 5, 15 min): %.2f %.2f %.2f" % os.getloadavg())
+    if not args.one_sample_only:
+        skfuzzy_table(args, rng)
+    one_sample_table(args, rng)
+    print("load average (1, 5, 15 min): %.2f %.2f %.2f" % os.getloadavg())
+
+
+def one_sample_table(args, rng: np.random.Generator) -> None:
+    print(f"\none sample per call, ns per sample (best of {args.repeat} passes over "
+          f"{args.samples} inputs):")
+    print(f"{'system':<12} {'C export, ctypes':>17} {'evaluate(k=x)':>14} {'ratio':>6} "
+          f"{'evaluate(**d)':>14} {'ratio':>6} {'Python path':>12} {'speed-up':>9}  "
+          "C evaluator == Python path; max |C export - evaluate|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.systems:
+            r = bench_one_sample(name, args.samples, args.repeat, rng, Path(tmp))
+            lit = (f"{r['literal'] * 1e9:11.0f} ns {r['literal'] / r['ctypes']:5.2f}x"
+                   if np.isfinite(r["literal"]) else f"{'n/a':>14} {'':>6}")
+            print(f"{name:<12} {r['ctypes'] * 1e9:14.0f} ns {lit} "
+                  f"{r['dict'] * 1e9:11.0f} ns {r['dict'] / r['ctypes']:5.2f}x "
+                  f"{r['py'] * 1e9:9.0f} ns {r['py'] / r['literal']:8.1f}x  "
+                  f"{'bit for bit' if r['equal'] else 'DIFFERENT'}"
+                  f"{'' if r['native'] else ' (no C evaluator here: Python path)'}; "
+                  f"{r['c_diff']:.1e}")
+    print("ratio: evaluate / the C export called through ctypes (the target: at most 2); "
+          "speed-up: Python path / evaluate(k=x)")
+
+
+def skfuzzy_table(args, rng: np.random.Generator) -> None:
     print(f"{'system':<12} {'skfuzzy compute()':>18} {'evaluate, batch 1':>28} "
           f"{'evaluate, batch 1000':>30}  max |diff| vs skfuzzy")
     for name in args.systems:

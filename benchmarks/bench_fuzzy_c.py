@@ -7,8 +7,10 @@ timed inside C (``clock_gettime``, ``--calls`` evaluations over an array of rand
 :data:`HAND`, the evaluator an engineer would write for it by hand (closed-form memberships, the
 output sampled once, one pass over the universe inserting scikit-fuzzy's crossing points and
 integrating each segment in closed form), compiled in the same program; ``FuzzySystem.evaluate``
-timed per call with Python floats (batch 1, best of ``--repeat``); the ratios (generated over
-hand-written is the issue's target: at most 2); and the largest differences from ``evaluate``
+timed per call with Python floats (batch 1, best of ``--repeat``: after its first few
+hundred calls its C evaluator, where one is available; ``bench_fuzzy.py`` times both paths); the
+ratios (generated over hand-written is the issue's target: at most 2); and the largest
+differences from ``evaluate``
 (the hand-written one evaluates the input terms in closed form where scikit-fuzzy interpolates
 their samples, so it differs by the sampling error, about 1e-4).
 Run: ``python benchmarks/bench_fuzzy_c.py [--systems effc-2rule effc-5rule] [--calls 200000]``.

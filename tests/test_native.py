@@ -201,7 +201,7 @@ def test_compiled_cycle_finds_the_same_stuck_and_reached_robots():
 
 
 def test_without_a_compiler_every_caller_falls_back(monkeypatch, tmp_path, caplog):
-    monkeypatch.setenv("HYBRIDNAV_CACHE", str(tmp_path))
+    monkeypatch.setenv("HYBRIDNAV_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     monkeypatch.setattr(native, "_LOADED", {})
     assert native.build("probe", "int f(void) { return 1; }") is None
@@ -217,7 +217,7 @@ def test_without_a_compiler_every_caller_falls_back(monkeypatch, tmp_path, caplo
 
 
 def test_a_built_library_is_reused_and_a_changed_source_rebuilt(monkeypatch, tmp_path):
-    monkeypatch.setenv("HYBRIDNAV_CACHE", str(tmp_path))
+    monkeypatch.setenv("HYBRIDNAV_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(native, "_LOADED", {})
     a = native.build("probe", "int f(void) { return 1; }")
     assert a is not None and a.f() == 1

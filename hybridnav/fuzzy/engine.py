@@ -580,7 +580,9 @@ class CompiledSystem:
             A = np.minimum(Fo[live[0]], cuts[live[0]])
             for t in live[1:]:
                 np.maximum(A, np.minimum(Fo[t], cuts[t]), out=A)
-            area, mom = (self._W @ A).tolist()
+            # a sequential sum (cumsum), not a BLAS dot product, whose order depends on the
+            # build and the CPU: the C evaluator (_native.c) repeats this one bit for bit
+            area, mom = np.cumsum(self._W * A, axis=1)[:, -1].tolist()
         xs, F, S = self._out_py
         groups: dict[int, list[tuple[float, int, float]]] = {}
         n = 0

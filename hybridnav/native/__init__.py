@@ -2,8 +2,7 @@
 compiler and loaded through :mod:`ctypes`.
 
 :func:`build` compiles a source (plus generated code, e.g. a model step from CasADi's code
-generator) into a shared library in the cache folder — ``$HYBRIDNAV_CACHE/native`` or
-``~/.cache/hybridnav/native`` — named by the hash of the source, the compiler and its flags, so
+generator) into a shared library in the cache folder (:func:`cache_dir`) named by the hash of the source, the compiler and its flags, so
 every process of a job (workers included) loads the same file and a changed source is rebuilt.
 The file is written to a temporary name and renamed: two processes building at once both end up
 with a whole library. Without a compiler, or with ``HYBRIDNAV_NATIVE=0``, :func:`build` returns
@@ -25,24 +24,30 @@ from pathlib import Path
 
 log = logging.getLogger(__name__)
 
-__all__ = ["build", "cache_dir", "enabled", "source"]
+__all__ = ["ENV", "build", "cache_dir", "enabled", "source"]
 
 FLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 _LOADED: dict[str, ctypes.CDLL | None] = {}
 _LOCK = threading.Lock()
 
 
+#: ``HYBRIDNAV_NATIVE=0`` (or ``off``, ``no``, ``false``) switches every compiled kernel off
+ENV = "HYBRIDNAV_NATIVE"
+
+
 def enabled() -> bool:
     """Whether compiled kernels may be used (``HYBRIDNAV_NATIVE=0`` switches them off)."""
-    return os.environ.get("HYBRIDNAV_NATIVE", "1").strip().lower() not in ("0", "false", "no",
-                                                                         "off")
+    return os.environ.get(ENV, "1").strip().lower() not in ("0", "false", "no", "off")
 
 
 def cache_dir() -> Path:
-    """Where built libraries are kept."""
-    base = os.environ.get("HYBRIDNAV_CACHE")
-    root = Path(base) if base else Path(os.path.expanduser("~")) / ".cache" / "hybridnav"
-    return root / "native"
+    """Where built libraries are kept (not created here): ``$HYBRIDNAV_CACHE_DIR/native``, else
+    ``$XDG_CACHE_HOME/hybridnav/native``, else ``~/.cache/hybridnav/native``."""
+    root = os.environ.get("HYBRIDNAV_CACHE_DIR")
+    if not root:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        root = os.path.join(xdg, "hybridnav")
+    return Path(root) / "native"
 
 
 def source(name: str) -> str:
