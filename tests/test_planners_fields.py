@@ -172,3 +172,30 @@ def test_multi_robot_runs_together_and_robots_are_obstacles_to_each_other():
     for r in res.robots:
         assert r.outcome in ("reached", "stuck", "timeout", "collided")
         assert r.t[-1] <= 20.0 + 1e-9
+
+
+def test_apf_lockstep_is_the_planner_run_by_run():
+    """The held-out tables' ``apf`` rows come from one lockstep batch: per world, what the
+    ``apf`` planner does (outcome, length, time, clearance), including worlds without obstacles
+    beside worlds with (the packed arrays' padding must add no force)."""
+    from hybridnav.planners.field.apf import apf_lockstep
+    from hybridnav.tuner.evaluate import scenario_set
+    from hybridnav.worldgen import WorldGenerator
+
+    scen = [load_scenario("effc-env-a"), load_scenario("effc-train-1")] + \
+        WorldGenerator(segments=(0, 2), rectangles=(0, 2)).generate(6, seed=4)
+    empty = dataclasses.replace(scen[-1], name="empty",
+                                world=dataclasses.replace(scen[-1].world, obstacles=[]))
+    scen.append(empty)
+    params = {"speed": 0.1, "stuck_window": 10.0}
+    res = apf_lockstep(scenario_set(scen), params)
+    outcomes = set()
+    for e, s in enumerate(scen):
+        r = planners.get("apf", **params).run(s).robots[0]
+        outcomes.add(r.outcome)
+        assert res.outcome[e, 0] == r.outcome, s.name
+        assert res.path_length[e, 0] == pytest.approx(r.path_length, rel=1e-9)
+        assert res.min_clearance[e, 0] == pytest.approx(r.min_clearance, rel=1e-9)
+        if r.outcome == "reached":
+            assert res.time[e, 0] == pytest.approx(r.time_to_goal, rel=1e-12)
+    assert {"reached", "stuck"} <= outcomes

@@ -70,8 +70,8 @@ def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
                 ) -> pd.DataFrame:
     """Rows like :func:`compare_systems` for any fuzzy systems (label -> ``FuzzySystem``) on any
     single-unicycle scenarios of one robot model: each system simulated on all of them in one
-    lockstep batch (exactly what the ``effc`` planner does), plus ``apf`` run by its planner."""
-    from hybridnav import planners
+    lockstep batch (exactly what the ``effc`` planner does), plus ``apf`` (a lockstep batch too:
+    what its planner does)."""
     from hybridnav.fuzzy.family import SystemFamily
     from hybridnav.tuner.evaluate import lockstep_effc, scenario_set
 
@@ -85,8 +85,9 @@ def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,
         res = lockstep_effc(st, fam, fam.tables_of([system]), 1, pl)
         rows += _lockstep_rows(set_name, scen, [label], res)
     if apf:
-        p = planners.get("apf", **pl)
-        rows += [_robot_row(set_name, s.name, "apf", p.run(s).robots[0]) for s in scen]
+        from hybridnav.planners.field.apf import apf_lockstep
+
+        rows += _lockstep_rows(set_name, scen, ["apf"], apf_lockstep(st, pl))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

@@ -22,9 +22,10 @@ import numpy as np
 
 from hybridnav.planners.base import Param
 from hybridnav.planners.field.base import COMMON, FieldPlanner
+from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field
 from hybridnav.planners.simulate import Simulation
 
-__all__ = ["APF", "apf_force"]
+__all__ = ["APF", "apf_force", "apf_lockstep"]
 
 
 def apf_force(world, P: np.ndarray, goals: np.ndarray, radius, t: float, *,
@@ -50,6 +51,43 @@ def apf_force(world, P: np.ndarray, goals: np.ndarray, radius, t: float, *,
         away = away / np.where(norm > 0, norm, 1.0)[..., None]
         F = F + np.sum(mag[..., None] * away, axis=1)
     return F
+
+
+def apf_lockstep(st, params: dict[str, Any] | None = None, *,
+                 record_paths: bool = False) -> LockstepResult:
+    """The ``apf`` planner (its parameters ``params``, defaults for the others) on every world of
+    ``st`` (:func:`hybridnav.tuner.evaluate.scenario_set`: one robot each, one model) in one
+    lockstep batch: run by run what :meth:`APF.run` does (the force of :func:`apf_force`, a
+    local minimum ``stuck``), as arrays ``(worlds, 1)``."""
+    v = APF(**(params or {})).values
+    radius = st.radius
+    xi, sigma0, eta, rho0 = v["xi"], v["sigma0"], v["eta"], v["rho0"]
+
+    def field(env, members, P, goals, t):
+        D = P - goals
+        dist = np.hypot(D[:, 0], D[:, 1])
+        scale = np.where(dist <= sigma0, xi, xi * sigma0 / np.where(dist > 0, dist, 1.0))
+        F = -scale[:, None] * D
+        if st.stack.K:
+            clear, near = st.stack.nearest_each(P, env, t)
+            rho = np.maximum(clear - radius[env][:, None], 1e-9)
+            on = rho <= rho0                      # padding columns (inf) are never on
+            mag = np.where(on, eta * (1.0 / rho - 1.0 / rho0) / rho**2, 0.0)
+            away = P[:, None, :] - near
+            norm = np.hypot(away[..., 0], away[..., 1])
+            with np.errstate(invalid="ignore"):
+                away = away / np.where(norm > 0, norm, 1.0)[..., None]
+            F = F + np.sum(np.where(on[..., None], mag[..., None] * away, 0.0), axis=1)
+        small = np.hypot(F[:, 0], F[:, 1]) <= v["force_tol"] * xi * sigma0
+        F[small] = np.nan                         # a local minimum: stuck, as APF.velocity says
+        return F
+
+    return lockstep_field(st.scenarios, 1, field,
+                          model_overrides={"controller": "heading", "speed": v["speed"],
+                                           "max_turn": v["max_turn"]},
+                          speed=v["speed"], stuck_window=v["stuck_window"],
+                          stuck_radius=v["stuck_radius"], record_paths=record_paths,
+                          stack=st.stack)
 
 
 class APF(FieldPlanner):

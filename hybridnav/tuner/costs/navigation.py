@@ -441,7 +441,12 @@ class NavigationCost(Cost):
             fam = SystemFamily(systems[label])
             res, _ = self.simulate(fam, fam.tables_of([systems[label]]), None, noise=False)
             rows += _lockstep_rows(role, self.scenarios, [label], res)
-        if apf:
+        if apf and labels:                 # one lockstep batch: what the planner does, run by run
+            from hybridnav.planners.field.apf import apf_lockstep
+
+            res = apf_lockstep(self.packed, dict(self.planner_params))
+            rows += _lockstep_rows(role, self.scenarios, ["apf"], res)
+        elif apf:
             backend = backend or SerialBackend()
             args = [(json.dumps(scenario_to_dict(s)), dict(self.planner_params))
                     for s in self.scenarios]
