@@ -240,6 +240,23 @@ def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] |
     return rows, paths, convergence_rows(result, task.label, task.run)
 
 
+def _units(tasks: list[_Task], combos: int, runs: int, workers: int) -> list[list[_Task]]:
+    """The tasks (in order, ``runs`` per planner and scenario) as units of work: a unit holds
+    runs of one planner on one scenario, so that a worker pays what the first run of a
+    combination costs in a process (its model functions, grids and fuzzy systems) once, as
+    one process running everything does. With few combinations their runs are split, so that
+    every worker gets about two units."""
+    parts = max(1, min(runs, -(-2 * max(1, workers) // max(1, combos))))
+    size = -(-runs // parts)
+    return [tasks[c * runs + a:c * runs + min(runs, a + size)]
+            for c in range(combos) for a in range(0, runs, size)]
+
+
+def _execute_many(tasks: list[_Task]) -> list[tuple]:
+    """:func:`_execute` of each task of a unit, in order (in whatever process gets the unit)."""
+    return [_execute(t) for t in tasks]
+
+
 def compare(
     planners: Sequence[str | PlannerSpec | tuple],
     scenarios: Sequence[str],
@@ -324,16 +341,18 @@ def compare(
     tasks = [_Task(spec.label, spec.name, tuple(sorted(settings[spec.label].items())), s, r,
                    run_seed(seed, r))
              for spec in specs for s in scenarios for r in range(runs)]
+    units = _units(tasks, len(specs) * len(scenarios), runs, workers)
     done = 0
 
-    def finished(_i):
+    def finished(i):
         nonlocal done
-        done += 1
+        done += len(units[i])
         if progress is not None:
             progress(done, len(tasks))
 
     with make_backend(workers, dask or "") as backend:
-        results = backend.map(_execute, [(t,) for t in tasks], on_done=finished)
+        parts = backend.map(_execute_many, [(u,) for u in units], on_done=finished)
+    results = [r for part in parts for r in part]
     rows = [row for result_rows, _, _ in results for row in result_rows]
     names = {spec: sc.name for spec, sc in zip(scenarios, loaded)}
     paths = {(t.label, names[t.scenario]): p for t, (_, p, _) in zip(tasks, results)

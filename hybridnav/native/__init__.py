@@ -24,7 +24,7 @@ from pathlib import Path
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ENV", "build", "cache_dir", "enabled", "source"]
+__all__ = ["ENV", "build", "build_path", "cache_dir", "enabled", "source"]
 
 FLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 _LOADED: dict[str, ctypes.CDLL | None] = {}
@@ -66,12 +66,28 @@ def build(name: str, code: str) -> ctypes.CDLL | None:
     with _LOCK:
         if key in _LOADED:
             return _LOADED[key]
-        lib = _build(key, code, compiler)
+        path = _build(key, code, compiler)
+        lib = None
+        if path is not None:
+            try:
+                lib = ctypes.CDLL(str(path))
+            except OSError as exc:
+                log.info("cannot load %s: %s", path, exc)
         _LOADED[key] = lib
         return lib
 
 
-def _build(key: str, code: str, compiler: str) -> ctypes.CDLL | None:
+def build_path(name: str, code: str) -> Path | None:
+    """The file of the library compiled from ``code`` (built once per machine), for loaders other
+    than :mod:`ctypes` (CasADi's ``external``); ``None`` where it cannot be built. Unlike
+    :func:`build` this does not look at ``HYBRIDNAV_NATIVE`` (callers have their own switch)."""
+    compiler = os.environ.get("CC", "gcc")
+    digest = hashlib.sha256("\0".join((code, compiler, *FLAGS)).encode()).hexdigest()[:20]
+    with _LOCK:
+        return _build(f"{name}-{digest}", code, compiler)
+
+
+def _build(key: str, code: str, compiler: str) -> Path | None:
     folder = cache_dir()
     target = folder / f"{key}.so"
     if not target.exists():
@@ -93,8 +109,4 @@ def _build(key: str, code: str, compiler: str) -> ctypes.CDLL | None:
         except (OSError, subprocess.SubprocessError) as exc:
             log.info("compiled kernel %s unavailable: %s", key, exc)
             return None
-    try:
-        return ctypes.CDLL(str(target))
-    except OSError as exc:
-        log.info("cannot load %s: %s", target, exc)
-        return None
+    return target
