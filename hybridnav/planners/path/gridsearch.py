@@ -30,7 +30,8 @@ over the neighbours, and adding a positive step is monotone), so the path is reb
 with the heap search's own tie rule and the result -- cells, length, ``expanded`` -- is the one
 ``astar(..., heuristic="zero")`` gives (see :class:`_HeapOrder`); scipy's predecessors are not
 used, as they break ties differently. Unreachable goals are answered from cached connected
-components without a search.
+components without a search. The cached graph takes ~12 bytes per edge (~100 bytes per free
+cell: ~17 MB for 400 x 400 cells), held while the grid object lives.
 
 Functions
 ---------
@@ -367,11 +368,14 @@ class _Graph:
         np.cumsum(legal.sum(axis=1), out=self.indptr[1:n + 1])
         self.base = csr_matrix((self.data[:E], self.indices[:E], self.indptr[:n + 1]), shape=(n, n),
                                copy=False)
-        _, self.label = connected_components(self.base, directed=True, connection="weak")
-        self.sizes = np.bincount(self.label)
+        _, label = connected_components(self.base, directed=True, connection="weak")
+        self.sizes = np.bincount(label).tolist()
         free = np.zeros((n // Wp + 1, Wp + 1), dtype=np.int64)  # summed-area table of free cells
         free[1:, 1:] = (m != 0).reshape(-1, Wp).cumsum(axis=0).cumsum(axis=1)
-        self.free = free
+        # memoryviews: indexing them gives Python numbers, quicker than numpy scalars
+        self.label, self.free = memoryview(label), memoryview(free)
+        self.table = _move_table(Wp, res)
+        self.straight, self.diag = _move_tables_by_kind(Wp, res)
         self.lock = threading.Lock()
         self._csr_matrix, self.dijkstra = csr_matrix, dijkstra
 
@@ -382,7 +386,7 @@ class _Graph:
         if c0 > c1 or r0 > r1:
             return 0
         f = self.free
-        return int(f[r1 + 1, c1 + 1] - f[r0, c1 + 1] - f[r1 + 1, c0] + f[r0, c0])
+        return f[r1 + 1, c1 + 1] - f[r0, c1 + 1] - f[r1 + 1, c0] + f[r0, c0]
 
     def continued(self, seeds: NDArray[np.int_], dist: NDArray[np.float64], limit: float) -> NDArray[np.float64]:
         """Distances up to ``limit`` from a virtual source joined to each ``seeds[i]`` by an edge
@@ -442,6 +446,14 @@ class _HeapOrder:
     def key(self, v: int) -> tuple[float, float, int]:
         return (self.dist[v] // self.q, -self._first(v), v)
 
+    def before(self, v: int, t: int) -> bool:
+        """Whether ``v`` pops before ``t`` (two different nodes of the same quantum)."""
+        ft, dv = self._first(t), self.dist[v]
+        if dv > ft or (dv == ft and v < t):  # first(v) >= dist(v) decides without v's neighbours
+            return True
+        fv = self._first(v)
+        return fv > ft or (fv == ft and v < t)
+
     def _first(self, v: int) -> float:
         first, dist, q = self.first, self.dist, self.q
         stack = [v]
@@ -451,10 +463,18 @@ class _HeapOrder:
                 stack.pop()
                 continue
             du = dist[u]
-            qu = du // q
             near = du + 2.0 * q  # every val is >= du; those in du's quantum are below this
+            moves = self.table[self.masks[u]]
+            for off, cost in moves:
+                if du < dist[u + off] + cost < near:
+                    break
+            else:  # every push in du's quantum was du itself
+                first[u] = du
+                stack.pop()
+                continue
+            qu = du // q
             cands = []
-            for off, cost in self.table[self.masks[u]]:
+            for off, cost in moves:
                 val = dist[u + off] + cost
                 if val < near and val // q == qu:
                     cands.append((u + off, val))
@@ -481,30 +501,32 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
     """The result of ``_search(..., "zero", "dijkstra")``, computed with scipy (module docstring)."""
     G = _cached_graph(grid, diagonal, corner_cutting)
     res, Wp, n = grid.resolution, G.Wp, G.n
-    s = (start[1] + 1) * Wp + start[0] + 1
-    t = (goal[1] + 1) * Wp + goal[0] + 1
+    sc, sr, tc, tr = start[0] + 1, start[1] + 1, goal[0] + 1, goal[1] + 1  # padded
+    s, t = sr * Wp + sc, tr * Wp + tc
     params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
     if s == t:
         cells = np.array([start], dtype=int)
         return GridPath(True, cells, grid.to_world(cells), 0.0, 1, start, goal, "dijkstra", params)
     if G.label[s] != G.label[t]:  # the heap search closes all of the start's component, in vain
         empty = np.zeros((0, 2), dtype=int)
-        return GridPath(False, empty, np.zeros((0, 2)), math.inf, int(G.sizes[G.label[s]]), start, goal,
+        return GridPath(False, empty, np.zeros((0, 2)), math.inf, G.sizes[G.label[s]], start, goal,
                         "dijkstra", params)
 
-    q = grid.resolution * max(1e-9, 1e-15 * n)  # _search's quantum
-    dx, dy = abs(start[0] - goal[0]), abs(start[1] - goal[1])
+    q = res * max(1e-9, 1e-15 * n)  # _search's quantum
+    dx, dy = abs(sc - tc), abs(sr - tr)
     free_dist = (max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)) if diagonal else float(dx + dy)
     # Every node whose distance is within 3 q of the goal's must be in (their order decides
     # `expanded`); the first limit is at least 2 resolutions, so that a continuation's rim never
     # holds the start (a zero-length edge from the virtual source).
     limit = max(res * free_dist * (1.0 + 1e-9), 2.0 * res) + 4.0 * q
-    sc, sr, tc, tr = start[0] + 1, start[1] + 1, goal[0] + 1, goal[1] + 1
-    if G.free_cells(min(sc, tc), min(sr, tr), max(sc, tc), max(sr, tr)) < (dx + 1) * (dy + 1):
+    c0, c1 = (sc, tc) if sc < tc else (tc, sc)
+    r0, r1 = (sr, tr) if sr < tr else (tr, sr)
+    f = G.free  # summed-area table: the free cells of the box between start and goal
+    if f[r1 + 1, c1 + 1] - f[r0, c1 + 1] - f[r1 + 1, c0] + f[r0, c0] < (dx + 1) * (dy + 1):
         # An obstacle between them: the goal may lie beyond that limit. When the ball up to it
         # would hold most of the start's component anyway (estimated from the free cells of its
         # bounding square), scan the component at once.
-        r = int(free_dist) + 1
+        r = int(free_dist) + 1  # the ball (an octagon, or a diamond) fills ~0.71 (0.5) of the square
         ball = G.free_cells(sc - r, sr - r, sc + r, sr + r) * (0.71 if diagonal else 0.5)
         if ball >= _FULL_SCAN * G.sizes[G.label[s]]:
             limit = math.inf
@@ -515,8 +537,8 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
         # through the rim, so it is at least min(dist + the obstacle-free distance to the goal).
         rim = np.flatnonzero(dist > limit - _SQRT2 * res)
         rim = rim[dist[rim] <= limit]
-        ddx = np.abs(rim % Wp - (goal[0] + 1))
-        ddy = np.abs(rim // Wp - (goal[1] + 1))
+        ddx = np.abs(rim % Wp - tc)
+        ddy = np.abs(rim // Wp - tr)
         h = (np.maximum(ddx, ddy) + (_SQRT2 - 1.0) * np.minimum(ddx, ddy)) if diagonal else ddx + ddy
         bound = float(np.min(dist[rim] + res * h))
         new_limit = max(bound * _LIMIT_MARGIN, limit + 2.0 * res) + 4.0 * q
@@ -524,40 +546,46 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
         dist = np.where(dist <= limit, dist, more)  # inside the old ball, `more` may be too long
         limit = new_limit
 
-    gt = float(dist[t])
     dv = memoryview(dist)  # Python floats, as _search computes them
-    table = _move_table(Wp, res)
-    order = _HeapOrder(dv, G.masks, table, q, s)
+    gt = dv[t]
+    order = None  # the heap order, needed only where ties are to be broken
     # expanded: the nodes popped before the goal, and the goal
-    expanded = int(np.count_nonzero(dist < gt - 3.0 * q))
-    qt = gt // q
-    kt = None
-    for v in np.flatnonzero(np.abs(dist - gt) <= 3.0 * q).tolist():
-        qv = dv[v] // q
-        if v != t and qv == qt:
-            kt = kt or order.key(t)
-            expanded += order.key(v) < kt
-        else:
-            expanded += v == t or qv < qt
+    lo, hi = gt - 3.0 * q, gt + 3.0 * q
+    expanded = int(np.count_nonzero(dist < lo)) + 1
+    near = np.flatnonzero((dist >= lo) & (dist <= hi)).tolist()
+    if len(near) > 1:  # nodes as near as the goal (ties, or float noise): the heap order decides
+        qt = gt // q
+        order = _HeapOrder(dv, G.masks, G.table, q, s)
+        for v in near:
+            if v != t:
+                qv = dv[v] // q
+                expanded += qv < qt or (qv == qt and order.before(v, t))
     # The path: _search makes a node's parent the neighbour popped first among those giving its
     # distance (it replaces a parent only on a strict improvement). A diagonal one is nearer the
     # start by (sqrt(2) - 1) resolution, so popped before any straight one; between two of a kind,
     # their heap order decides.
-    straight, diag = _move_tables_by_kind(Wp, res)
-    masks = G.masks
+    straight, diag, masks = G.straight, G.diag, G.masks
     idx = [t]
     v = t
     while v != s:
         gv, m = dv[v], masks[v]
-        cand = [v + off for off, cost in diag[m] if dv[v + off] + cost == gv]
-        if not cand:
-            cand = [v + off for off, cost in straight[m] if dv[v + off] + cost == gv]
-        v = cand[0] if len(cand) == 1 else min(cand, key=order.key)
+        u = -1  # the parent; -2: more than one candidate (plain loops: quicker than comprehensions)
+        for moves in (diag[m], straight[m]):
+            for off, cost in moves:
+                if dv[v + off] + cost == gv:
+                    u = v + off if u == -1 else -2
+            if u != -1:
+                break
+        if u == -2:
+            if order is None:
+                order = _HeapOrder(dv, G.masks, G.table, q, s)
+            u = min((v + off for off, cost in moves if dv[v + off] + cost == gv), key=order.key)
+        v = u
         idx.append(v)
-    flat = np.array(idx[::-1], dtype=np.int64)
-    cells = np.empty((flat.size, 2), dtype=int)
-    cells[:, 0] = flat % Wp - 1
-    cells[:, 1] = flat // Wp - 1
+    idx.reverse()
+    cells = np.empty((len(idx), 2), dtype=int)
+    np.divmod(np.array(idx), Wp, out=(cells[:, 1], cells[:, 0]))
+    cells -= 1
     return GridPath(True, cells, grid.to_world(cells), gt, expanded, start, goal, "dijkstra", params)
 
 
