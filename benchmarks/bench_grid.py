@@ -7,6 +7,20 @@ of ``--repeat`` passes; building the networkx graph (once, shared by all queries
 separately and not included in networkx's total. Also ``dijkstra``. Every length is checked
 against the scen file's optimal length (largest difference printed).
 
+Part 1b -- ``dijkstra`` against :func:`scipy.sparse.csgraph.dijkstra` on the same graph
+(``grid.adjacency()``: octile moves, no corner cutting): on the arena's 130 queries and on two
+400 x 400 grids (``--size``; one of rectangles, one of 20 % random blocked cells) with ``--pairs``
+random start/goal pairs each. scipy's call is the natural one for a query, ``dijkstra(A,
+indices=start)`` (all distances from the start; it has no goal to stop at), and, for reference,
+the same with ``return_predecessors=True`` and the cell path read from them (hybridnav's output: it
+returns the cell path, length and expanded count), and with ``limit=`` the optimal length (which
+needs the answer in advance). Each variant's time is its best of ``--repeat`` passes over the
+queries, the variants' passes alternating (the machine is shared). Graph builds are
+timed once per grid and not counted in the per-query times (hybridnav caches its graph on the grid
+object; scipy's adjacency is built by the caller); a second ratio adds each side's build spread
+over the grid's queries. Lengths must equal scipy's exactly. The arena also times the heap search
+``dijkstra`` ran before (``astar(..., heuristic="zero")``, the same answer).
+
 Part 2 -- stochastic planners (``--runs``). Each entry of :data:`RUNNERS` maps a name to a function
 ``(grid, query, seed) -> path length``; it is run once per seed on every ``--every``-th query of
 the selected ``--buckets``, and reported as time per run and path length / optimal length
@@ -21,14 +35,15 @@ path length when the robot reaches the goal (``inf`` otherwise). Travelled paths
 (any-angle), so they can be shorter than the octile optimum: ratios below 1 are expected. A run
 that raises counts as no path and the first error of each runner is printed.
 
-Run: ``python benchmarks/bench_grid.py [--repeat 5] [--runs] [--only rfd-slope]
-[--buckets 3 6 9 12] [--every 2] [--seeds 3]``.
+Run: ``python benchmarks/bench_grid.py [--repeat 5] [--size 400] [--pairs 20] [--runs]
+[--only rfd-slope] [--buckets 3 6 9 12] [--every 2] [--seeds 3]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
 from collections.abc import Callable
 from itertools import pairwise
@@ -105,6 +120,99 @@ def bench_search(grid: OccupancyGrid, queries: list[MovingAIQuery], repeat: int)
 
 
 # --------------------------------------------------------------------------------------------
+# Part 1b: dijkstra against scipy.sparse.csgraph.dijkstra
+# --------------------------------------------------------------------------------------------
+
+
+def large_grids(size: int) -> dict[str, OccupancyGrid]:
+    """Two ``size x size`` grids: rectangles on open ground, and 20 % random blocked cells."""
+    rng = np.random.default_rng(2024)
+    rooms = np.zeros((size, size), dtype=bool)
+    for _ in range(size // 8):
+        r, c = rng.integers(size, size=2)
+        h, w = rng.integers(2, size // 10, size=2)
+        rooms[r:r + h, c:c + w] = True
+    return {"rectangles": OccupancyGrid(rooms), "20% random cells": OccupancyGrid(rng.random((size, size)) < 0.2)}
+
+
+def random_pairs(grid: OccupancyGrid, n: int, seed: int = 0) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """``n`` start/goal cells drawn uniformly from the largest connected part of the free cells."""
+    from scipy.sparse.csgraph import connected_components
+
+    _, label = connected_components(grid.adjacency(), directed=False)
+    free = np.flatnonzero(~grid.occ.ravel())
+    big = free[label[free] == np.bincount(label[free]).argmax()]
+    ends = np.random.default_rng(seed).choice(big, size=(n, 2))
+    W = grid.width
+    return [((int(a % W), int(a // W)), (int(b % W), int(b // W))) for a, b in ends]
+
+
+def bench_vs_scipy(name: str, grid: OccupancyGrid, pairs, repeat: int, optimal: list[float] | None = None,
+                   heap: bool = False) -> None:
+    from scipy.sparse.csgraph import dijkstra as csgraph_dijkstra
+
+    t0 = time.perf_counter()
+    A = grid.adjacency()
+    t_adj = time.perf_counter() - t0
+    # hybridnav's graph build: a first query on a fresh copy of the grid, less that query's best time
+    fresh = OccupancyGrid(grid.occ.copy(), grid.resolution, grid.origin)
+    t0 = time.perf_counter()
+    dijkstra(fresh, *pairs[0])
+    t_first = time.perf_counter() - t0
+    t_own_build = max(t_first - best_time(lambda: [dijkstra(fresh, *pairs[0])], 3)[0], 0.0)
+
+    S = grid.cell_index([p[0] for p in pairs]).tolist()
+    G = grid.cell_index([p[1] for p in pairs]).tolist()
+    if optimal is None:
+        optimal = [float(csgraph_dijkstra(A, indices=s)[g]) for s, g in zip(S, G)]
+
+    def scipy_path(i: int) -> float:
+        """What a caller of scipy writes for hybridnav's output: predecessors, then the cell path."""
+        d, pred = csgraph_dijkstra(A, indices=S[i], return_predecessors=True)
+        node, path = G[i], [G[i]]
+        while node != S[i]:
+            node = int(pred[node])
+            path.append(node)
+        flat = np.array(path[::-1])
+        np.column_stack([flat % grid.width, flat // grid.width])
+        return float(d[G[i]])
+
+    ours, ref = "hybridnav dijkstra", "scipy dijkstra(A, indices=s)"
+    runs = {
+        ours: lambda i: dijkstra(grid, *pairs[i]).length,
+        ref: lambda i: float(csgraph_dijkstra(A, indices=S[i])[G[i]]),
+        "  ... with the path": scipy_path,
+        "  ... limit=optimal length": lambda i: float(
+            csgraph_dijkstra(A, indices=S[i], limit=optimal[i] + 1e-6)[G[i]]),
+    }
+    if heap:
+        runs["heap search (the old loop)"] = lambda i: astar(grid, *pairs[i], heuristic="zero").length
+    n = len(pairs)
+    tot = dict.fromkeys(runs, math.inf)
+    lengths: dict[str, list[float]] = {}
+    for _ in range(repeat):  # passes of the variants alternate, so that load changes hit all alike
+        for k, fn in runs.items():
+            t0 = time.perf_counter()
+            lengths[k] = [fn(i) for i in range(n)]
+            tot[k] = min(tot[k], time.perf_counter() - t0)
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    print(f"{name}: {grid.width}x{grid.height}, {int((~grid.occ).sum())} free cells, {n} queries; best of "
+          f"{repeat} passes, alternating; load {load}")
+    print(f"  graph builds (once per grid, not counted below): grid.adjacency() {t_adj * 1e3:.1f} ms, "
+          f"hybridnav's cached graph {t_own_build * 1e3:.1f} ms")
+    for k, t in tot.items():
+        print(f"  {k:<30} {t / n * 1e6:10.1f} us/query")
+    err = max(abs(a - b) for a, b in zip(lengths[ours], lengths[ref]))
+    print(f"  ratio hybridnav dijkstra / scipy dijkstra: {tot[ours] / tot[ref]:.2f}x per query, "
+          f"{(tot[ours] + t_own_build) / (tot[ref] + t_adj):.2f}x with each graph build spread over the {n} "
+          f"queries ({tot[ours] / tot['  ... with the path']:.2f}x against scipy with the path, "
+          f"{tot[ours] / tot['  ... limit=optimal length']:.2f}x against limit=optimal); "
+          f"max |length - scipy's| = {err:.1e}")
+    if heap:
+        print(f"  speed-up over the heap search: {tot['heap search (the old loop)'] / tot[ours]:.1f}x")
+
+
+# --------------------------------------------------------------------------------------------
 # Part 2: stochastic planners, per run
 # --------------------------------------------------------------------------------------------
 
@@ -165,6 +273,8 @@ def bench_runs(grid: OccupancyGrid, queries: list[MovingAIQuery], seeds: int, on
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5, help="passes over the 130 queries (best is kept)")
+    ap.add_argument("--size", type=int, default=400, help="side of the two large grids of part 1b")
+    ap.add_argument("--pairs", type=int, default=20, help="random start/goal pairs on each large grid")
     ap.add_argument("--runs", action="store_true", help="also time the stochastic planners of RUNNERS")
     ap.add_argument("--only", nargs="+", help="run only the RUNNERS whose name contains one of these")
     ap.add_argument("--buckets", type=int, nargs="+", default=[3, 6, 9, 12],
@@ -174,6 +284,11 @@ def main() -> None:
     args = ap.parse_args()
     grid, queries = load_arena()
     bench_search(grid, queries, args.repeat)
+    print()
+    bench_vs_scipy("arena.map", grid, [(q.start, q.goal) for q in queries], args.repeat,
+                   [q.optimal_length for q in queries], heap=True)
+    for name, big in large_grids(args.size).items():
+        bench_vs_scipy(name, big, random_pairs(big, args.pairs), args.repeat)
     if args.runs:
         sel = [q for q in queries if q.bucket in args.buckets][::args.every]
         print()

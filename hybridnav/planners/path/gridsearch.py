@@ -8,15 +8,30 @@ The graph is the free-cell graph of an :class:`~hybridnav.world.grid.OccupancyGr
 * without ``corner_cutting`` (the default, and the MovingAI rule) a diagonal step is allowed only
   when *both* orthogonal cells it passes between are free.
 
-Both searches are heap based (:mod:`heapq`) and return the optimal length (which of several
-equally short paths is returned is unspecified). To keep Python work per neighbour small, the inner
-loop runs on flat indices of the grid padded with one ring of blocked cells, and a per-cell bitmask
-of legal moves (computed once with numpy, cached per grid while its ``occ`` is unchanged) selects a
-precomputed tuple of ``(offset, cost)`` pairs: no bounds, obstacle or corner tests in the loop.
-A* breaks ties between equal ``f = g + h`` in favour of the larger ``g`` (the node closer to the
-goal), with ``f`` quantized so that float rounding does not hide exact ties; on the MovingAI arena
-this expands ~3.5x fewer nodes than without tie-breaking. The heuristics offered are admissible and
-consistent for the connectivity they are allowed with, so every node is expanded at most once.
+Both return the optimal length (which of several equally short paths is returned is unspecified,
+but it is deterministic). A* is heap based (:mod:`heapq`). To keep Python work per neighbour small,
+its inner loop runs on flat indices of the grid padded with one ring of blocked cells, and a
+per-cell bitmask of legal moves (computed once with numpy, cached per grid while its ``occ`` is
+unchanged) selects a precomputed tuple of ``(offset, cost)`` pairs: no bounds, obstacle or corner
+tests in the loop. A* breaks ties between equal ``f = g + h`` in favour of the larger ``g`` (the
+node closer to the goal), with ``f`` quantized so that float rounding does not hide exact ties; on
+the MovingAI arena this expands ~3.5x fewer nodes than without tie-breaking. The heuristics offered
+are admissible and consistent for the connectivity they are allowed with, so every node is expanded
+at most once.
+
+Dijkstra runs :func:`scipy.sparse.csgraph.dijkstra` (compiled) on the same padded graph, stored
+as a CSR matrix that is cached per grid like the move masks, with a distance ``limit``: first the
+obstacle-free distance to the goal (a lower bound, and the answer whenever some obstacle-free
+shortest path exists); when the goal lies beyond it, the search continues from the rim of the
+explored ball through a virtual source node (one extra CSR row whose edges carry the rim's
+distances), with a new limit from an A*-style lower bound over the rim. Its distances are the
+same floating-point numbers the heap search computes (both take the smallest ``g(u) + cost``
+over the neighbours, and adding a positive step is monotone), so the path is rebuilt from them
+with the heap search's own tie rule and the result -- cells, length, ``expanded`` -- is the one
+``astar(..., heuristic="zero")`` gives (see :class:`_HeapOrder`); scipy's predecessors are not
+used, as they break ties differently. Unreachable goals are answered from cached connected
+components without a search. The cached graph takes ~12 bytes per edge (~100 bytes per free
+cell: ~17 MB for 400 x 400 cells), held while the grid object lives.
 
 Functions
 ---------
@@ -34,6 +49,7 @@ import functools
 import heapq
 import logging
 import math
+import threading
 import weakref
 from array import array
 from collections.abc import Sequence
@@ -75,7 +91,9 @@ class GridPath:
     length : float
         Path length in world units (sum of step costs); ``inf`` when not found.
     expanded : int
-        Number of nodes expanded (popped from the heap and closed).
+        Number of nodes expanded (popped from the heap and closed). For :func:`dijkstra`, the number
+        its heap search would close: the nodes nearer than the goal, the goal, and the equally near
+        nodes it pops first (computed from the distances; scipy may scan a few more, up to its limit).
     start, goal : (int, int)
         The cells searched between.
     method : str
@@ -213,6 +231,15 @@ def _move_table(Wp: int, res: float) -> tuple[tuple[tuple[int, float], ...], ...
     return tuple(tuple(steps[k] for k in range(8) if m >> k & 1) for m in range(256))
 
 
+@functools.lru_cache(maxsize=64)
+def _move_tables_by_kind(Wp: int, res: float) -> tuple[tuple, tuple]:
+    """:func:`_move_table` split into the straight and the diagonal moves of each mask."""
+    table = _move_table(Wp, res)
+    straight = tuple(tuple(e for e in moves if e[1] == res) for moves in table)
+    diagonal = tuple(tuple(e for e in moves if e[1] != res) for moves in table)
+    return straight, diagonal
+
+
 def _heuristic_table(Hp: int, Wp: int, gx: int, gy: int, res: float, heuristic: str, diagonal: bool) -> array:
     """Heuristic of every padded cell, computed with numpy.
 
@@ -299,6 +326,269 @@ def _search(
     return GridPath(True, cells, grid.to_world(cells), float(g[t]), expanded, start, goal, method, params)
 
 
+# --------------------------------------------------------------------------------------------
+# Dijkstra on scipy's csgraph
+# --------------------------------------------------------------------------------------------
+
+# Each continuation of a Dijkstra search (see _dijkstra) sets its limit this much above the rim's
+# A*-style lower bound on the goal's distance: a larger margin scans more nodes past the goal, a
+# smaller one needs more continuations (each a scipy call and a few numpy passes over the grid).
+_LIMIT_MARGIN = 1.05
+# ... and scans the whole component when the first ball is estimated to hold this much of it.
+_FULL_SCAN = 0.6
+
+
+class _Graph:
+    """The padded free-cell graph of one grid and move rules, as scipy's csgraph takes it.
+
+    Nodes are the flat indices of the padded grid (as in :func:`_search`). The CSR arrays have
+    room for one more row, node ``n``: the virtual source of a continued search, whose edges are
+    written into the spare tail under ``lock``. ``base`` is the ``n x n`` graph without it (views
+    of the same arrays, never written). ``label`` and ``sizes`` are the connected components.
+    """
+
+    def __init__(self, masks: bytes, Wp: int, res: float) -> None:
+        from scipy.sparse import csr_matrix
+        from scipy.sparse.csgraph import connected_components, dijkstra
+
+        self.masks, self.Wp, self.n = masks, Wp, len(masks)
+        n = self.n
+        m = np.frombuffer(masks, dtype=np.uint8)
+        legal = (m[:, None] >> np.arange(8, dtype=np.uint8)) & 1 == 1  # (n, 8), row-major CSR order
+        offs = np.array([dc + dr * Wp for dc, dr in _MOVES], dtype=np.int32)
+        cost = np.array([res * (_SQRT2 if dc and dr else 1.0) for dc, dr in _MOVES])
+        rows, ks = np.nonzero(legal)
+        E = rows.size
+        self.E = E
+        self.data = np.empty(E + n, dtype=np.float64)
+        self.data[:E] = cost[ks]
+        self.indices = np.empty(E + n, dtype=np.int32)
+        self.indices[:E] = rows + offs[ks]
+        self.indptr = np.zeros(n + 2, dtype=np.int32)
+        np.cumsum(legal.sum(axis=1), out=self.indptr[1:n + 1])
+        self.base = csr_matrix((self.data[:E], self.indices[:E], self.indptr[:n + 1]), shape=(n, n),
+                               copy=False)
+        _, label = connected_components(self.base, directed=True, connection="weak")
+        self.sizes = np.bincount(label).tolist()
+        free = np.zeros((n // Wp + 1, Wp + 1), dtype=np.int64)  # summed-area table of free cells
+        free[1:, 1:] = (m != 0).reshape(-1, Wp).cumsum(axis=0).cumsum(axis=1)
+        # memoryviews: indexing them gives Python numbers, quicker than numpy scalars
+        self.label, self.free = memoryview(label), memoryview(free)
+        self.table = _move_table(Wp, res)
+        self.straight, self.diag = _move_tables_by_kind(Wp, res)
+        self.lock = threading.Lock()
+        self._csr_matrix, self.dijkstra = csr_matrix, dijkstra
+
+    def free_cells(self, c0: int, r0: int, c1: int, r1: int) -> int:
+        """Number of free cells in padded columns ``c0..c1``, rows ``r0..r1`` (clipped)."""
+        c0, r0 = max(c0, 0), max(r0, 0)
+        c1, r1 = min(c1, self.Wp - 1), min(r1, self.n // self.Wp - 1)
+        if c0 > c1 or r0 > r1:
+            return 0
+        f = self.free
+        return f[r1 + 1, c1 + 1] - f[r0, c1 + 1] - f[r1 + 1, c0] + f[r0, c0]
+
+    def continued(self, seeds: NDArray[np.int_], dist: NDArray[np.float64], limit: float) -> NDArray[np.float64]:
+        """Distances up to ``limit`` from a virtual source joined to each ``seeds[i]`` by an edge
+        of length ``dist[i] > 0`` (scipy's ``dijkstra`` has no start distances of its own)."""
+        n, E, k = self.n, self.E, seeds.size
+        with self.lock:  # the tail of the shared arrays is this call's
+            self.data[E:E + k] = dist
+            self.indices[E:E + k] = seeds
+            self.indptr[n + 1] = E + k
+            g = self._csr_matrix((self.data[:E + k], self.indices[:E + k], self.indptr),
+                                 shape=(n + 1, n + 1), copy=False)
+            return self.dijkstra(g, indices=n, limit=limit, min_only=True)[:n]
+
+
+_GRAPH_CACHE: weakref.WeakKeyDictionary[OccupancyGrid, dict] = weakref.WeakKeyDictionary()
+
+
+def _cached_graph(grid: OccupancyGrid, diagonal: bool, corner_cutting: bool) -> _Graph:
+    """The :class:`_Graph` of ``grid``, reused while its ``occ`` content and resolution are unchanged.
+
+    As in :func:`_cached_masks`, a byte comparison of ``occ`` on every call detects in-place edits
+    and reassignment; the resolution (the edge lengths) is part of the key.
+    """
+    occ = np.ascontiguousarray(grid.occ, dtype=bool)
+    key = (occ.shape, diagonal, corner_cutting, grid.resolution)
+    raw = occ.tobytes()
+    try:
+        entry = _GRAPH_CACHE.setdefault(grid, {})
+    except TypeError:  # not weak-referenceable (a subclass with __slots__): no cache
+        return _Graph(*_move_masks(occ, diagonal, corner_cutting), grid.resolution)
+    hit = entry.get(key)
+    if hit is not None and hit[0] == raw:
+        return hit[1]
+    out = _Graph(*_move_masks(occ, diagonal, corner_cutting), grid.resolution)
+    if len(entry) >= 4:
+        entry.clear()
+    entry[key] = (raw, out)
+    return out
+
+
+class _HeapOrder:
+    """Where nodes come in the pop order of :func:`_search` with ``h = 0``, from the distances.
+
+    That heap pops ``(g // q, -g, node)`` entries, and pushes a node again at every improvement
+    of its ``g``; a node is closed at its first pop. Its distance fixes ``g // q``, but two
+    improvements can differ by float rounding alone (equally long paths summed in another
+    order) and fall in the same quantum; the first of them (the larger) is then the entry that
+    pops. So a node's place is ``(Q, -first, node)``: ``Q = dist // q``, ``first`` the first value
+    pushed in quantum ``Q``, which is that of the neighbour popped first among those whose
+    ``dist + step`` lands in ``Q`` -- usually all of them give ``dist`` itself.
+    """
+
+    def __init__(self, dist, masks: bytes, table, q: float, s: int) -> None:
+        self.dist, self.masks, self.table, self.q = dist, masks, table, q
+        self.first: dict[int, float] = {s: 0.0}
+
+    def key(self, v: int) -> tuple[float, float, int]:
+        return (self.dist[v] // self.q, -self._first(v), v)
+
+    def before(self, v: int, t: int) -> bool:
+        """Whether ``v`` pops before ``t`` (two different nodes of the same quantum)."""
+        ft, dv = self._first(t), self.dist[v]
+        if dv > ft or (dv == ft and v < t):  # first(v) >= dist(v) decides without v's neighbours
+            return True
+        fv = self._first(v)
+        return fv > ft or (fv == ft and v < t)
+
+    def _first(self, v: int) -> float:
+        first, dist, q = self.first, self.dist, self.q
+        stack = [v]
+        while stack:  # iterative: each node pushed here needs nodes of smaller quanta only
+            u = stack[-1]
+            if u in first:
+                stack.pop()
+                continue
+            du = dist[u]
+            near = du + 2.0 * q  # every val is >= du; those in du's quantum are below this
+            moves = self.table[self.masks[u]]
+            for off, cost in moves:
+                if du < dist[u + off] + cost < near:
+                    break
+            else:  # every push in du's quantum was du itself
+                first[u] = du
+                stack.pop()
+                continue
+            qu = du // q
+            cands = []
+            for off, cost in moves:
+                val = dist[u + off] + cost
+                if val < near and val // q == qu:
+                    cands.append((u + off, val))
+            if all(val == du for _, val in cands):
+                first[u] = du
+                stack.pop()
+                continue
+            # the pushes come in the pop order of these neighbours; their own first values
+            # matter only between neighbours of the same quantum
+            quanta = [dist[w] // q for w, _ in cands]
+            shared = {x for x in quanta if quanta.count(x) > 1}
+            need = [w for (w, _), x in zip(cands, quanta) if x in shared and w not in first]
+            if need:
+                stack.extend(need)
+                continue
+            first[u] = min(zip(quanta, cands),
+                           key=lambda e: (e[0], -first[e[1][0]] if e[0] in shared else 0.0, e[1][0]))[1][1]
+            stack.pop()
+        return first[v]
+
+
+def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int], diagonal: bool,
+              corner_cutting: bool) -> GridPath:
+    """The result of ``_search(..., "zero", "dijkstra")``, computed with scipy (module docstring)."""
+    G = _cached_graph(grid, diagonal, corner_cutting)
+    res, Wp, n = grid.resolution, G.Wp, G.n
+    sc, sr, tc, tr = start[0] + 1, start[1] + 1, goal[0] + 1, goal[1] + 1  # padded
+    s, t = sr * Wp + sc, tr * Wp + tc
+    params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
+    if s == t:
+        cells = np.array([start], dtype=int)
+        return GridPath(True, cells, grid.to_world(cells), 0.0, 1, start, goal, "dijkstra", params)
+    if G.label[s] != G.label[t]:  # the heap search closes all of the start's component, in vain
+        empty = np.zeros((0, 2), dtype=int)
+        return GridPath(False, empty, np.zeros((0, 2)), math.inf, G.sizes[G.label[s]], start, goal,
+                        "dijkstra", params)
+
+    q = res * max(1e-9, 1e-15 * n)  # _search's quantum
+    dx, dy = abs(sc - tc), abs(sr - tr)
+    free_dist = (max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)) if diagonal else float(dx + dy)
+    # Every node whose distance is within 3 q of the goal's must be in (their order decides
+    # `expanded`); the first limit is at least 2 resolutions, so that a continuation's rim never
+    # holds the start (a zero-length edge from the virtual source).
+    limit = max(res * free_dist * (1.0 + 1e-9), 2.0 * res) + 4.0 * q
+    c0, c1 = (sc, tc) if sc < tc else (tc, sc)
+    r0, r1 = (sr, tr) if sr < tr else (tr, sr)
+    f = G.free  # summed-area table: the free cells of the box between start and goal
+    if f[r1 + 1, c1 + 1] - f[r0, c1 + 1] - f[r1 + 1, c0] + f[r0, c0] < (dx + 1) * (dy + 1):
+        # An obstacle between them: the goal may lie beyond that limit. When the ball up to it
+        # would hold most of the start's component anyway (estimated from the free cells of its
+        # bounding square), scan the component at once.
+        r = int(free_dist) + 1  # the ball (an octagon, or a diamond) fills ~0.71 (0.5) of the square
+        ball = G.free_cells(sc - r, sr - r, sc + r, sr + r) * (0.71 if diagonal else 0.5)
+        if ball >= _FULL_SCAN * G.sizes[G.label[s]]:
+            limit = math.inf
+    dist = G.dijkstra(G.base, indices=s, limit=limit, min_only=True)  # min_only: a little faster
+    while not dist[t] + 3.0 * q <= limit:
+        # The goal lies beyond: continue from the rim (the nodes with a neighbour outside the ball
+        # have dist > limit - sqrt(2) res), with an A*-style bound: any path to the goal leaves
+        # through the rim, so it is at least min(dist + the obstacle-free distance to the goal).
+        rim = np.flatnonzero(dist > limit - _SQRT2 * res)
+        rim = rim[dist[rim] <= limit]
+        ddx = np.abs(rim % Wp - tc)
+        ddy = np.abs(rim // Wp - tr)
+        h = (np.maximum(ddx, ddy) + (_SQRT2 - 1.0) * np.minimum(ddx, ddy)) if diagonal else ddx + ddy
+        bound = float(np.min(dist[rim] + res * h))
+        new_limit = max(bound * _LIMIT_MARGIN, limit + 2.0 * res) + 4.0 * q
+        more = G.continued(rim, dist[rim], new_limit)
+        dist = np.where(dist <= limit, dist, more)  # inside the old ball, `more` may be too long
+        limit = new_limit
+
+    dv = memoryview(dist)  # Python floats, as _search computes them
+    gt = dv[t]
+    order = None  # the heap order, needed only where ties are to be broken
+    # expanded: the nodes popped before the goal, and the goal
+    lo, hi = gt - 3.0 * q, gt + 3.0 * q
+    expanded = int(np.count_nonzero(dist < lo)) + 1
+    near = np.flatnonzero((dist >= lo) & (dist <= hi)).tolist()
+    if len(near) > 1:  # nodes as near as the goal (ties, or float noise): the heap order decides
+        qt = gt // q
+        order = _HeapOrder(dv, G.masks, G.table, q, s)
+        for v in near:
+            if v != t:
+                qv = dv[v] // q
+                expanded += qv < qt or (qv == qt and order.before(v, t))
+    # The path: _search makes a node's parent the neighbour popped first among those giving its
+    # distance (it replaces a parent only on a strict improvement). A diagonal one is nearer the
+    # start by (sqrt(2) - 1) resolution, so popped before any straight one; between two of a kind,
+    # their heap order decides.
+    straight, diag, masks = G.straight, G.diag, G.masks
+    idx = [t]
+    v = t
+    while v != s:
+        gv, m = dv[v], masks[v]
+        u = -1  # the parent; -2: more than one candidate (plain loops: quicker than comprehensions)
+        for moves in (diag[m], straight[m]):
+            for off, cost in moves:
+                if dv[v + off] + cost == gv:
+                    u = v + off if u == -1 else -2
+            if u != -1:
+                break
+        if u == -2:
+            if order is None:
+                order = _HeapOrder(dv, G.masks, G.table, q, s)
+            u = min((v + off for off, cost in moves if dv[v + off] + cost == gv), key=order.key)
+        v = u
+        idx.append(v)
+    idx.reverse()
+    cells = np.empty((len(idx), 2), dtype=int)
+    np.divmod(np.array(idx), Wp, out=(cells[:, 1], cells[:, 0]))
+    cells -= 1
+    return GridPath(True, cells, grid.to_world(cells), gt, expanded, start, goal, "dijkstra", params)
+
+
 def _prepare(grid: Any, start: Any, goal: Any, diagonal: Any, corner_cutting: Any):
     grid = _check_grid(grid)
     diagonal, corner_cutting = _check_flags(diagonal, corner_cutting)
@@ -383,6 +673,11 @@ def dijkstra(
 ) -> GridPath:
     """Shortest path between two cells by Dijkstra's algorithm (stops when the goal is closed).
 
+    The search runs in :func:`scipy.sparse.csgraph.dijkstra` on a graph cached per grid (rebuilt
+    when ``occ`` or ``resolution`` changes), with a distance limit instead of a stop at the goal;
+    the result is that of a heap search closing nodes in order of distance (ties as
+    ``astar(..., heuristic="zero")`` breaks them), which it reproduces exactly.
+
     Parameters
     ----------
     grid : OccupancyGrid
@@ -402,7 +697,7 @@ def dijkstra(
         ``start`` or ``goal`` is not a cell, lies outside the grid, or is blocked.
     """
     grid, s, t, diagonal, corner_cutting = _prepare(grid, start, goal, diagonal, corner_cutting)
-    return _search(grid, s, t, diagonal, corner_cutting, "zero", "dijkstra")
+    return _dijkstra(grid, s, t, diagonal, corner_cutting)
 
 
 def search_world(
