@@ -26,7 +26,8 @@ cost calls feasible) picks the returned system.
 **Checkpoints.** With ``checkpoint=DIR`` the state (optimizer state with its random generators,
 validation trackers, logbook, position) is written atomically to ``DIR/checkpoint.json`` after
 every generation, compactly; the per-candidate evaluation rows are appended to
-``DIR/evaluations.jsonl``. ``resume=True`` continues from them — refusing a checkpoint of another
+``DIR/evaluations.jsonl`` (both written by a background thread while the workers compute the
+next generation; the run waits for them before it returns). ``resume=True`` continues from them — refusing a checkpoint of another
 configuration (``config_hash``) — and ends with exactly the result an uninterrupted run gives.
 """
 
@@ -37,6 +38,7 @@ import json
 import logging
 import time
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -140,6 +142,8 @@ class _Run:
         self.best_train: dict[str, Any] | None = None
         self.max_evals = 0
         self.finished = False
+        self._writer: ThreadPoolExecutor | None = None
+        self._writes: list[Future] = []
 
     # ---- evaluation ------------------------------------------------------------------------
 
@@ -330,14 +334,44 @@ class _Run:
                 "best_train": self.best_train}
 
     def save(self, rows: list[dict[str, Any]], finished: bool = False) -> None:
+        """Append a generation's rows to ``evaluations.jsonl`` and write the checkpoint.
+
+        The state is serialized here; the rows (about 3,000 per generation of the main job,
+        which take longer to serialize than the state) and both files are written by one
+        background thread, in order, while the workers compute the next generation.
+        :meth:`flush` waits for them (the end of :meth:`run`); a write that failed raises at
+        the next save or flush. A process killed meanwhile leaves the previous checkpoint and
+        perhaps the rows of a generation after it, which a resume drops and computes again.
+        """
         if self.dir is None:
             return
-        if rows:
-            with open(self.dir / "evaluations.jsonl", "a", encoding="utf-8") as fh:
-                fh.write("".join(json.dumps(r) + "\n" for r in rows))
         state = {"format": CHECKPOINT_FORMAT, "version": __version__,
                  "config_hash": self.config_hash, **self.state(finished)}
-        atomic_write_text(self.dir / "checkpoint.json", json.dumps(state))
+        text = json.dumps(state)
+        for fut in [f for f in self._writes if f.done()]:
+            self._writes.remove(fut)
+            fut.result()                              # a failed write raises here
+        if self._writer is None:
+            self._writer = ThreadPoolExecutor(1, thread_name_prefix="hybridnav-checkpoint")
+        self._writes.append(self._writer.submit(self._write, self.dir, rows, text))
+
+    @staticmethod
+    def _write(folder: Path, rows: list[dict[str, Any]], state_text: str) -> None:
+        if rows:
+            with open(folder / "evaluations.jsonl", "a", encoding="utf-8") as fh:
+                fh.write("".join(json.dumps(r) + "\n" for r in rows))
+        atomic_write_text(folder / "checkpoint.json", state_text)
+
+    def flush(self) -> None:
+        """Wait for the checkpoint writes under way (raising the first that failed)."""
+        writes, self._writes = self._writes, []
+        try:
+            for fut in writes:
+                fut.result()
+        finally:
+            if self._writer is not None:
+                self._writer.shutdown(wait=True)
+                self._writer = None
 
     def restore(self, state: dict[str, Any]) -> None:
         path = self.dir / "checkpoint.json"
@@ -603,7 +637,10 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
             (run.dir / "evaluations.jsonl").unlink(missing_ok=True)
     elif resume:
         raise HybridnavError("resume: expected a checkpoint folder to resume from")
-    run.run(stop_after)
+    try:
+        run.run(stop_after)
+    finally:
+        run.flush()
     return _result(run, system, settings, select, name, judge, test, backend)
 
 
