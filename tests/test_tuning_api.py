@@ -189,6 +189,32 @@ def test_nsga2_front_is_non_dominated_and_covers_the_trade_off(target):
         assert m.system.output.terms[1].params[1] == pytest.approx(row[0], abs=1e-12)
 
 
+def test_a_checkpoint_write_that_fails_stops_the_run_with_its_error(tmp_path, target,
+                                                                     monkeypatch):
+    """Checkpoints are written in the background: a failed write (a full disk) still ends the
+    run with that error, and what was written before it stays a valid checkpoint."""
+    import hybridnav.tuner.core as core
+
+    X, y = samples(target, 100, 8)
+    real, calls = core.atomic_write_text, []
+
+    def failing(path, text):
+        calls.append(path)
+        if len(calls) == 3:
+            raise HybridnavError(f"{path}: cannot write (No space left on device)")
+        return real(path, text)
+
+    monkeypatch.setattr(core, "atomic_write_text", failing)
+    with pytest.raises(HybridnavError, match="No space left on device"):
+        tune(target, DataCost(X, y), optimizer=GA(population=6, generations=6),
+             checkpoint=tmp_path, seed=1)
+    monkeypatch.setattr(core, "atomic_write_text", real)
+    done = tune(target, DataCost(X, y), optimizer=GA(population=6, generations=6),
+                checkpoint=tmp_path, resume=True, seed=1)
+    fresh = tune(target, DataCost(X, y), optimizer=GA(population=6, generations=6), seed=1)
+    assert np.array_equal(done.x, fresh.x)
+
+
 def test_results_do_not_depend_on_the_backend_and_resume_exactly(tmp_path, target):
     start = perturbed(target, 0.05, np.random.default_rng(7))
     X, y = samples(target, 200, 8)
