@@ -232,3 +232,69 @@ def _one_member():
     fis = fuzzy.builtin("effc-2rule")
     fam = SystemFamily(fis)
     return fam, fam.tables_of([fis]), np.zeros(1, int)
+
+
+def test_tables_the_kernel_cannot_read_safely_go_to_numpy():
+    """Members, consequents, rule codes or shapes out of range (tables are mutable after
+    ``tables()`` checked them) never reach C: the NumPy path runs and raises or ignores as it
+    always did."""
+    fam, tables, _ = _one_member()
+    x = {"dtheta": [0.1, 0.2], "alpha": [0.3, 0.4]}
+    for member in ([0, 1], [-1, 0], [0, 10**6]):
+        assert kernel.family_evaluate(fam, tables, np.array(member), x) is None
+    with pytest.raises(IndexError):
+        fam.evaluate(tables, np.array([0, 1]), x)
+    bad = dataclasses.replace(tables, consequents=tables.consequents + 5)
+    assert kernel.family_evaluate(fam, bad, np.zeros(2, int), x) is None
+    codes = np.full((1, len(fam.rules), 2), 99)
+    assert kernel.family_evaluate(fam, dataclasses.replace(tables, antecedents=codes),
+                                  np.zeros(2, int), x) is None
+    short = dataclasses.replace(tables, output=tables.output[:, :, :5])
+    assert kernel.family_evaluate(fam, short, np.zeros(2, int), x) is None
+    assert kernel.family_evaluate(fam, tables, np.zeros(2, int),
+                                  {"dtheta": [0.1], "alpha": [0.3, 0.4]}) is None
+
+
+def test_effc_arguments_the_kernel_cannot_take_go_to_numpy():
+    scen = _scenarios(3.0)[:2]
+    st_ = scenario_set(scen)
+    fis = fuzzy.builtin("effc-5rule")
+    fam = SystemFamily(fis)
+    tables = fam.tables_of([fis])
+    with pytest.raises(IndexError):                          # 2 members of a 1-member table
+        effc_lockstep(st_, fam, tables, 2, PLANNER)
+    wide = np.zeros((3, len(scen) + 2, 1, 31))               # noise for other worlds
+    want = numpy_path(effc_lockstep, st_, fam, tables, 1, PLANNER, noise=wide[:, :2].copy())
+    with pytest.raises(IndexError):
+        numpy_path(effc_lockstep, st_, fam, tables, 1, PLANNER, noise=wide[:, :, :, :0])
+    got = effc_lockstep(st_, fam, tables, 1, PLANNER, noise=wide[:, :2].copy())
+    assert (got.outcome == want.outcome).all()
+
+
+def test_a_stuck_window_longer_than_the_run_is_never_tested():
+    """Cut to the run's length (no ring buffer of 2^32 cycles, no int overflow in C)."""
+    scen = _scenarios(5.0)[:2]
+    st_ = scenario_set(scen)
+    fis = fuzzy.builtin("effc-5rule")
+    fam = SystemFamily(fis)
+    args = (st_, fam, fam.tables_of([fis]), 1)
+    huge = effc_lockstep(*args, {**PLANNER, "stuck_window": 429496729.7})
+    none = effc_lockstep(*args, {**PLANNER, "stuck_window": 0.0})
+    assert (huge.outcome == none.outcome).all() and "stuck" not in set(huge.outcome.ravel())
+    assert (numpy_path(effc_lockstep, *args, {**PLANNER, "stuck_window": 1e12}).outcome
+            == none.outcome).all()
+
+
+def test_a_truncated_library_in_the_cache_is_built_again(monkeypatch, tmp_path):
+    monkeypatch.setenv("HYBRIDNAV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(native, "_LOADED", {})
+    code = "int f(void) { return 7; }"
+    assert native.build("probe", code).f() == 7
+    (so,) = tmp_path.glob("native/probe-*.so")
+    whole = so.read_bytes()
+    part = tmp_path / "part"
+    part.write_bytes(whole[:1000])                           # a partial copy (a new file: the
+    os.replace(part, so)                                     # loaded one stays mapped)
+    monkeypatch.setattr(native, "_LOADED", {})
+    assert native.build("probe", code).f() == 7
+    assert so.read_bytes() == whole                          # built again, not loaded

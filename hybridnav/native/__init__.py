@@ -4,8 +4,9 @@ compiler and loaded through :mod:`ctypes`.
 :func:`build` compiles a source (plus generated code, e.g. a model step from CasADi's code
 generator) into a shared library in the cache folder (:func:`cache_dir`) named by the hash of the source, the compiler and its flags, so
 every process of a job (workers included) loads the same file and a changed source is rebuilt.
-The file is written to a temporary name and renamed: two processes building at once both end up
-with a whole library. Without a compiler, or with ``HYBRIDNAV_NATIVE=0``, :func:`build` returns
+The file is written to a temporary name, synced and renamed, with its SHA-256 beside it: two
+processes building at once both end up with a whole library, and a truncated or foreign file in
+the cache (which would crash the process that loads it) is built again instead of loaded. Without a compiler, or with ``HYBRIDNAV_NATIVE=0``, :func:`build` returns
 ``None`` and callers use their NumPy path (same results to rounding, slower).
 """
 
@@ -87,9 +88,27 @@ def build_path(name: str, code: str) -> Path | None:
         return _build(f"{name}-{digest}", code, compiler)
 
 
+def _sidecar(target: Path) -> Path:
+    return target.with_name(target.name + ".sha256")
+
+
+def _intact(target: Path) -> bool:
+    """Whether a cached library is the file that was built (its SHA-256 recorded beside it)."""
+    try:
+        want = _sidecar(target).read_text(encoding="ascii").strip()
+        return hashlib.sha256(target.read_bytes()).hexdigest() == want
+    except OSError:
+        return False
+
+
 def _build(key: str, code: str, compiler: str) -> Path | None:
     folder = cache_dir()
     target = folder / f"{key}.so"
+    if target.exists() and not _intact(target):
+        # a truncated or foreign file would crash the process inside dlopen: build it again
+        log.warning("%s does not match its recorded hash: building it again", target)
+        for p in (target, _sidecar(target)):
+            p.unlink(missing_ok=True)
     if not target.exists():
         if shutil.which(compiler) is None:
             log.info("no C compiler (%s): compiled kernels unavailable", compiler)
@@ -105,7 +124,13 @@ def _build(key: str, code: str, compiler: str) -> Path | None:
                 if proc.returncode != 0:
                     log.warning("compiling %s failed: %s", key, proc.stderr.strip()[-2000:])
                     return None
+                data = out.read_bytes()
+                with open(out, "rb+") as fh:             # on disk before it gets its name
+                    os.fsync(fh.fileno())
+                side = Path(tmp) / "hash"
+                side.write_text(hashlib.sha256(data).hexdigest(), encoding="ascii")
                 os.replace(out, target)
+                os.replace(side, _sidecar(target))
         except (OSError, subprocess.SubprocessError) as exc:
             log.info("compiled kernel %s unavailable: %s", key, exc)
             return None

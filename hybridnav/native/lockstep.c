@@ -195,7 +195,7 @@ static double hn_fuzzy(const hn_family *f, int64_t k, const double *x, double *w
     double moment = ((tm[0] + tm[1]) + (tm[2] + tm[3])) + ((tm[4] + tm[5]) + (tm[6] + tm[7]));
     /* scikit-fuzzy adds each used term's crossings of its positive cut level: on the
      * intervals holding one, the polyline through them replaces the trapezoid */
-    int hit[2 * HN_MAX_T + 8], nhit = 0;
+    int *hit = (int *)(work + M), nhit = 0;      /* intervals with a crossing (< M) */
     for (int t = 0; t < T; ++t) {
         const double c = c3[t], *Ft = F + (size_t)t * M;
         if (c == INFINITY) continue;
@@ -211,7 +211,6 @@ static double hn_fuzzy(const hn_family *f, int64_t k, const double *x, double *w
                 int q = nhit;                       /* insert m - 1, sorted, once */
                 while (q > 0 && hit[q - 1] > m - 1) --q;
                 if (!(q > 0 && hit[q - 1] == m - 1)) {
-                    if (nhit == (int)(sizeof hit / sizeof hit[0])) return NAN;
                     memmove(hit + q + 1, hit + q, sizeof(int) * (nhit - q));
                     hit[q] = m - 1;
                     ++nhit;
@@ -266,7 +265,7 @@ int hn_family_eval(const hn_family *f, int64_t B, const int64_t *member, const d
                     double *out)
 {
     double xb[HN_MAX_IN];
-    double *work = malloc(sizeof(double) * f->M);
+    double *work = malloc(sizeof(double) * 2 * f->M);    /* the curve, then the hit list */
     if (!work) return -1;
     for (int64_t b = 0; b < B; ++b) {
         for (int i = 0; i < f->n_in; ++i) xb[i] = x[(size_t)i * B + b];
@@ -472,7 +471,7 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
     double *last = calloc(2 * N, sizeof(double));
     double *ring = W ? calloc((size_t)(W + 1) * N * 2, sizeof(double)) : NULL;
     double *xn = malloc(sizeof(double) * nx);
-    double *fwork = malloc(sizeof(double) * f->M);
+    double *fwork = malloc(sizeof(double) * 2 * f->M);
     if (!arg || !res || !iw || !mw || !w.D || !w.gedge || !w.tmp_de || !w.tmp_q || !V || !last
         || (W && !ring) || !xn || !fwork || !w.clear || !w.near) {
         free(arg); free(res); free(iw); free(mw); free(w.D); free(w.gedge); free(w.tmp_de);

@@ -75,20 +75,33 @@ class _Keep:
         return ctypes.addressof(table)
 
 
+_LIBS: dict[tuple, ctypes.CDLL | None] = {}
+
+
 def _library(model=None) -> ctypes.CDLL | None:
-    code = native.source("lockstep.c")
-    if model is None:
-        lib = native.build("family", "#define HN_NO_MODEL 1\n" + code)
-    else:
-        lib = native.build(f"lockstep-{model.name}", _model_code(model) + "\n" + code)
-    if lib is not None and not getattr(lib, "_hn_typed", False):
-        lib.hn_family_eval.argtypes = [POINTER(_Family), c_int64, c_void_p, c_void_p, c_void_p]
-        lib.hn_family_eval.restype = c_int
-        if model is not None:
-            lib.hn_effc_run.argtypes = [POINTER(_Family), POINTER(_Stack), POINTER(_Run)]
-            lib.hn_effc_run.restype = c_int
-        lib._hn_typed = True
-    return lib
+    """The kernel library (with ``model``'s step linked in), looked up once per process."""
+    if not native.enabled():
+        return None
+    key = (native.cache_dir(), None if model is None else model._key())
+    if key not in _LIBS:
+        code = native.source("lockstep.c")
+        if model is None:
+            lib = native.build("family", "#define HN_NO_MODEL 1\n" + code)
+        else:
+            lib = native.build(f"lockstep-{model.name}", _model_code(model) + "\n" + code)
+        try:
+            if lib is not None:
+                lib.hn_family_eval.argtypes = [POINTER(_Family), c_int64, c_void_p, c_void_p,
+                                               c_void_p]
+                lib.hn_family_eval.restype = c_int
+                if model is not None:
+                    lib.hn_effc_run.argtypes = [POINTER(_Family), POINTER(_Stack),
+                                                POINTER(_Run)]
+                    lib.hn_effc_run.restype = c_int
+        except AttributeError:             # a library without the kernel's functions
+            lib = None
+        _LIBS[key] = lib
+    return _LIBS[key]
 
 
 _MODEL_CODE: dict[tuple, str] = {}
@@ -140,10 +153,38 @@ def _program(family) -> tuple[list[int], list[int]] | None:
     return prog, starts
 
 
+def _fits(family, tables) -> bool:
+    """Whether ``tables`` are a table set of ``family`` the kernel can read without leaving its
+    arrays: shapes, consequents and rule codes in range (tables are mutable after
+    :meth:`SystemFamily.tables` checked them; where they do not fit, the NumPy path runs and
+    says what is wrong)."""
+    K, T, R = tables.size, len(family.output.terms), len(family.rules)
+    terms = [len(v.terms) for v in family.inputs]
+    if len(terms) > _MAX_IN or max(terms) > _MAX_TERMS or T > _MAX_T:
+        return False
+    if len(tables.inputs) != len(terms) or any(
+            np.shape(t) != (K, n, len(x)) for t, n, x in zip(tables.inputs, terms, family.x_in)):
+        return False
+    if (np.shape(tables.output) != (K, T, len(family.x_out))
+            or np.shape(tables.weights) != (K, R) or np.shape(tables.consequents) != (K, R)):
+        return False
+    cons = np.asarray(tables.consequents)
+    if cons.size and (cons.min() < 0 or cons.max() >= T):
+        return False
+    if tables.antecedents is not None:
+        codes = np.asarray(tables.antecedents)
+        if codes.shape != (K, R, len(terms)):
+            return False
+        if codes.size and (codes.min() < 0
+                           or np.any(codes > 2 * np.array(terms)[None, None, :])):
+            return False
+    return True
+
+
 def _family_struct(family, tables, keep: _Keep) -> _Family | None:
     terms = [len(v.terms) for v in family.inputs]
     T = len(family.output.terms)
-    if len(terms) > _MAX_IN or max(terms) > _MAX_TERMS or T > _MAX_T:
+    if not _fits(family, tables):
         return None
     prog = None
     if tables.antecedents is None:
@@ -195,10 +236,15 @@ def family_evaluate(family, tables, member: np.ndarray, inputs) -> np.ndarray | 
     if f is None:
         return None
     B = len(member)
+    member = np.ascontiguousarray(member, dtype=np.int64)
+    if B and (member.min() < 0 or member.max() >= tables.size):
+        return None                        # NumPy's indexing (wrapping, IndexError) decides
     X = np.empty((len(family.inputs), B))
     for i, v in enumerate(family.inputs):
-        X[i] = np.broadcast_to(np.asarray(inputs[v.name], dtype=float).ravel(), (B,))
-    member = np.ascontiguousarray(member, dtype=np.int64)
+        x = np.asarray(inputs[v.name], dtype=float).ravel()
+        if x.shape != (B,):
+            return None                    # NumPy's broadcasting rules decide
+        X[i] = x
     out = np.empty(B)
     if lib.hn_family_eval(ctypes.byref(f), B, member.ctypes.data, X.ctypes.data,
                           out.ctypes.data) < 0:
@@ -234,12 +280,20 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
              radius: np.ndarray, record_paths: bool):
     """The EFFC lockstep run of ``batch`` (:func:`hybridnav.planners.field.lockstep.prepare`)
     compiled: the arrays of :func:`hybridnav.planners.field.lockstep.finish`, or ``None``."""
-    from hybridnav.planners.field.lockstep import finish
+    from hybridnav.planners.field.lockstep import finish, stuck_cycles
 
     model = batch.model
     names = [v.name for v in family.inputs]
     if not _single_disk(model) or sorted(names) != ["alpha", "dtheta"]:
         return None
+    repeats = int(repeats)
+    if repeats < 1 or (batch.M - 1) // repeats >= tables.size:
+        return None                        # the NumPy path says what is wrong
+    if noise is not None:
+        noise = np.asarray(noise)
+        if (noise.ndim != 4 or noise.shape[:2] != (3, batch.E) or noise.shape[2] < batch.M
+                or noise.shape[3] < 1):
+            return None
     lib = _library(model)
     if lib is None:
         return None
@@ -261,14 +315,14 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     stuck_window = planner["stuck_window"]
     r = _Run()
     r.N, r.nx, r.steps = N, model.nx, batch.steps
-    r.window = int(round(stuck_window / batch.dt)) if stuck_window > 0 else 0
+    r.window = stuck_cycles(stuck_window, batch.dt, batch.steps)
     r.dt, r.speed = batch.dt, float(planner["speed"])
     r.stuck_radius = float(planner["stuck_radius"])
     r.foot_radius = float(model.radius)
     r.div_x, r.div_y = (float(d) for d in model.carrot_divisor())
     r.env = keep.ptr(batch.env, np.int64)
     r.member = keep.ptr(batch.member, np.int64)
-    r.repeats = int(repeats)
+    r.repeats = repeats
     r.in_dtheta, r.in_alpha = names.index("dtheta"), names.index("alpha")
     r.X = X.ctypes.data
     r.goals = keep.ptr(batch.goals, np.float64)

@@ -17,7 +17,7 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["Batch", "LockstepResult", "finish", "lockstep_field", "prepare"]
+__all__ = ["Batch", "LockstepResult", "finish", "lockstep_field", "prepare", "stuck_cycles"]
 
 OUTCOME_CODES = ("running", "reached", "collided", "out_of_bounds", "stuck", "timeout")
 
@@ -87,7 +87,7 @@ def lockstep_field(
     length = np.zeros(N)
     t_end = np.full(N, np.nan)
     min_clear = np.full(N, np.inf)
-    window = int(round(stuck_window / dt)) if stuck_window > 0 else 0
+    window = stuck_cycles(stuck_window, dt, steps)
     ring = np.zeros((window + 1, N, 2)) if window else None
     paths = np.zeros((N, steps + 1, 2)) if record_paths else None
     if record_paths:
@@ -208,6 +208,15 @@ def finish(b: Batch, status: np.ndarray, length: np.ndarray, t_end: np.ndarray,
         final_distance=np.hypot(*(b.X[:, :2] - b.goals).T).reshape(shape),
         paths=None if paths is None else [paths[b.env == e] for e in range(b.E)],
     )
+
+
+def stuck_cycles(stuck_window: float, dt: float, steps: int) -> int:
+    """The no-progress window in control cycles (0: no test). A window longer than the run can
+    never be tested; it is cut to ``steps + 1`` cycles (the same outcome, no ring buffer of the
+    window's length)."""
+    if not stuck_window > 0:
+        return 0
+    return int(round(min(stuck_window / dt, steps + 1)))
 
 
 def _check(stack, model, env, X, t, status, min_clear, t_end, goals, goal_r, which=None):
