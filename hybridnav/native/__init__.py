@@ -55,25 +55,50 @@ def source(name: str) -> str:
     return resources.files(__name__).joinpath(name).read_text(encoding="utf-8")
 
 
-def build(name: str, code: str) -> ctypes.CDLL | None:
+def build(name: str, code: str, libs: tuple[str, ...] = ()) -> ctypes.CDLL | None:
     """The library compiled from ``code`` (loaded once per process), or ``None`` where it cannot
-    be built (no compiler, a compile error — logged — or kernels switched off)."""
+    be built or loaded (no compiler, a compile error — logged —, a library in ``libs`` missing or
+    lacking a symbol the code uses, or kernels switched off). ``libs`` are extra options after the
+    source (libraries such as ``-lmvec``, linked before ``-lm``)."""
     if not enabled():
         return None
-    compiler = os.environ.get("CC", "gcc")
-    digest = hashlib.sha256("\0".join((code, compiler, *FLAGS)).encode()).hexdigest()[:20]
-    key = f"{name}-{digest}"
+    key = _key(name, code, libs, ".so")
     with _LOCK:
         if key in _LOADED:
             return _LOADED[key]
-        lib = _build(key, code, compiler)
+        target = _build(key, code, libs, ".so")
+        lib = None
+        if target is not None:
+            try:
+                lib = ctypes.CDLL(str(target))
+            except OSError as exc:
+                log.info("cannot load %s: %s", target, exc)
         _LOADED[key] = lib
         return lib
 
 
-def _build(key: str, code: str, compiler: str) -> ctypes.CDLL | None:
+def build_file(name: str, code: str, options: tuple[str, ...] = (),
+               suffix: str = ".so") -> Path | None:
+    """Compile ``code`` (unless already in the cache) into a shared object named ``suffix`` (e.g.
+    a Python extension's) and return its path, without loading it; ``None`` where it cannot be
+    built. ``options`` go after the source (``-I...``, ``-D...``, libraries)."""
+    if not enabled():
+        return None
+    with _LOCK:
+        return _build(_key(name, code, options, suffix), code, options, suffix)
+
+
+def _key(name: str, code: str, options: tuple[str, ...], suffix: str) -> str:
+    compiler = os.environ.get("CC", "gcc")
+    parts = (code, compiler, *FLAGS, *options) + ((suffix,) if suffix != ".so" else ())
+    return f"{name}-{hashlib.sha256(chr(0).join(parts).encode()).hexdigest()[:20]}"
+
+
+def _build(key: str, code: str, options: tuple[str, ...] = (),
+           suffix: str = ".so") -> Path | None:
+    compiler = os.environ.get("CC", "gcc")
     folder = cache_dir()
-    target = folder / f"{key}.so"
+    target = folder / f"{key}{suffix}"
     if not target.exists():
         if shutil.which(compiler) is None:
             log.info("no C compiler (%s): compiled kernels unavailable", compiler)
@@ -83,9 +108,9 @@ def _build(key: str, code: str, compiler: str) -> ctypes.CDLL | None:
             with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
                 src = Path(tmp) / f"{key}.c"
                 src.write_text(code, encoding="utf-8")
-                out = Path(tmp) / f"{key}.so"
-                proc = subprocess.run([compiler, *FLAGS, "-o", str(out), str(src), "-lm"],
-                                      capture_output=True, text=True, timeout=300)
+                out = Path(tmp) / f"{key}{suffix}"
+                proc = subprocess.run([compiler, *FLAGS, "-o", str(out), str(src), *options,
+                                       "-lm"], capture_output=True, text=True, timeout=300)
                 if proc.returncode != 0:
                     log.warning("compiling %s failed: %s", key, proc.stderr.strip()[-2000:])
                     return None
@@ -93,8 +118,4 @@ def _build(key: str, code: str, compiler: str) -> ctypes.CDLL | None:
         except (OSError, subprocess.SubprocessError) as exc:
             log.info("compiled kernel %s unavailable: %s", key, exc)
             return None
-    try:
-        return ctypes.CDLL(str(target))
-    except OSError as exc:
-        log.info("cannot load %s: %s", target, exc)
-        return None
+    return target
