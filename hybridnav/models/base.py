@@ -42,6 +42,21 @@ __all__ = ["Model", "wrap_angle", "jit_available"]
 #: Largest batch one compiled rollout function takes (larger batches run in chunks).
 _ROLLOUT_CHUNK = 4096
 
+
+def _chunks(n: int) -> list[int]:
+    """Batch sizes a CasADi rollout of ``n`` robots runs in: chunks of :data:`_ROLLOUT_CHUNK`,
+    then the rest's binary digits down to 16, then what is left (at most 8) in one piece
+    (10,000 = 2 x 4096 + 1024 + 512 + 256 + 16). Compiled functions come in the sizes they came
+    in when batches were padded to the next power of two (1 to 8, then powers of two up to
+    4096), and no robot slot is padding."""
+    sizes = [_ROLLOUT_CHUNK] * (n // _ROLLOUT_CHUNK)
+    rest = n % _ROLLOUT_CHUNK
+    while rest > 8:
+        size = 1 << (rest.bit_length() - 1)
+        sizes.append(size)
+        rest -= size
+    return sizes + [rest] if rest else sizes
+
 _DT = Param(0.1, "control and integration step (s)", lo=0.0, lo_open=True)
 _RADIUS = Param(0.5, "footprint radius of a disk-shaped robot", lo=0.0)
 
@@ -448,20 +463,16 @@ class Model(ABC):
         if n == 0 or steps == 0:
             return traj
         # Batches of varying size (swarm planners filter their candidates) share compiled
-        # functions: sizes above 8 are padded to the next power of two, and very large batches
-        # run in chunks of _ROLLOUT_CHUNK. Every robot is integrated independently, so padding
-        # and chunking change no result.
-        size = n if n <= 8 else min(1 << (n - 1).bit_length(), _ROLLOUT_CHUNK)
-        b = self._buffered("rollout", size, steps)
-        for lo in range(0, n, size):
-            hi = min(n, lo + size)
-            b.ins[0][: hi - lo] = X0[lo:hi]
-            b.ins[1][: hi - lo] = targets[lo:hi]
-            if hi - lo < size:
-                b.ins[0][hi - lo:] = X0[lo]
-                b.ins[1][hi - lo:] = targets[lo]
+        # functions of power-of-two sizes up to _ROLLOUT_CHUNK (see _chunks). Every robot is
+        # integrated independently, so chunking changes no result.
+        lo = 0
+        for size in _chunks(n):
+            b = self._buffered("rollout", size, steps)
+            b.ins[0][...] = X0[lo:lo + size]
+            b.ins[1][...] = targets[lo:lo + size]
             b()
-            traj[lo:hi, 1:] = b.outs[0][: hi - lo]
+            traj[lo:lo + size, 1:] = b.outs[0]
+            lo += size
         return traj
 
     # ---- states, targets, footprints -------------------------------------------------------------
