@@ -37,8 +37,8 @@ from typing import Any, ClassVar
 import casadi as cs
 import numpy as np
 
+import hybridnav.models.kernel as _kernel
 from hybridnav.errors import HybridnavError
-from hybridnav.models import kernel as _kernel
 from hybridnav.models.compile import _Buffered, _compile, jit_available
 from hybridnav.params import Param, check_real
 
