@@ -19,15 +19,17 @@ Variants (``HYBRIDNAV_SIMD`` chooses; the default is ``exact``):
     padding; ``scalar`` takes one robot at a time.
 ``"sse2"``, ``"avx2"``, ``"avx512"``; ``"auto"`` (the widest the CPU runs) — opt-in, approximate
     2, 4 or 8 robots per instruction with glibc's vector math library ``libmvec`` (x86-64, glibc
-    >= 2.35), 5-10 times faster. Arithmetic, ``sqrt``, ``fabs``, ``fmax``/``fmin``, comparisons
-    and selections are exactly the scalar code's, but libmvec's functions are not glibc's scalar
-    ones: they differ by up to 4 ulp. Over 100 steps of trajectories that converge, states
+    >= 2.35), 3-5 times faster than ``exact``. Arithmetic, ``sqrt``, ``fabs``, ``fmax``/``fmin``,
+    comparisons and selections are exactly the scalar code's, but libmvec's functions are not
+    glibc's scalar ones: they differ by up to 4 ulp. Over 100 steps of trajectories that converge, states
     differ by ~1e-14; where the closed loop is sensitive (the unicycle's bearing at arrival, the
     heading controller circling its target, the tractor-trailer's orbits and jackknifed states)
     rounding differences grow without bound, up to O(1). Every robot goes through the same code
     in every batch (the last block's empty lanes repeat its last robot), so a robot's trajectory
     depends neither on its batch nor on its place in it, and ``step`` repeated is ``rollout``
-    bit for bit; results may differ between machines (libmvec's variant per CPU).
+    bit for bit; results may differ between machines (libmvec's variant per CPU). Models that
+    call none of libmvec's functions (point mass, LbCS) get the widest variant by default: their
+    results are exact.
 
 Large batches are split over threads (:func:`threads`; ``HYBRIDNAV_THREADS``): each robot is
 integrated alone, so the results do not depend on the number of threads.
