@@ -452,22 +452,26 @@ class Kernel:
     Attributes
     ----------
     variant : str
-        ``"scalar"``, ``"sse2"``, ``"avx2"`` or ``"avx512"``.
+        ``"exact"``, ``"scalar"``, ``"sse2"``, ``"avx2"`` or ``"avx512"``.
     lanes : int
         Robots per block (1, 2, 4, 8).
+    cost_ns : float
+        Rough nanoseconds per robot-step, from the cycle's operations (for splitting batches over
+        threads only where a thread gets enough work).
     path : pathlib.Path
         The compiled library (a CPython extension, or a plain library called through ctypes).
     exact : bool
         Results bit for bit CasADi's compiled path (glibc's scalar functions, or none at all).
     """
 
-    def __init__(self, call, variant: str, path, exact: bool, slots) -> None:
+    def __init__(self, call, variant: str, path, exact: bool, slots, cost_ns: float) -> None:
         self._call = call
         self._slots = slots
         self.variant = variant
         self.bit, self.lanes = _VARIANTS[variant][:2]
         self.path = path
         self.exact = exact
+        self.cost_ns = cost_ns
 
     def run(self, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs: int, ks: int,
             offset: int = 0) -> None:
@@ -509,6 +513,19 @@ _KERNELS: dict[tuple, Kernel | None] = {}
 _LOCK = threading.Lock()
 
 
+def _cost_ns(fn: cs.Function, variant: str) -> float:
+    """Rough ns per robot-step: ~8 ns a glibc scalar function call, ~12 ns per vector of a
+    libmvec one, ~0.5 ns per other operation and vector (measured orders of magnitude)."""
+    lanes, isa = _VARIANTS[variant][1], _VARIANTS[variant][2]
+    cost = 0.0
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        if op in _LIBM:
+            cost += 12.0 / lanes if isa and _LIBM[op][1] in _MVEC else 8.0
+        elif op not in (cs.OP_INPUT, cs.OP_OUTPUT, cs.OP_CONST):
+            cost += 0.5 / lanes
+    return max(cost, 0.5)
+
 
 def variant_names() -> tuple[str, ...]:
     """The variants: the exact ones, then the opt-in SIMD ones, narrowest first."""
@@ -529,8 +546,9 @@ def wanted() -> str:
 #: use, but 1 in a worker process of a pool (the tuner's, ``compare``'s, Dask's), whose siblings
 #: already keep the CPUs busy
 THREADS_ENV = "HYBRIDNAV_THREADS"
-#: robot-steps a thread gets at least (~5 ms of work against ~50 us to hand it over)
-THREAD_MIN_WORK = 20_000
+#: work a thread gets at least, in ns (estimated from :attr:`Kernel.cost_ns`): ~50 us to hand it
+#: over and join it
+THREAD_MIN_NS = 5e6
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 
@@ -574,15 +592,15 @@ if hasattr(os, "register_at_fork"):
 def run(k: Kernel, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs: int, ks: int,
         offset: int = 0, nthreads: int | None = None) -> None:
     """:meth:`Kernel.run`, split over threads for large batches (``nthreads``, default
-    :func:`threads`): each thread takes a contiguous range of robots (whole blocks of lanes), so
-    the results are the same whatever the number of threads."""
+    :func:`threads`; a thread gets at least :data:`THREAD_MIN_NS` of estimated work): each
+    thread takes a contiguous range of robots (whole blocks of lanes), so the results are the
+    same whatever the number of threads."""
     n = len(X)
-    work = n * steps
-    if work < 2 * THREAD_MIN_WORK or nthreads == 1:
+    most = int(n * steps * k.cost_ns // THREAD_MIN_NS)
+    if most < 2 or nthreads == 1:
         k.run(X, T, out, steps, rs, ks, offset)
         return
-    parts = min(threads() if nthreads is None else max(1, nthreads), work // THREAD_MIN_WORK,
-                -(-n // k.lanes))
+    parts = min(threads() if nthreads is None else max(1, nthreads), most, -(-n // k.lanes))
     if parts <= 1:
         k.run(X, T, out, steps, rs, ks, offset)
         return
@@ -695,4 +713,4 @@ def _make(model, want: str) -> Kernel | None:
         log.info("kernel variant %s not available here; the exact one", want)
         variant = "exact"
     return Kernel(call, variant, path, exact=simd_exact or variant in ("exact", "scalar"),
-                  slots=slots)
+                  slots=slots, cost_ns=_cost_ns(fn, variant))
