@@ -99,6 +99,28 @@ def test_batched_rollout_equals_single_robot_rollouts(name):
     np.testing.assert_allclose(X, batch[:, -1], rtol=0, atol=1e-12)
 
 
+def test_casadi_rollout_runs_whole_chunks_without_padding(monkeypatch):
+    """CasADi's map (the path without the compiled kernel) runs 10,000 robots in functions of
+    4096, 4096, 1024, 512, 256 and 16 robots, not 3 x 4096 = 12,288 slots; each robot's result
+    is its own rollout's."""
+    from hybridnav.models.base import _chunks
+
+    monkeypatch.setenv("HYBRIDNAV_NATIVE", "0")
+    for n in (1, 7, 9, 17, 4097, 10_000, 12_288):
+        sizes = _chunks(n)
+        assert sum(sizes) == n and max(sizes) <= 4096
+        assert all(s <= 8 or s & (s - 1) == 0 for s in sizes)
+    assert _chunks(10_000) == [4096, 4096, 1024, 512, 256, 16]
+    m = models.get("point_mass", jit=False)          # the virtual machine: nothing to compile
+    rng = np.random.default_rng(2)
+    X0, T = rng.uniform(0, 10, (10_000, 2)), rng.uniform(0, 10, (10_000, 2))
+    traj = m.rollout(X0, T, 3)
+    assert sorted(k[1] for k in m._local.buffers if k[0] == "rollout") == [16, 256, 512, 1024,
+                                                                           4096]
+    for i in (0, 4095, 8191, 9983, 9999):
+        np.testing.assert_array_equal(traj[i], m.rollout(X0[i:i + 1], T[i:i + 1], 3)[0])
+
+
 @pytest.mark.parametrize("name", sorted(models.MODELS))
 def test_jit_and_virtual_machine_agree(name):
     if not models.jit_available():

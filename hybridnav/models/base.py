@@ -10,11 +10,16 @@ A model declares, once, in CasADi SX:
 
 Planners call :meth:`Model.step` and :meth:`Model.rollout` with whole batches: ``X`` is ``(N, nx)``
 and ``targets`` is ``(N, 2)``. Both integrate the closed loop with fixed-step RK4 (the controller is
-evaluated inside every RK4 stage, or held over the step for zero-order-hold controllers). The CasADi
-functions are built once per batch size, shared between equal models in the process, optionally
-JIT-compiled with the system C compiler (silent fallback to CasADi's virtual machine when no compiler
-works), and called through :meth:`casadi.Function.buffer` on NumPy arrays the wrapper keeps alive,
-so the hot loop pays no per-call ``DM`` conversion.
+evaluated inside every RK4 stage, or held over the step for zero-order-hold controllers).
+
+Where a C compiler works they run in :mod:`hybridnav.models.kernel`: CasADi's algorithm of one
+control cycle emitted as C, compiled once per machine for every batch size and horizon, bit for bit
+CasADi's compiled path, large batches split over threads. Otherwise (``jit=False``,
+``HYBRIDNAV_JIT=0``, ``HYBRIDNAV_NATIVE=0``, no compiler) CasADi functions are built once per batch
+size, shared between equal models in the process, optionally JIT-compiled with the system C compiler
+(silent fallback to CasADi's virtual machine when no compiler works), and called through
+:meth:`casadi.Function.buffer` on NumPy arrays the wrapper keeps alive, so the hot loop pays no
+per-call ``DM`` conversion.
 
 Memory layout: a CasADi ``(nx, N)`` matrix is column-major, which is exactly the memory of a
 C-contiguous NumPy ``(N, nx)`` array, so batches cross the boundary without transposes.
@@ -32,6 +37,7 @@ from typing import Any, ClassVar
 import casadi as cs
 import numpy as np
 
+import hybridnav.models.kernel as _kernel
 from hybridnav.errors import HybridnavError
 from hybridnav.models.compile import _Buffered, _compile, jit_available
 from hybridnav.params import Param, check_real
@@ -39,8 +45,24 @@ from hybridnav.params import Param, check_real
 __all__ = ["Model", "wrap_angle", "jit_available"]
 
 
-#: Largest batch one compiled rollout function takes (larger batches run in chunks).
+#: Largest batch one CasADi rollout function takes (larger batches run in chunks); only where
+#: there is no compiled kernel (:mod:`hybridnav.models.kernel`).
 _ROLLOUT_CHUNK = 4096
+
+
+def _chunks(n: int) -> list[int]:
+    """Batch sizes a CasADi rollout of ``n`` robots runs in: chunks of :data:`_ROLLOUT_CHUNK`,
+    then the rest's binary digits down to 16, then what is left (at most 8) in one piece
+    (10,000 = 2 x 4096 + 1024 + 512 + 256 + 16). Compiled functions come in the sizes they came
+    in when batches were padded to the next power of two (1 to 8, then powers of two up to
+    4096), and no robot slot is padding."""
+    sizes = [_ROLLOUT_CHUNK] * (n // _ROLLOUT_CHUNK)
+    rest = n % _ROLLOUT_CHUNK
+    while rest > 8:
+        size = 1 << (rest.bit_length() - 1)
+        sizes.append(size)
+        rest -= size
+    return sizes + [rest] if rest else sizes
 
 _DT = Param(0.1, "control and integration step (s)", lo=0.0, lo_open=True)
 _RADIUS = Param(0.5, "footprint radius of a disk-shaped robot", lo=0.0)
@@ -338,6 +360,19 @@ class Model(ABC):
     def _use_jit(self) -> bool:
         return jit_available() if self.jit is None else bool(self.jit) and jit_available()
 
+    def _compiled_kernel(self) -> _kernel.Kernel | None:
+        """The model cycle compiled in C (:mod:`hybridnav.models.kernel`), or None: ``jit=False``,
+        compiling switched off or impossible; then CasADi's ``map`` runs the batches. Chosen at
+        the model's first batch from the environment (``HYBRIDNAV_SIMD``, ``HYBRIDNAV_NATIVE``,
+        ``HYBRIDNAV_JIT``) as it is then."""
+        try:
+            return self.__dict__["_kernel"]
+        except KeyError:
+            k = (None if self.jit is False or not _kernel.allowed()
+                 else _kernel.get(self, _kernel.wanted()))
+            self.__dict__["_kernel"] = k
+            return k
+
     def _step_single(self) -> cs.Function:
         """One control cycle of one robot with the numeric parameters folded in."""
         s = self.sym
@@ -413,6 +448,17 @@ class Model(ABC):
         n = X.shape[0]
         if n == 0:
             return np.zeros((0, self.nx)) if out is None else out
+        k = self._compiled_kernel()
+        if k is not None:
+            X, targets = np.ascontiguousarray(X), np.ascontiguousarray(targets)
+            # the kernel reads a robot's state before it writes that robot's result, so out may
+            # be X itself
+            direct = out is None or (out is X and out.dtype == np.float64)
+            res = np.empty((n, self.nx)) if out is None else out if direct else np.empty_like(X)
+            _kernel.run(k, X, targets, res, 1, self.nx, self.nx)
+            if not direct:
+                out[...] = res
+            return res if out is None else out
         b = self._buffered("step", n)
         b.ins[0][...] = X
         b.ins[1][...] = targets
@@ -447,21 +493,23 @@ class Model(ABC):
         traj[:, 0] = X0
         if n == 0 or steps == 0:
             return traj
-        # Batches of varying size (swarm planners filter their candidates) share compiled
-        # functions: sizes above 8 are padded to the next power of two, and very large batches
-        # run in chunks of _ROLLOUT_CHUNK. Every robot is integrated independently, so padding
-        # and chunking change no result.
-        size = n if n <= 8 else min(1 << (n - 1).bit_length(), _ROLLOUT_CHUNK)
-        b = self._buffered("rollout", size, steps)
-        for lo in range(0, n, size):
-            hi = min(n, lo + size)
-            b.ins[0][: hi - lo] = X0[lo:hi]
-            b.ins[1][: hi - lo] = targets[lo:hi]
-            if hi - lo < size:
-                b.ins[0][hi - lo:] = X0[lo]
-                b.ins[1][hi - lo:] = targets[lo]
+        k = self._compiled_kernel()
+        if k is not None:
+            # one compiled function for every batch size and horizon, writing into traj
+            _kernel.run(k, np.ascontiguousarray(X0), np.ascontiguousarray(targets), traj, steps,
+                        (steps + 1) * self.nx, self.nx, offset=self.nx)
+            return traj
+        # CasADi's map: batches of varying size (swarm planners filter their candidates) share
+        # compiled functions of power-of-two sizes up to _ROLLOUT_CHUNK (see _chunks). Every
+        # robot is integrated independently, so chunking changes no result.
+        lo = 0
+        for size in _chunks(n):
+            b = self._buffered("rollout", size, steps)
+            b.ins[0][...] = X0[lo:lo + size]
+            b.ins[1][...] = targets[lo:lo + size]
             b()
-            traj[lo:hi, 1:] = b.outs[0][: hi - lo]
+            traj[lo:lo + size, 1:] = b.outs[0]
+            lo += size
         return traj
 
     # ---- states, targets, footprints -------------------------------------------------------------

@@ -19,7 +19,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["jit_available"]
+__all__ = ["jit_allowed", "jit_available"]
 
 # --------------------------------------------------------------------------------------------
 # Compilation: JIT with a silent fallback, and a process-wide cache of compiled functions.
@@ -53,12 +53,17 @@ def _jit_function(name: str, fn: cs.Function) -> cs.Function:
     return cs.external(fn.name(), str(path))
 
 
+def jit_allowed() -> bool:
+    """Whether compiling is allowed at all (``HYBRIDNAV_JIT=0`` disables it)."""
+    return os.environ.get("HYBRIDNAV_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
+
+
 def jit_available() -> bool:
     """Whether CasADi can JIT-compile here (tried once per process, on a tiny function).
 
     Set the environment variable ``HYBRIDNAV_JIT=0`` to disable JIT compilation altogether.
     """
-    if os.environ.get("HYBRIDNAV_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+    if not jit_allowed():
         return False
     if "ok" not in _jit_state:
         try:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ENV", "build", "build_path", "cache_dir", "enabled", "source"]
+__all__ = ["ENV", "build", "build_file", "build_path", "cache_dir", "enabled", "source"]
 
 FLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math")
 _LOADED: dict[str, ctypes.CDLL | None] = {}
@@ -56,36 +56,52 @@ def source(name: str) -> str:
     return resources.files(__name__).joinpath(name).read_text(encoding="utf-8")
 
 
-def build(name: str, code: str) -> ctypes.CDLL | None:
+def build(name: str, code: str, libs: tuple[str, ...] = ()) -> ctypes.CDLL | None:
     """The library compiled from ``code`` (loaded once per process), or ``None`` where it cannot
-    be built (no compiler, a compile error — logged — or kernels switched off)."""
+    be built or loaded (no compiler, a compile error — logged —, a library in ``libs`` missing or
+    lacking a symbol the code uses, or kernels switched off). ``libs`` are extra options after the
+    source (libraries such as ``-lmvec``, linked before ``-lm``)."""
     if not enabled():
         return None
-    compiler = os.environ.get("CC", "gcc")
-    digest = hashlib.sha256("\0".join((code, compiler, *FLAGS)).encode()).hexdigest()[:20]
-    key = f"{name}-{digest}"
+    key = _key(name, code, libs, ".so")
     with _LOCK:
         if key in _LOADED:
             return _LOADED[key]
-        path = _build(key, code, compiler)
+        target = _build(key, code, libs, ".so")
         lib = None
-        if path is not None:
+        if target is not None:
             try:
-                lib = ctypes.CDLL(str(path))
+                lib = ctypes.CDLL(str(target))
             except OSError as exc:
-                log.info("cannot load %s: %s", path, exc)
+                log.info("cannot load %s: %s", target, exc)
         _LOADED[key] = lib
         return lib
+
+
+def build_file(name: str, code: str, options: tuple[str, ...] = (),
+               suffix: str = ".so") -> Path | None:
+    """Compile ``code`` (unless already in the cache) into a shared object named ``suffix`` (e.g.
+    a Python extension's) and return its path, without loading it; ``None`` where it cannot be
+    built. ``options`` go after the source (``-I...``, ``-D...``, libraries)."""
+    if not enabled():
+        return None
+    with _LOCK:
+        return _build(_key(name, code, options, suffix), code, options, suffix)
 
 
 def build_path(name: str, code: str) -> Path | None:
     """The file of the library compiled from ``code`` (built once per machine), for loaders other
     than :mod:`ctypes` (CasADi's ``external``); ``None`` where it cannot be built. Unlike
-    :func:`build` this does not look at ``HYBRIDNAV_NATIVE`` (callers have their own switch)."""
-    compiler = os.environ.get("CC", "gcc")
-    digest = hashlib.sha256("\0".join((code, compiler, *FLAGS)).encode()).hexdigest()[:20]
+    :func:`build_file` this does not look at ``HYBRIDNAV_NATIVE``: CasADi's compiled functions
+    have their own switch (``HYBRIDNAV_JIT``)."""
     with _LOCK:
-        return _build(f"{name}-{digest}", code, compiler)
+        return _build(_key(name, code, (), ".so"), code)
+
+
+def _key(name: str, code: str, options: tuple[str, ...], suffix: str) -> str:
+    compiler = os.environ.get("CC", "gcc")
+    parts = (code, compiler, *FLAGS, *options) + ((suffix,) if suffix != ".so" else ())
+    return f"{name}-{hashlib.sha256(chr(0).join(parts).encode()).hexdigest()[:20]}"
 
 
 def _sidecar(target: Path) -> Path:
@@ -101,9 +117,11 @@ def _intact(target: Path) -> bool:
         return False
 
 
-def _build(key: str, code: str, compiler: str) -> Path | None:
+def _build(key: str, code: str, options: tuple[str, ...] = (),
+           suffix: str = ".so") -> Path | None:
+    compiler = os.environ.get("CC", "gcc")
     folder = cache_dir()
-    target = folder / f"{key}.so"
+    target = folder / f"{key}{suffix}"
     if target.exists() and not _intact(target):
         # a truncated or foreign file would crash the process inside dlopen: build it again
         log.warning("%s does not match its recorded hash: building it again", target)
@@ -118,9 +136,9 @@ def _build(key: str, code: str, compiler: str) -> Path | None:
             with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
                 src = Path(tmp) / f"{key}.c"
                 src.write_text(code, encoding="utf-8")
-                out = Path(tmp) / f"{key}.so"
-                proc = subprocess.run([compiler, *FLAGS, "-o", str(out), str(src), "-lm"],
-                                      capture_output=True, text=True, timeout=300)
+                out = Path(tmp) / f"{key}{suffix}"
+                proc = subprocess.run([compiler, *FLAGS, "-o", str(out), str(src), *options,
+                                       "-lm"], capture_output=True, text=True, timeout=300)
                 if proc.returncode != 0:
                     log.warning("compiling %s failed: %s", key, proc.stderr.strip()[-2000:])
                     return None
