@@ -45,6 +45,19 @@ _ROLLOUT_CHUNK = 4096
 _DT = Param(0.1, "control and integration step (s)", lo=0.0, lo_open=True)
 _RADIUS = Param(0.5, "footprint radius of a disk-shaped robot", lo=0.0)
 
+def _chunk_size(n: int, left: int) -> int:
+    """Rows of the next compiled call of a rollout of ``n`` robots with ``left`` still to go:
+    ``n`` itself up to 8, else the largest power of two from 8 to :data:`_ROLLOUT_CHUNK` not
+    above ``left`` (8 or 16, padded, for the last few)."""
+    if n <= 8:
+        return n
+    if left <= 8:
+        return 8
+    if left < 16:
+        return 16
+    return min(1 << (left.bit_length() - 1), _ROLLOUT_CHUNK)
+
+
 def wrap_angle(a):
     """Wrap an angle (CasADi expression) to ``(-pi, pi]`` via ``atan2(sin a, cos a)``."""
     return cs.atan2(cs.sin(a), cs.cos(a))
@@ -373,7 +386,7 @@ class Model(ABC):
 
             fn = _compile(self._key() + ("rollout", n, steps), build, self._use_jit())
             b = _Buffered(fn, [(n, nx), (n, self.target_size)], [(n, steps, nx)])
-        if len(cache) > 32:
+        if len(cache) > 64:
             cache.pop(next(iter(cache)))
         cache[bkey] = b
         return b
@@ -448,13 +461,16 @@ class Model(ABC):
         if n == 0 or steps == 0:
             return traj
         # Batches of varying size (swarm planners filter their candidates) share compiled
-        # functions: sizes above 8 are padded to the next power of two, and very large batches
-        # run in chunks of _ROLLOUT_CHUNK. Every robot is integrated independently, so padding
-        # and chunking change no result.
-        size = n if n <= 8 else min(1 << (n - 1).bit_length(), _ROLLOUT_CHUNK)
-        b = self._buffered("rollout", size, steps)
-        for lo in range(0, n, size):
+        # functions: a batch of up to 8 has its own size; a larger one runs in chunks of
+        # powers of two from 8 to _ROLLOUT_CHUNK, largest first, the last chunk padded (by at
+        # most 7 rows; padding every batch to the next power of two integrated up to twice the
+        # rows asked for). Every robot is integrated independently, so padding and chunking
+        # change no result.
+        lo = 0
+        while lo < n:
+            size = _chunk_size(n, n - lo)
             hi = min(n, lo + size)
+            b = self._buffered("rollout", size, steps)
             b.ins[0][: hi - lo] = X0[lo:hi]
             b.ins[1][: hi - lo] = targets[lo:hi]
             if hi - lo < size:
@@ -462,6 +478,7 @@ class Model(ABC):
                 b.ins[1][hi - lo:] = targets[lo]
             b()
             traj[lo:hi, 1:] = b.outs[0][: hi - lo]
+            lo = hi
         return traj
 
     # ---- states, targets, footprints -------------------------------------------------------------
@@ -514,6 +531,16 @@ class Model(ABC):
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         return X[:, None, :2].copy(), np.array([self.radius])
+
+    @property
+    def footprint_extent(self) -> float | None:
+        """An upper bound on how far the footprint reaches from the robot's position: every
+        disk of :meth:`footprint` lies within this distance of the state's ``(x, y)``
+        (``max_j |c_j - (x, y)| + r_j``); collision checks prune with it. ``None``: unknown (a
+        model that overrides :meth:`footprint` says it too)."""
+        if type(self).footprint is Model.footprint:
+            return self.radius
+        return None
 
     def closed_loop_at(self, target) -> cs.SX:
         """The closed loop driving to ``target``, in the state symbols only (the target and the

@@ -130,6 +130,17 @@ class TractorTrailer(Model):
         """Half-diagonal of the tractor body, ``sqrt(L^2 + b^2) / 2`` (the papers' clearance)."""
         return math.hypot(self.values["L"], self.values["b"]) / 2
 
+    @property
+    def footprint_extent(self) -> float:
+        """How far the footprint's disks reach from ``(x, y)`` at most: the tractor's disks
+        are centred on its axis within ``L/2`` of it, the trailer's on its axis at most
+        ``L/2 + c + Lt`` behind it (the hitch is ``L/2 + c`` behind ``(x, y)``)."""
+        q = self.values
+        (lt, nt, rt), (lr, nr, rr) = self._bodies()
+        tractor = (nt - 0.5) / nt * lt - lt / 2 + rt
+        trailer = q["L"] / 2 + q["c"] + (nr - 0.5) / nr * lr + rr
+        return max(tractor, trailer)
+
     def _bodies(self):
         """(offset of the body centre along its axis from its anchor, length, disks) per body."""
         q = self.values
