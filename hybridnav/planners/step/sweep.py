@@ -1,0 +1,322 @@
+"""The swept-footprint check of :func:`~hybridnav.planners.step.stepfit.feasible_steps`: rolled
+out block by block, pruned by bounding boxes, exact where the boxes are inconclusive.
+
+:func:`sweep` integrates the robot's compiled model from its state towards every candidate a
+block of control cycles at a time (:func:`roll_block`) and, after every block, tests the pieces
+of the block the move uses -- the straight pieces between consecutive rollout samples of every
+footprint disk, up to the first sample within ``reach`` of the candidate. A candidate leaves the
+batch, and is integrated no further, as soon as its move ends or one of its pieces collides
+(nothing later can make it safe again).
+
+The verdict is the exact piecewise test, computed by the same functions on the same numbers as
+ever: :meth:`World.segment_collides` for the static obstacles and for the moving circles frozen
+at each piece's start time, the point-to-segment distance to the other robots' disks and
+:meth:`World.inside_workspace` at each piece's end -- obstacle by obstacle
+(:meth:`World.singles`: a world's test is true where one of its obstacles' is). The pruning only
+decides which pieces each of them sees, and skips a piece only where it provably cannot collide:
+
+1. the pieces are grouped in stretches of :data:`_STRIDE`; a stretch's samples lie in a box and
+   its pieces (straight segments between them) too, and every footprint disk lies within
+   ``model.footprint_extent`` of the robot's position, so every disk along the stretch lies
+   within that of the box;
+2. for the stretches that box leaves in doubt, the footprint is computed and each disk's centres
+   along the stretch give a box of their own;
+3. then each piece's box;
+4. a piece whose box is, by more than the disk's radius plus the margin, farther from an
+   obstacle's box (:meth:`World.boxes`; moving circles over the stretch's times), from another
+   robot's disk or from the workspace border cannot touch it and is not tested against it.
+
+"Farther" includes a slack of ``1e-9`` of the workspace's scale, far above the rounding error of
+the box arithmetic and of the exact tests, so a skipped test could only have said "no
+collision".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hybridnav.world import point_segment_distance
+
+__all__ = ["roll_block", "sweep"]
+
+FloatArray = NDArray[np.float64]
+
+# rollout pieces per stretch, the unit of the bounding-box pruning
+_STRIDE = 8
+# control cycles integrated per compiled call: a candidate whose move has ended is integrated
+# no further (a divisor of the blocks of roll_block)
+_SUB = 16
+# pieces tested exactly per call (bounds the memory of the (pieces, obstacles) arrays)
+_BLOCK = 1 << 16
+
+
+def roll_block(n: int) -> int:
+    """Control cycles between two checks for a batch of ``n`` candidates (a multiple of
+    :data:`_SUB` and :data:`_STRIDE`): short blocks stop the integration of large batches soon
+    after their moves collide; small batches, whose checks cost more per sample, take long
+    blocks. (The integration of a move that has ended stops at the next :data:`_SUB` cycles
+    either way.)"""
+    return 64 if n < 1024 else 16
+
+
+class _Sweep:
+    """What the pieces of one robot's moves are tested against, prepared once per call."""
+
+    def __init__(self, model, env, margin: float) -> None:
+        self.model = model
+        self.env = env
+        self.margin = float(margin)
+        world = env.world
+        self.world, self.moving = world, env.moving
+        self.static = env.static.singles()
+        self.movers = env.moving.singles()
+        self.other_c, self.other_r = env.robot_discs
+        self.extent = model.footprint_extent          # None: bound the footprint disks instead
+        scale = max(abs(v) for v in world.workspace) + (self.extent or 0.0) + self.margin
+        self.slack = 1e-9 * (1.0 + scale)
+        # everything frozen during the plan: static obstacles, then the other robots' disks
+        lo, hi, pad = env.static.boxes()
+        oc = np.asarray(self.other_c, dtype=float).reshape(-1, 2)
+        self.f_lo = np.concatenate([lo, oc])
+        self.f_hi = np.concatenate([hi, oc])
+        self.f_pad = np.concatenate([pad, np.asarray(self.other_r, dtype=float).reshape(-1)])
+
+    # ---- which stretches and pieces need the exact test ------------------------------------
+
+    def _near_each(self, lo: FloatArray, hi: FloatArray, reach, t0, t1):
+        """What may come within ``reach`` of the boxes ``[lo, hi]`` (shape (..., 2)): the
+        border (...,), each frozen obstacle (static ones, then the other robots' disks;
+        (..., F)) and each moving circle anywhere between the times ``t0`` and ``t1``
+        (broadcasting against (...); (..., M))."""
+        thr = np.asarray(reach) + self.slack
+        xmin, xmax, ymin, ymax = self.world.workspace
+        border = ((lo[..., 0] - xmin < thr) | (xmax - hi[..., 0] < thr)
+                  | (lo[..., 1] - ymin < thr) | (ymax - hi[..., 1] < thr))
+        frozen = _boxes_near(lo, hi, self.f_lo, self.f_hi, self.f_pad, thr)
+        if self.movers:
+            m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
+            moving = _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr)
+        else:
+            moving = np.zeros(border.shape + (0,), dtype=bool)
+        return border, frozen, moving
+
+    def _near(self, lo: FloatArray, hi: FloatArray, reach, t0, t1) -> NDArray[np.bool_]:
+        """Whether anything may come within ``reach`` of the boxes (see :meth:`_near_each`)."""
+        border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
+        return border | frozen.any(axis=-1) | moving.any(axis=-1)
+
+    def check(self, S: FloatArray, npieces: NDArray[np.int_], k0: int) -> NDArray[np.bool_]:
+        """Whether a used piece of each move collides.
+
+        Parameters
+        ----------
+        S : ndarray, shape (na, b + 1, nx)
+            Rollout samples ``k0 .. k0 + b`` of the candidates.
+        npieces : ndarray of int, shape (na,)
+            Pieces ``k0 .. k0 + npieces - 1`` are used (0 to ``b``).
+        k0 : int
+            Index of the first sample (a multiple of :data:`_STRIDE`).
+
+        Returns
+        -------
+        ndarray of bool, shape (na,)
+        """
+        model = self.model
+        na, b1, nx = S.shape
+        b = b1 - 1
+        bad = np.zeros(na, dtype=bool)
+        if na == 0 or b == 0:
+            return bad
+        nst = -(-b // _STRIDE)
+        if self.extent is not None:                  # 1. the robot's positions and extent
+            pts = S[:, :, None, :2]
+            reach = self.extent + self.margin
+            full = None
+        else:                                        # 1. (unknown extent) the footprint disks
+            full, radii = model.footprint(S.reshape(-1, nx))
+            full = full.reshape(na, b1, len(radii), 2)
+            pts = full
+            reach = float(np.max(radii)) + self.margin
+        lo, hi = _stretch_boxes(pts, nst)
+        used = (np.arange(nst) * _STRIDE)[None, :] < npieces[:, None]
+        t, dt = self.env.t, model.dt
+        first = k0 + np.arange(nst) * _STRIDE
+        t0, t1 = t + first * dt, t + (first + _STRIDE) * dt
+        rows, gs = np.nonzero(used & self._near(lo, hi, reach, t0, t1))
+        if not len(rows):
+            return bad
+        # 2. the footprint along those stretches: each disk's box
+        idx = np.minimum(gs[:, None] * _STRIDE + np.arange(_STRIDE + 1)[None, :], b)
+        if full is None:
+            C, radii = model.footprint(S[rows[:, None], idx].reshape(-1, nx))
+            C = C.reshape(len(rows), _STRIDE + 1, len(radii), 2)       # (ns, 9, nd, 2)
+        else:
+            C = full[rows[:, None], idx]
+        need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
+        if len(need) > 1:
+            near_disk = self._near(C.min(axis=1), C.max(axis=1), need,
+                                   t0[gs, None], t1[gs, None])        # (ns, nd)
+        else:
+            near_disk = np.ones((len(rows), 1), dtype=bool)
+        q = gs[:, None] * _STRIDE + np.arange(_STRIDE)[None, :]       # (ns, _STRIDE) pieces
+        valid = q < npieces[rows, None]
+        for j in range(len(need)):
+            sel = valid & near_disk[:, j, None]
+            if not sel.any():
+                continue
+            # 3. each piece's box; 4. the exact test against what it may touch
+            A, B = C[:, :-1, j][sel], C[:, 1:, j][sel]
+            owner = np.broadcast_to(rows[:, None], q.shape)[sel]
+            k = (k0 + q)[sel]
+            for lo_ in range(0, len(A), _BLOCK):
+                at = slice(lo_, lo_ + _BLOCK)
+                hit = self._hits(A[at], B[at], need[j], k[at])
+                bad[owner[at][hit]] = True
+        return bad
+
+    def _hits(self, A: FloatArray, B: FloatArray, need: float,
+              k: NDArray[np.int_]) -> NDArray[np.bool_]:
+        """Whether the disk of radius ``need - margin`` swept along the pieces ``A -> B`` (piece
+        indices ``k``) comes closer than the margin to anything, each piece tested exactly
+        against what its box may touch."""
+        t = self.env.t + k * self.model.dt
+        border, frozen, moving = self._near_each(np.minimum(A, B), np.maximum(A, B), need, t, t)
+        hit = np.zeros(len(A), dtype=bool)
+        at = np.flatnonzero(border)
+        if len(at):
+            hit[at] |= ~self.world.inside_workspace(B[at], need)
+        ns = len(self.static)
+        for o in np.flatnonzero(frozen.any(axis=0)):
+            at = np.flatnonzero(frozen[:, o])
+            if o < ns:
+                hit[at] |= self.static[o].segment_collides(A[at], B[at], radius=need)
+            else:
+                dd, _ = point_segment_distance(self.other_c[o - ns], A[at], B[at])
+                hit[at] |= dd < need + self.other_r[o - ns]
+        for o in np.flatnonzero(moving.any(axis=0)):
+            at = np.flatnonzero(moving[:, o])
+            hit[at] |= self.movers[o].segment_collides(A[at], B[at], radius=need, t=t[at])
+        return hit
+
+
+def _stretch_boxes(pts: FloatArray, nst: int) -> tuple[FloatArray, FloatArray]:
+    """Boxes ``lo, hi`` (na, nst, 2) of the points ``pts`` (na, samples, m, 2) of each stretch:
+    samples ``g * _STRIDE`` to ``(g + 1) * _STRIDE`` (the last stretch may be short)."""
+    b = pts.shape[1] - 1
+    lo = hi = None
+    for i in range(_STRIDE + 1):
+        if i + (nst - 1) * _STRIDE <= b:
+            x = pts[:, i:i + (nst - 1) * _STRIDE + 1:_STRIDE]          # (na, nst, m, 2)
+        else:
+            x = pts[:, np.minimum(np.arange(nst) * _STRIDE + i, b)]
+        xl, xh = (x.min(axis=2), x.max(axis=2)) if x.shape[2] > 1 else (x[:, :, 0], x[:, :, 0])
+        if lo is None:
+            lo, hi = xl.copy(), xh.copy()
+        else:
+            np.minimum(lo, xl, out=lo)
+            np.maximum(hi, xh, out=hi)
+    return lo, hi
+
+
+def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArray,
+                o_pad: FloatArray, thr) -> NDArray[np.bool_]:
+    """Whether each obstacle box ``[o_lo, o_hi]`` (shape (K, 2) or (..., K, 2)), padded by
+    ``o_pad``, is closer than ``thr`` to each box ``[lo, hi]`` (shape (..., 2)): (..., K).
+    (The Euclidean distance between two boxes is a lower bound of the distance between their
+    points.)"""
+    reach = np.asarray(thr)[..., None] + o_pad
+    gx = np.maximum(np.maximum(o_lo[..., 0] - hi[..., 0, None], lo[..., 0, None] - o_hi[..., 0]),
+                    0.0)
+    gy = np.maximum(np.maximum(o_lo[..., 1] - hi[..., 1, None], lo[..., 1, None] - o_hi[..., 1]),
+                    0.0)
+    return gx * gx + gy * gy < reach * reach
+
+
+def _integrate(model, X0: FloatArray, P: FloatArray, b: int,
+               reach: float) -> tuple[FloatArray, NDArray[np.int_], NDArray[np.bool_]]:
+    """``b`` control cycles from ``X0`` towards ``P``, :data:`_SUB` at a time, a candidate no
+    further once a sample is within ``reach`` of it (its later samples repeat that state).
+
+    Returns the samples ``(na, b + 1, nx)``, the pieces each move uses in the block (``q + 1``
+    when sample ``q + 1`` is the first within reach, else ``b``) and whether the move ended.
+    """
+    na = len(X0)
+    part = np.empty((na, b + 1, model.nx))
+    part[:, 0] = X0
+    npieces = np.full(na, b)
+    ended = np.zeros(na, dtype=bool)
+    live = np.arange(na)
+    reach2 = reach * reach * (1.0 + 1e-9)
+    j = 0
+    while j < b and len(live):
+        s = min(_SUB, b - j)
+        Pl = P[live]
+        seg = model.rollout(part[live, j], Pl, s)[:, 1:]                  # (nl, s, nx)
+        part[live, j + 1:j + s + 1] = seg
+        dx, dy = seg[:, :, 0] - Pl[:, None, 0], seg[:, :, 1] - Pl[:, None, 1]
+        # within reach: hypot(dx, dy) <= reach, computed for the samples that may be
+        close = np.flatnonzero((dx * dx + dy * dy <= reach2).any(axis=1))
+        within = np.hypot(dx[close], dy[close]) <= reach
+        done = within.any(axis=1)
+        now = live[close[done]]
+        ended[now] = True
+        npieces[now] = j + within[done].argmax(axis=1) + 1
+        part[now, j + s + 1:] = seg[close[done], -1][:, None]
+        live = np.delete(live, close[done])
+        j += s
+    return part, npieces, ended
+
+
+def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float,
+          margin: float) -> tuple[NDArray[np.bool_], NDArray[np.int_], FloatArray]:
+    """Roll out from ``x0`` towards every candidate and test the moves' swept footprints.
+
+    Parameters
+    ----------
+    model : Model
+    x0 : ndarray, shape (nx,)
+    P : ndarray, shape (N, 2)
+    env : Surroundings
+    steps : int
+        Rollout length.
+    reach : float
+        A move ends at its first sample within ``reach`` of its candidate.
+    margin : float
+        Clearance every footprint disk keeps.
+
+    Returns
+    -------
+    bad : ndarray of bool, shape (N,)
+        A used piece collides (the move's end and ``last`` are then not computed).
+    last : ndarray of int, shape (N,)
+        The sample where the move ends (``steps`` if it does not).
+    end : ndarray, shape (N, 2)
+        The position there.
+    """
+    n = len(P)
+    x0 = np.asarray(x0, dtype=float)
+    bad = np.zeros(n, dtype=bool)
+    last = np.full(n, steps)
+    end = np.empty((n, 2))
+    check = _Sweep(model, env, margin)
+    d0 = np.hypot(x0[0] - P[:, 0], x0[1] - P[:, 1])
+    last[d0 <= reach] = 0
+    end[:] = x0[:2]                         # (also where the distance is NaN: never integrated)
+    active = np.flatnonzero(d0 > reach)
+    cur = np.broadcast_to(x0, (len(active), model.nx))
+    block = roll_block(len(active))
+    k = 0
+    while k < steps and len(active):
+        b = min(block, steps - k)
+        part, npieces, done = _integrate(model, cur, P[active], b, reach)
+        hit = check.check(part, npieces, k)
+        bad[active[hit]] = True
+        fin = done & ~hit
+        last[active[fin]] = k + npieces[fin]
+        end[active[fin]] = part[fin, npieces[fin], :2]
+        keep = ~done & ~hit
+        active, cur = active[keep], part[keep, -1]
+        k += b
+    end[active] = cur[:, :2]
+    return bad, last, end
