@@ -3,12 +3,14 @@ obstacles."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
+from hybridnav.world.clearmap import ClearMap
 from hybridnav.world.geometry import (
     FloatArray,
     _cross,
@@ -373,6 +375,21 @@ class World:
     def moving(self) -> World:
         """A world with the same workspace and only the moving circles (indices renumbered)."""
         return self._view("moving", lambda o: isinstance(o, MovingCircle))
+
+    def clear_map(self, reach: float) -> ClearMap:
+        """The cells of the workspace farther than (at least) ``reach`` from every static
+        obstacle and from the border (:class:`~hybridnav.world.clearmap.ClearMap`). Maps are
+        built once, for ``reach`` rounded up to a multiple of 1/1024 of the workspace's longer
+        side, so close values share one."""
+        maps = self.__dict__.setdefault("_clear_maps", {})
+        xmin, xmax, ymin, ymax = self.workspace
+        q = max(xmax - xmin, ymax - ymin) / 1024
+        key = math.ceil(float(reach) / q * (1 + 1e-9)) + 1      # a step up: never below reach
+        if key not in maps:
+            if len(maps) >= 16:
+                maps.pop(next(iter(maps)))
+            maps[key] = ClearMap(self, key * q)
+        return maps[key]
 
     def singles(self) -> tuple[World, ...]:
         """One world per obstacle, with the same workspace, in :attr:`obstacles` order (built
