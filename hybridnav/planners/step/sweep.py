@@ -45,19 +45,37 @@ FloatArray = NDArray[np.float64]
 # rollout pieces per stretch, the unit of the bounding-box pruning
 _STRIDE = 8
 # control cycles integrated per compiled call: a candidate whose move has ended is integrated
-# no further (a divisor of the blocks of roll_block)
+# no further (a divisor of the blocks of roll_block) ...
 _SUB = 16
+# ... for models whose step has more operations than this (the point mass: 53, the unicycle:
+# 200, the tractor-trailer: 309)
+_CHEAP = 100
+# boxes x static obstacles from which the clear map pays (fewer: each obstacle's box at once)
+_MAP_FROM = 1 << 14
 # pieces tested exactly per call (bounds the memory of the (pieces, obstacles) arrays)
 _BLOCK = 1 << 16
 
 
-def roll_block(n: int) -> int:
-    """Control cycles between two checks for a batch of ``n`` candidates (a multiple of
-    :data:`_SUB` and :data:`_STRIDE`): short blocks stop the integration of large batches soon
-    after their moves collide; small batches, whose checks cost more per sample, take long
-    blocks. (The integration of a move that has ended stops at the next :data:`_SUB` cycles
-    either way.)"""
-    return 64 if n < 1024 else 16
+def roll_block(model, n: int) -> tuple[int, int]:
+    """Control cycles between two checks for a batch of ``n`` candidates, and per compiled call.
+
+    Short blocks stop the integration of a large batch soon after its moves collide; small
+    batches, whose checks cost more per sample, take long blocks. Within a block the moves that
+    have ended are integrated no further, :data:`_SUB` cycles at a time, for models whose cycle
+    costs more than a compiled call's overhead (those with trigonometry: a step function of more
+    than :data:`_CHEAP` operations). Both are multiples of :data:`_STRIDE`.
+    """
+    cheap = _cycle_cost(model) <= _CHEAP
+    block = 64 if n < 1024 else 16
+    return block, block if cheap else _SUB
+
+
+def _cycle_cost(model) -> int:
+    """Operations of one control cycle of the model's compiled step (cached on the model)."""
+    cost = model.__dict__.get("_sweep_cycle_cost")
+    if cost is None:
+        cost = model.__dict__["_sweep_cycle_cost"] = int(model.function("step").n_instructions())
+    return cost
 
 
 class _Sweep:
@@ -69,7 +87,9 @@ class _Sweep:
         self.margin = float(margin)
         world = env.world
         self.world, self.moving = world, env.moving
+        self.static_world = env.static
         self.static = env.static.singles()
+        self.n_static = len(self.static)
         self.movers = env.moving.singles()
         self.other_c, self.other_r = env.robot_discs
         self.extent = model.footprint_extent          # None: bound the footprint disks instead
@@ -101,10 +121,22 @@ class _Sweep:
             moving = np.zeros(border.shape + (0,), dtype=bool)
         return border, frozen, moving
 
-    def _near(self, lo: FloatArray, hi: FloatArray, reach, t0, t1) -> NDArray[np.bool_]:
-        """Whether anything may come within ``reach`` of the boxes (see :meth:`_near_each`)."""
-        border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
-        return border | frozen.any(axis=-1) | moving.any(axis=-1)
+    def _near(self, lo: FloatArray, hi: FloatArray, reach: float, t0, t1) -> NDArray[np.bool_]:
+        """Whether anything may come within ``reach`` of the boxes (see :meth:`_near_each`):
+        for many boxes, the static obstacles and the border by the world's
+        :meth:`~World.clear_map` (a few operations per box), the others box by box."""
+        if lo[..., 0].size * self.n_static < _MAP_FROM:
+            border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
+            return border | frozen.any(axis=-1) | moving.any(axis=-1)
+        near = ~self.static_world.clear_map(reach).free(lo, hi)
+        thr = reach + self.slack
+        if len(self.other_r):
+            near |= _boxes_near(lo, hi, self.f_lo[self.n_static:], self.f_hi[self.n_static:],
+                                self.f_pad[self.n_static:], thr).any(axis=-1)
+        if self.movers:
+            m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
+            near |= _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr).any(axis=-1)
+        return near
 
     def check(self, S: FloatArray, npieces: NDArray[np.int_], k0: int) -> NDArray[np.bool_]:
         """Whether a used piece of each move collides.
@@ -155,8 +187,9 @@ class _Sweep:
             C = full[rows[:, None], idx]
         need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
         if len(need) > 1:
-            near_disk = self._near(C.min(axis=1), C.max(axis=1), need,
-                                   t0[gs, None], t1[gs, None])        # (ns, nd)
+            c_lo, c_hi = C.min(axis=1), C.max(axis=1)                 # (ns, nd, 2)
+            near_disk = np.stack([self._near(c_lo[:, j], c_hi[:, j], need[j], t0[gs], t1[gs])
+                                  for j in range(len(need))], axis=1)  # (ns, nd)
         else:
             near_disk = np.ones((len(rows), 1), dtype=bool)
         q = gs[:, None] * _STRIDE + np.arange(_STRIDE)[None, :]       # (ns, _STRIDE) pieces
@@ -181,7 +214,16 @@ class _Sweep:
         indices ``k``) comes closer than the margin to anything, each piece tested exactly
         against what its box may touch."""
         t = self.env.t + k * self.model.dt
-        border, frozen, moving = self._near_each(np.minimum(A, B), np.maximum(A, B), need, t, t)
+        lo, hi = np.minimum(A, B), np.maximum(A, B)
+        out = np.zeros(len(A), dtype=bool)
+        if len(A) * self.n_static < _MAP_FROM:
+            near = slice(None)
+        else:                 # the clear map first, each obstacle's box for the rest
+            near = np.flatnonzero(self._near(lo, hi, need, t, t))
+            if not len(near):
+                return out
+            A, B, t, lo, hi = A[near], B[near], t[near], lo[near], hi[near]
+        border, frozen, moving = self._near_each(lo, hi, need, t, t)
         hit = np.zeros(len(A), dtype=bool)
         at = np.flatnonzero(border)
         if len(at):
@@ -197,26 +239,24 @@ class _Sweep:
         for o in np.flatnonzero(moving.any(axis=0)):
             at = np.flatnonzero(moving[:, o])
             hit[at] |= self.movers[o].segment_collides(A[at], B[at], radius=need, t=t[at])
-        return hit
+        out[near] = hit
+        return out
 
 
 def _stretch_boxes(pts: FloatArray, nst: int) -> tuple[FloatArray, FloatArray]:
     """Boxes ``lo, hi`` (na, nst, 2) of the points ``pts`` (na, samples, m, 2) of each stretch:
     samples ``g * _STRIDE`` to ``(g + 1) * _STRIDE`` (the last stretch may be short)."""
-    b = pts.shape[1] - 1
-    lo = hi = None
-    for i in range(_STRIDE + 1):
-        if i + (nst - 1) * _STRIDE <= b:
-            x = pts[:, i:i + (nst - 1) * _STRIDE + 1:_STRIDE]          # (na, nst, m, 2)
-        else:
-            x = pts[:, np.minimum(np.arange(nst) * _STRIDE + i, b)]
-        xl, xh = (x.min(axis=2), x.max(axis=2)) if x.shape[2] > 1 else (x[:, :, 0], x[:, :, 0])
-        if lo is None:
-            lo, hi = xl.copy(), xh.copy()
-        else:
-            np.minimum(lo, xl, out=lo)
-            np.maximum(hi, xh, out=hi)
-    return lo, hi
+    na, n1, m, _ = pts.shape
+    T = np.moveaxis(pts, 1, 0)                                  # (samples, na, m, 2)
+    pad = nst * _STRIDE + 1 - n1
+    if pad:   # a short last stretch: repeat its last sample (the box stays the same)
+        T = np.concatenate([T, np.broadcast_to(T[-1:], (pad,) + T.shape[1:])])
+    T = np.ascontiguousarray(T)
+    head = T[:-1].reshape(nst, _STRIDE, na, m, 2)
+    tail = T[_STRIDE::_STRIDE]                                  # (nst, na, m, 2)
+    lo = np.minimum(head.min(axis=1), tail).min(axis=2)        # (nst, na, 2)
+    hi = np.maximum(head.max(axis=1), tail).max(axis=2)
+    return lo.transpose(1, 0, 2), hi.transpose(1, 0, 2)
 
 
 def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArray,
@@ -233,9 +273,9 @@ def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArr
     return gx * gx + gy * gy < reach * reach
 
 
-def _integrate(model, X0: FloatArray, P: FloatArray, b: int,
+def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int,
                reach: float) -> tuple[FloatArray, NDArray[np.int_], NDArray[np.bool_]]:
-    """``b`` control cycles from ``X0`` towards ``P``, :data:`_SUB` at a time, a candidate no
+    """``b`` control cycles from ``X0`` towards ``P``, ``sub`` at a time, a candidate no
     further once a sample is within ``reach`` of it (its later samples repeat that state).
 
     Returns the samples ``(na, b + 1, nx)``, the pieces each move uses in the block (``q + 1``
@@ -250,7 +290,7 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int,
     reach2 = reach * reach * (1.0 + 1e-9)
     j = 0
     while j < b and len(live):
-        s = min(_SUB, b - j)
+        s = min(sub, b - j)
         Pl = P[live]
         seg = model.rollout(part[live, j], Pl, s)[:, 1:]                  # (nl, s, nx)
         part[live, j + 1:j + s + 1] = seg
@@ -305,11 +345,11 @@ def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float
     end[:] = x0[:2]                         # (also where the distance is NaN: never integrated)
     active = np.flatnonzero(d0 > reach)
     cur = np.broadcast_to(x0, (len(active), model.nx))
-    block = roll_block(len(active))
+    block, sub = roll_block(model, len(active))
     k = 0
     while k < steps and len(active):
         b = min(block, steps - k)
-        part, npieces, done = _integrate(model, cur, P[active], b, reach)
+        part, npieces, done = _integrate(model, cur, P[active], b, sub, reach)
         hit = check.check(part, npieces, k)
         bad[active[hit]] = True
         fin = done & ~hit
