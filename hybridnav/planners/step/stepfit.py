@@ -16,9 +16,10 @@ empty (no circles, no lines, a single robot) is left out.
 
 :func:`feasible_steps` is what the papers leave to the fitness and a serious planner cannot: it
 simulates the robot's own compiled closed loop from its current state towards every candidate in
-one batched rollout and rejects a candidate when the swept footprint comes closer than a safety
+batched rollouts and rejects a candidate when the swept footprint comes closer than a safety
 margin to an obstacle (moving circles where they are at each sample's time), to another robot or to
-the workspace border before the robot gets within ``reach`` of it.
+the workspace border before the robot gets within ``reach`` of it (:mod:`.sweep`: block by block,
+pruned by bounding boxes).
 """
 
 from __future__ import annotations
