@@ -146,29 +146,10 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
     pieces of stretches whose bounding box comes near something are tested exactly.
     """
     P = np.asarray(P, dtype=float).reshape(-1, 2)
-    n = P.shape[0]
-    if n == 0:
-        return np.ones(n, dtype=bool)
-    bad, last, end = sweep(model, x0, P, env, steps=steps, reach=reach, margin=margin)
-    ok = ~bad
-    # the candidate itself must be in sight: the whole-body disk swept straight from where the
-    # move ends to the candidate keeps the margin too (the next step is planned from there)
-    sel = np.flatnonzero(ok)
-    if not len(sel):
-        return ok
-    end, Ps = end[sel], P[sel]
-    body = model.radius + (margin if end_margin is None else end_margin)
-    world = env.world
-    t_end = env.t + last[sel] * model.dt
-    seen = np.ones(len(sel), dtype=bool)
-    if world.obstacles:
-        seen &= ~world.segment_collides(end, Ps, radius=body, t=t_end)
-    other_c, other_r = env.robot_discs
-    if len(other_r):
-        dd, _ = point_segment_distance(other_c[None], end[:, None], Ps[:, None])
-        seen &= ~np.any(dd < body + other_r[None], axis=1)
-    ok[sel] = seen
-    return ok
+    if P.shape[0] == 0:
+        return np.ones(0, dtype=bool)
+    return sweep(model, x0, P, env, steps=steps, reach=reach, margin=margin,
+                 end_margin=end_margin)
 
 
 class GoalDistance:

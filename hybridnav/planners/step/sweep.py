@@ -138,7 +138,8 @@ class _Sweep:
             near |= _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr).any(axis=-1)
         return near
 
-    def check(self, S: FloatArray, npieces: NDArray[np.int_], k0: int) -> NDArray[np.bool_]:
+    def check(self, S: FloatArray, npieces: NDArray[np.int_], k0: int, lo: FloatArray,
+              hi: FloatArray) -> NDArray[np.bool_]:
         """Whether a used piece of each move collides.
 
         Parameters
@@ -149,6 +150,8 @@ class _Sweep:
             Pieces ``k0 .. k0 + npieces - 1`` are used (0 to ``b``).
         k0 : int
             Index of the first sample (a multiple of :data:`_STRIDE`).
+        lo, hi : ndarray, shape (na, stretches, 2)
+            The box of the positions along each stretch.
 
         Returns
         -------
@@ -162,15 +165,13 @@ class _Sweep:
             return bad
         nst = -(-b // _STRIDE)
         if self.extent is not None:                  # 1. the robot's positions and extent
-            pts = S[:, :, None, :2]
             reach = self.extent + self.margin
             full = None
         else:                                        # 1. (unknown extent) the footprint disks
             full, radii = model.footprint(S.reshape(-1, nx))
             full = full.reshape(na, b1, len(radii), 2)
-            pts = full
             reach = float(np.max(radii)) + self.margin
-        lo, hi = _stretch_boxes(pts, nst)
+            lo, hi = _stretch_boxes(full, nst)
         used = (np.arange(nst) * _STRIDE)[None, :] < npieces[:, None]
         t, dt = self.env.t, model.dt
         first = k0 + np.arange(nst) * _STRIDE
@@ -201,19 +202,19 @@ class _Sweep:
             # 3. each piece's box; 4. the exact test against what it may touch
             A, B = C[:, :-1, j][sel], C[:, 1:, j][sel]
             owner = np.broadcast_to(rows[:, None], q.shape)[sel]
-            k = (k0 + q)[sel]
+            tk = t + (k0 + q)[sel] * dt               # the pieces' start times
             for lo_ in range(0, len(A), _BLOCK):
                 at = slice(lo_, lo_ + _BLOCK)
-                hit = self._hits(A[at], B[at], need[j], k[at])
+                hit = self.touches(A[at], B[at], need[j], tk[at])
                 bad[owner[at][hit]] = True
         return bad
 
-    def _hits(self, A: FloatArray, B: FloatArray, need: float,
-              k: NDArray[np.int_]) -> NDArray[np.bool_]:
-        """Whether the disk of radius ``need - margin`` swept along the pieces ``A -> B`` (piece
-        indices ``k``) comes closer than the margin to anything, each piece tested exactly
-        against what its box may touch."""
-        t = self.env.t + k * self.model.dt
+    def touches(self, A: FloatArray, B: FloatArray, need: float, t: FloatArray,
+                border: bool = True) -> NDArray[np.bool_]:
+        """Whether a disk of radius ``need`` swept along ``A -> B`` (moving circles frozen at
+        the times ``t``) touches an obstacle or another robot's disk, or (``border``) ends
+        outside the workspace shrunk by ``need``: exactly the tests of the whole world, each
+        obstacle's only where the boxes say it may touch."""
         lo, hi = np.minimum(A, B), np.maximum(A, B)
         out = np.zeros(len(A), dtype=bool)
         if len(A) * self.n_static < _MAP_FROM:
@@ -223,10 +224,10 @@ class _Sweep:
             if not len(near):
                 return out
             A, B, t, lo, hi = A[near], B[near], t[near], lo[near], hi[near]
-        border, frozen, moving = self._near_each(lo, hi, need, t, t)
+        at_border, frozen, moving = self._near_each(lo, hi, need, t, t)
         hit = np.zeros(len(A), dtype=bool)
-        at = np.flatnonzero(border)
-        if len(at):
+        at = np.flatnonzero(at_border)
+        if border and len(at):
             hit[at] |= ~self.world.inside_workspace(B[at], need)
         ns = len(self.static)
         for o in np.flatnonzero(frozen.any(axis=0)):
@@ -273,17 +274,20 @@ def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArr
     return gx * gx + gy * gy < reach * reach
 
 
-def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int,
-               reach: float) -> tuple[FloatArray, NDArray[np.int_], NDArray[np.bool_]]:
+def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: float):
     """``b`` control cycles from ``X0`` towards ``P``, ``sub`` at a time, a candidate no
     further once a sample is within ``reach`` of it (its later samples repeat that state).
 
     Returns the samples ``(na, b + 1, nx)``, the pieces each move uses in the block (``q + 1``
-    when sample ``q + 1`` is the first within reach, else ``b``) and whether the move ended.
+    when sample ``q + 1`` is the first within reach, else ``b``), whether the move ended, and
+    the boxes ``lo, hi`` (na, stretches, 2) of the positions along each stretch. (A sample is
+    only looked at for reach when its stretch's box comes within reach of the candidate.)
     """
     na = len(X0)
+    nst = -(-b // _STRIDE)
     part = np.empty((na, b + 1, model.nx))
     part[:, 0] = X0
+    lo, hi = np.empty((na, nst, 2)), np.empty((na, nst, 2))
     npieces = np.full(na, b)
     ended = np.zeros(na, dtype=bool)
     live = np.arange(na)
@@ -291,48 +295,40 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int,
     j = 0
     while j < b and len(live):
         s = min(sub, b - j)
-        Pl = P[live]
-        seg = model.rollout(part[live, j], Pl, s)[:, 1:]                  # (nl, s, nx)
-        part[live, j + 1:j + s + 1] = seg
-        dx, dy = seg[:, :, 0] - Pl[:, None, 0], seg[:, :, 1] - Pl[:, None, 1]
-        # within reach: hypot(dx, dy) <= reach, computed for the samples that may be
-        close = np.flatnonzero((dx * dx + dy * dy <= reach2).any(axis=1))
-        within = np.hypot(dx[close], dy[close]) <= reach
+        rows = slice(None) if len(live) == na else live     # (a slice copies less)
+        Pl = P[rows]
+        traj = model.rollout(part[rows, j], Pl, s)                        # (nl, s + 1, nx)
+        part[rows, j + 1:j + s + 1] = traj[:, 1:]
+        g0, ns = j // _STRIDE, -(-s // _STRIDE)
+        blo, bhi = _stretch_boxes(traj[:, :, None, :2], ns)
+        lo[rows, g0:g0 + ns], hi[rows, g0:g0 + ns] = blo, bhi
+        gx = np.maximum(np.maximum(blo[..., 0] - Pl[:, None, 0], Pl[:, None, 0] - bhi[..., 0]), 0.0)
+        gy = np.maximum(np.maximum(blo[..., 1] - Pl[:, None, 1], Pl[:, None, 1] - bhi[..., 1]), 0.0)
+        close = np.flatnonzero((gx * gx + gy * gy <= reach2).any(axis=1))
+        Pc = Pl[close]
+        within = np.hypot(traj[close, 1:, 0] - Pc[:, None, 0],
+                          traj[close, 1:, 1] - Pc[:, None, 1]) <= reach
         done = within.any(axis=1)
         now = live[close[done]]
         ended[now] = True
         npieces[now] = j + within[done].argmax(axis=1) + 1
-        part[now, j + s + 1:] = seg[close[done], -1][:, None]
+        final = traj[close[done], -1]
+        part[now, j + s + 1:] = final[:, None]
+        lo[now, g0 + ns:] = hi[now, g0 + ns:] = final[:, None, :2]
         live = np.delete(live, close[done])
         j += s
-    return part, npieces, ended
+    return part, npieces, ended, lo, hi
 
 
 def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float,
-          margin: float) -> tuple[NDArray[np.bool_], NDArray[np.int_], FloatArray]:
-    """Roll out from ``x0`` towards every candidate and test the moves' swept footprints.
-
-    Parameters
-    ----------
-    model : Model
-    x0 : ndarray, shape (nx,)
-    P : ndarray, shape (N, 2)
-    env : Surroundings
-    steps : int
-        Rollout length.
-    reach : float
-        A move ends at its first sample within ``reach`` of its candidate.
-    margin : float
-        Clearance every footprint disk keeps.
+          margin: float, end_margin: float | None = None) -> NDArray[np.bool_]:
+    """Roll out from ``x0`` towards every candidate and test the moves' swept footprints, and
+    whether each candidate is in sight from where its move ends (the verdict of
+    :func:`~hybridnav.planners.step.stepfit.feasible_steps`, which documents the parameters).
 
     Returns
     -------
-    bad : ndarray of bool, shape (N,)
-        A used piece collides (the move's end and ``last`` are then not computed).
-    last : ndarray of int, shape (N,)
-        The sample where the move ends (``steps`` if it does not).
-    end : ndarray, shape (N, 2)
-        The position there.
+    ndarray of bool, shape (N,)
     """
     n = len(P)
     x0 = np.asarray(x0, dtype=float)
@@ -349,8 +345,8 @@ def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float
     k = 0
     while k < steps and len(active):
         b = min(block, steps - k)
-        part, npieces, done = _integrate(model, cur, P[active], b, sub, reach)
-        hit = check.check(part, npieces, k)
+        part, npieces, done, lo, hi = _integrate(model, cur, P[active], b, sub, reach)
+        hit = check.check(part, npieces, k, lo, hi)
         bad[active[hit]] = True
         fin = done & ~hit
         last[active[fin]] = k + npieces[fin]
@@ -359,4 +355,12 @@ def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float
         active, cur = active[keep], part[keep, -1]
         k += b
     end[active] = cur[:, :2]
-    return bad, last, end
+    # the candidate itself must be in sight: the whole-body disk swept straight from where the
+    # move ends to the candidate keeps the margin too (the next step is planned from there)
+    ok = ~bad
+    sel = np.flatnonzero(ok)
+    if len(sel):
+        body = model.radius + (margin if end_margin is None else end_margin)
+        ok[sel] = ~check.touches(end[sel], P[sel], body, env.t + last[sel] * model.dt,
+                                 border=False)
+    return ok
