@@ -105,6 +105,31 @@ def test_feasible_steps_is_the_exact_piecewise_test(name, kw, x0, steps, n, marg
         assert np.array_equal(got, ref), np.flatnonzero(got != ref)
 
 
+def test_feasible_steps_of_a_model_that_does_not_say_how_far_its_footprint_reaches():
+    """A footprint of two offset disks and no ``footprint_extent``: the check bounds the disks
+    themselves."""
+    from hybridnav.models.point_mass import PointMass
+
+    class TwoDisks(PointMass):
+        name = "two_disks_test"
+
+        def footprint(self, X):
+            X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+            off = np.array([[0.6, 0.0], [-0.5, 0.3]])
+            return X[:, None, :2] + off[None], np.array([0.4, 0.3])
+
+    m = TwoDisks(dt=0.5, jit=False)
+    assert m.footprint_extent is None
+    x0 = np.array([10.0, 12.0])
+    rng = np.random.default_rng(11)
+    P = rng.uniform(1.0, 49.0, size=(1200, 2))
+    robots = (np.array([[15.0, 12.0]]), np.array([1.0]))
+    env = Surroundings.at(_world(), 3.0, robots[0], robots)
+    got = feasible_steps(m, x0, P, env, steps=90, reach=1.0, margin=0.2)
+    assert got.any() and (~got).any()
+    assert np.array_equal(got, _reference(m, x0, P, env, 90, 1.0, 0.2))
+
+
 def test_feasible_steps_in_a_world_without_obstacles_and_with_no_candidates():
     m = models.get("point_mass", dt=0.5, radius=0.5)
     env = Surroundings.at(World((0.0, 10.0, 0.0, 10.0)), 0.0, np.zeros((0, 2)), NO_ROBOTS)

@@ -26,9 +26,13 @@ decides which pieces each of them sees, and skips a piece only where it provably
    obstacle's box (:meth:`World.boxes`; moving circles over the stretch's times), from another
    robot's disk or from the workspace border cannot touch it and is not tested against it.
 
-"Farther" includes a slack of ``1e-9`` of the workspace's scale, far above the rounding error of
-the box arithmetic and of the exact tests, so a skipped test could only have said "no
-collision".
+For many boxes the static obstacles and the border are asked of the world's
+:meth:`~World.clear_map` (a grid of cells farther than the reach from all of them) in a few
+operations per box; for few, of each obstacle's box. "Farther" includes a slack of ``1e-9`` of the
+workspace's scale, far above the rounding error of the box arithmetic and of the exact tests, so
+a skipped test could only have said "no collision". Likewise a sample is only tested for being
+within ``reach`` of its candidate when its stretch's box is, and the candidate's being in sight
+from where its move ends is tested obstacle by obstacle where boxes say it may be blocked.
 """
 
 from __future__ import annotations
@@ -285,8 +289,10 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: fl
     """
     na = len(X0)
     nst = -(-b // _STRIDE)
-    part = np.empty((na, b + 1, model.nx))
-    part[:, 0] = X0
+    # one compiled call for the block: its samples as they come; else assembled
+    part = None if sub >= b else np.empty((na, b + 1, model.nx))
+    if part is not None:
+        part[:, 0] = X0
     lo, hi = np.empty((na, nst, 2)), np.empty((na, nst, 2))
     npieces = np.full(na, b)
     ended = np.zeros(na, dtype=bool)
@@ -297,8 +303,11 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: fl
         s = min(sub, b - j)
         rows = slice(None) if len(live) == na else live     # (a slice copies less)
         Pl = P[rows]
-        traj = model.rollout(part[rows, j], Pl, s)                        # (nl, s + 1, nx)
-        part[rows, j + 1:j + s + 1] = traj[:, 1:]
+        if part is None:
+            part = traj = model.rollout(X0, Pl, s)                        # (na, b + 1, nx)
+        else:
+            traj = model.rollout(part[rows, j], Pl, s)                    # (nl, s + 1, nx)
+            part[rows, j + 1:j + s + 1] = traj[:, 1:]
         g0, ns = j // _STRIDE, -(-s // _STRIDE)
         blo, bhi = _stretch_boxes(traj[:, :, None, :2], ns)
         lo[rows, g0:g0 + ns], hi[rows, g0:g0 + ns] = blo, bhi
@@ -312,9 +321,10 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: fl
         now = live[close[done]]
         ended[now] = True
         npieces[now] = j + within[done].argmax(axis=1) + 1
-        final = traj[close[done], -1]
-        part[now, j + s + 1:] = final[:, None]
-        lo[now, g0 + ns:] = hi[now, g0 + ns:] = final[:, None, :2]
+        if j + s < b:
+            final = traj[close[done], -1]
+            part[now, j + s + 1:] = final[:, None]
+            lo[now, g0 + ns:] = hi[now, g0 + ns:] = final[:, None, :2]
         live = np.delete(live, close[done])
         j += s
     return part, npieces, ended, lo, hi
