@@ -240,8 +240,8 @@ def test_tractor_trailer_footprint_is_the_broadcast_formula_bit_for_bit():
 
 @pytest.mark.parametrize("name", ["point_mass", "tractor_trailer"])
 def test_rollout_in_chunks_is_the_rollout_of_each_robot(name):
-    """Batches run in power-of-two chunks, the last one padded: every row is its own robot's
-    rollout, bit for bit."""
+    """Batches run in power-of-two chunks, the last one padded (``pad=False``): every row is
+    its own robot's rollout, bit for bit, as in a padded batch."""
     from hybridnav.models.base import _chunk_size
 
     m = models.get(name, dt=0.2)
@@ -249,13 +249,14 @@ def test_rollout_in_chunks_is_the_rollout_of_each_robot(name):
     n = 45                                   # 32 + 8 + 5 (padded to 8)
     X0 = np.column_stack([rng.uniform(0, 20, (n, 2)), rng.uniform(-1, 1, (n, m.nx - 2))])
     P = rng.uniform(0, 20, (n, 2))
-    batch = m.rollout(X0, P, 12)
+    chunked = m.rollout(X0, P, 12, pad=False)
+    assert np.array_equal(chunked, m.rollout(X0, P, 12))
     for i in range(n):
-        assert np.array_equal(batch[i], m.rollout(X0[i:i + 1], P[i:i + 1], 12)[0])
+        assert np.array_equal(chunked[i], m.rollout(X0[i:i + 1], P[i:i + 1], 12)[0])
     for total in (1, 8, 9, 15, 16, 45, 1000, 4096, 8341):
         left, sizes = total, []
         while left > 0:
-            sizes.append(_chunk_size(total, left))
+            sizes.append(_chunk_size(total, left, pad=False))
             left -= sizes[-1]
         assert left > -8 and all(s == total or s & (s - 1) == 0 for s in sizes)
 

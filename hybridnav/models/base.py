@@ -45,12 +45,15 @@ _ROLLOUT_CHUNK = 4096
 _DT = Param(0.1, "control and integration step (s)", lo=0.0, lo_open=True)
 _RADIUS = Param(0.5, "footprint radius of a disk-shaped robot", lo=0.0)
 
-def _chunk_size(n: int, left: int) -> int:
+def _chunk_size(n: int, left: int, pad: bool = True) -> int:
     """Rows of the next compiled call of a rollout of ``n`` robots with ``left`` still to go:
-    ``n`` itself up to 8, else the largest power of two from 8 to :data:`_ROLLOUT_CHUNK` not
-    above ``left`` (8 or 16, padded, for the last few)."""
+    ``n`` itself up to 8; else ``pad``: ``n``'s next power of two (at most
+    :data:`_ROLLOUT_CHUNK`, every chunk of that size); not ``pad``: the largest power of two from
+    8 to :data:`_ROLLOUT_CHUNK` not above ``left`` (8 or 16, padded, for the last few)."""
     if n <= 8:
         return n
+    if pad:
+        return min(1 << (n - 1).bit_length(), _ROLLOUT_CHUNK)
     if left <= 8:
         return 8
     if left < 16:
@@ -435,7 +438,7 @@ class Model(ABC):
         out[...] = b.outs[0]
         return out
 
-    def rollout(self, X0, targets, steps: int) -> np.ndarray:
+    def rollout(self, X0, targets, steps: int, pad: bool = True) -> np.ndarray:
         """Simulate a batch of robots for ``steps`` control cycles towards fixed targets.
 
         Parameters
@@ -444,6 +447,12 @@ class Model(ABC):
         targets : array_like, shape (N, 2)
         steps : int
             Number of control cycles (>= 0).
+        pad : bool
+            Pad the batch to the next power of two: one compiled function per batch, best for
+            a batch of a new size. False: run it in power-of-two chunks, padding only the last
+            few rows: less work for repeated batches of varying sizes, which share the
+            functions of the chunk sizes (the step planners' candidates). The results are the
+            same.
 
         Returns
         -------
@@ -461,14 +470,14 @@ class Model(ABC):
         if n == 0 or steps == 0:
             return traj
         # Batches of varying size (swarm planners filter their candidates) share compiled
-        # functions: a batch of up to 8 has its own size; a larger one runs in chunks of
-        # powers of two from 8 to _ROLLOUT_CHUNK, largest first, the last chunk padded (by at
-        # most 7 rows; padding every batch to the next power of two integrated up to twice the
-        # rows asked for). Every robot is integrated independently, so padding and chunking
-        # change no result.
+        # functions: a batch of up to 8 has its own size; a larger one is padded to the next
+        # power of two (very large ones run in chunks of _ROLLOUT_CHUNK) or, not pad, runs in
+        # chunks of powers of two from 8 to _ROLLOUT_CHUNK, largest first, the last padded by
+        # at most 7 rows (padding integrates up to twice the rows asked for). Every robot is
+        # integrated independently, so padding and chunking change no result.
         lo = 0
         while lo < n:
-            size = _chunk_size(n, n - lo)
+            size = _chunk_size(n, n - lo, pad)
             hi = min(n, lo + size)
             b = self._buffered("rollout", size, steps)
             b.ins[0][: hi - lo] = X0[lo:hi]

@@ -304,9 +304,9 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: fl
         rows = slice(None) if len(live) == na else live     # (a slice copies less)
         Pl = P[rows]
         if part is None:
-            part = traj = model.rollout(X0, Pl, s)                        # (na, b + 1, nx)
+            part = traj = model.rollout(X0, Pl, s, pad=False)             # (na, b + 1, nx)
         else:
-            traj = model.rollout(part[rows, j], Pl, s)                    # (nl, s + 1, nx)
+            traj = model.rollout(part[rows, j], Pl, s, pad=False)         # (nl, s + 1, nx)
             part[rows, j + 1:j + s + 1] = traj[:, 1:]
         g0, ns = j // _STRIDE, -(-s // _STRIDE)
         blo, bhi = _stretch_boxes(traj[:, :, None, :2], ns)
