@@ -68,10 +68,10 @@ class Timers:
         def where() -> str:
             return "plan" if timers.in_plan else "other"
 
-        def rollout(model, X0, targets, steps):
+        def rollout(model, X0, targets, steps, **kwargs):
             tic = time.perf_counter()
             try:
-                return orig_rollout(model, X0, targets, steps)
+                return orig_rollout(model, X0, targets, steps, **kwargs)
             finally:
                 timers.t["rollout_" + where()] += time.perf_counter() - tic
 
