@@ -1,10 +1,16 @@
-"""Step planners: planning time per step, its share in the compiled rollout, compare throughput.
+"""Step planners: planning time per step against the targets, its share in the compiled rollout,
+compare throughput.
 
 1. FAStep-Kinematic (``fastep``: 50 fireflies, 30 generations) and ACO-Kinematic (``acor``: archive
    300, sample 10000, 1 generation), paper defaults, seed 0, on fastep-s1..s3 and
    tractor-trailer-1: planning time per planned step (the robots' ``planning_time`` /
-   ``planning_calls`` metrics), measured on a second run of each case after an identical warm-up
-   run (so JIT compilation of the padded rollout batch sizes is not counted).
+   ``planning_calls`` metrics, wall clock; ``cpu``: the process's CPU time in the same calls,
+   which a busy machine inflates less), measured on a second run of each case after an identical
+   warm-up run (so JIT compilation of the rollout batch sizes is not counted), and its ratio to
+   the target of the planner and robot (:data:`TARGETS`, ms per step; below 1 meets it). With
+   ``--before REV`` the same table is measured for the commit ``REV`` (its ``hybridnav`` package
+   from ``git archive``, in a fresh interpreter) and printed beside it: the speed-up and whether
+   the run is the same (the final states of every robot bit for bit, outcome and steps).
 2. The share of that time spent in ``Model.rollout`` (the batched feasibility rollout to every
    candidate; timed by wrapping it in this process), in the compiled CasADi call inside it, and in
    the rest of ``feasible_steps`` (the swept-footprint check). What is left is the step fitness,
@@ -17,8 +23,9 @@
    wall-clock speedup is only as good as the idle cores, so a trivial CPU-bound 2-process job is
    timed next to it as the reference).
 
-It prints, it does not assert. Run: ``python benchmarks/bench_planners.py [--runs 4]
-[--scenarios ...] [--skip-compare]``.
+It prints, it does not assert. It imports the ``hybridnav`` of the tree it is in. Run:
+``python benchmarks/bench_planners.py [--runs 4] [--scenarios ...] [--skip-compare]
+[--before REV]``.
 """
 
 from __future__ import annotations
@@ -27,14 +34,21 @@ import argparse
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from collections import defaultdict
+from pathlib import Path
 
 PLANNERS = {"fastep-kinematic": "fastep", "aco-kinematic": "acor"}
 SCENARIOS = ["fastep-s1", "fastep-s2", "fastep-s3", "tractor-trailer-1"]
 COMPARE_SCENARIOS = ["fastep-s1", "fastep-s3"]
+#: ms per planned step to reach, per planner and robot model
+TARGETS = {("fastep-kinematic", "point_mass"): 30.0, ("fastep-kinematic", "tractor_trailer"): 100.0,
+           ("aco-kinematic", "point_mass"): 100.0, ("aco-kinematic", "tractor_trailer"): 500.0}
+ROOT = Path(__file__).resolve().parents[1]
 
 
 class Timers:
@@ -54,10 +68,10 @@ class Timers:
         def where() -> str:
             return "plan" if timers.in_plan else "other"
 
-        def rollout(model, X0, targets, steps):
+        def rollout(model, X0, targets, steps, **kwargs):
             tic = time.perf_counter()
             try:
-                return orig_rollout(model, X0, targets, steps)
+                return orig_rollout(model, X0, targets, steps, **kwargs)
             finally:
                 timers.t["rollout_" + where()] += time.perf_counter() - tic
 
@@ -82,15 +96,18 @@ class Timers:
         stepping.feasible_steps = feasible   # looked up at call time by the planning closures
 
     def instrument(self, planner) -> None:
-        """Count what happens inside ``planner.optimize`` (most of a planned step) as planning."""
+        """Count what happens inside ``planner.optimize`` (most of a planned step) as planning
+        (and its CPU time)."""
         orig = planner.optimize
 
         def optimize(*args, **kwargs):
             self.in_plan = True
+            cpu = time.process_time()
             try:
                 return orig(*args, **kwargs)
             finally:
                 self.in_plan = False
+                self.t["cpu_plan"] += time.process_time() - cpu
 
         planner.optimize = optimize
 
@@ -99,21 +116,14 @@ class Timers:
         self.rows.clear()
 
 
-def planning_table(scenarios: list[str]) -> None:
-    from hybridnav import models, planners
+def measure_table(scenarios: list[str]) -> list[dict]:
+    """Part 1 and 2 for every planner x scenario: one row each."""
+    from hybridnav import planners
     from hybridnav.world import load_scenario
 
     timers = Timers()
-    print(f"1+2. planning time per step, seed 0 (JIT available: {models.jit_available()}); "
-          f"shares of planning time")
-    head = (f"{'planner':<18}{'scenario':<19}{'outcome':<9}{'steps':>6}{'ms/step':>9}"
-            f"{'cand/step':>10}{'rollout':>9}{'compiled':>9}{'sweep':>7}{'other':>7}"
-            f"{'recheck s':>10}")
-    print(head)
-    print("-" * len(head))
+    rows = []
     for pname in PLANNERS:
-        tot_time = tot_calls = 0.0
-        tot = defaultdict(float)
         for sname in scenarios:
             scenario = load_scenario(sname)
             tic = time.perf_counter()
@@ -123,37 +133,102 @@ def planning_table(scenarios: list[str]) -> None:
             timers.instrument(planner)
             timers.reset()
             result = planner.run(scenario, seed=0)
-            pt = sum(r.metrics["planning_time"] for r in result.robots)
-            calls = sum(r.metrics["planning_calls"] for r in result.robots)
-            outcome = ",".join(sorted({r.outcome for r in result.robots}))
-            t = timers.t
-            tot_time += pt
-            tot_calls += calls
-            for k in ("rollout_plan", "compiled_plan", "feasible_plan"):
-                tot[k] += t[k]
-            tot["rows"] += timers.rows["plan"]
-            if calls:
-                sweep = t["feasible_plan"] - t["rollout_plan"]
-                print(f"{pname:<18}{sname:<19}{outcome:<9}{calls:>6}{1e3 * pt / calls:>9.1f}"
-                      f"{timers.rows['plan'] / calls:>10.0f}{t['rollout_plan'] / pt:>9.0%}"
-                      f"{t['compiled_plan'] / pt:>9.0%}{sweep / pt:>7.0%}"
-                      f"{1 - t['feasible_plan'] / pt:>7.0%}{t['rollout_other']:>10.3f}"
-                      f"   (warm-up run {warm:.1f} s)")
+            final = hashlib.sha256(b"".join(r.states.tobytes() for r in result.robots))
+            rows.append({
+                "planner": pname, "scenario": sname,
+                "model": ",".join(sorted({r.model for r in scenario.robots})),
+                "outcome": ",".join(sorted({r.outcome for r in result.robots})),
+                "steps": sum(r.metrics["planning_calls"] for r in result.robots),
+                "seconds": sum(r.metrics["planning_time"] for r in result.robots),
+                "cpu": timers.t["cpu_plan"], "rows": timers.rows["plan"], "warm": warm,
+                "run": f"{final.hexdigest()[:12]} {[r.outcome for r in result.robots]} "
+                       f"{[len(r.states) for r in result.robots]}",
+                **{k: timers.t[k] for k in ("rollout_plan", "compiled_plan", "feasible_plan",
+                                            "rollout_other")}})
+    return rows
+
+
+def planning_table(scenarios: list[str], before: str | None) -> None:
+    from hybridnav import models
+
+    old = None
+    if before:
+        old = {(r["planner"], r["scenario"]): r for r in table_at(before, scenarios)}
+    rows = measure_table(scenarios)
+    print(f"1+2. planning time per step, seed 0 (JIT available: {models.jit_available()}); "
+          f"shares of planning time; load average {os.getloadavg()[0]:.2f}")
+    head = (f"{'planner':<18}{'scenario':<19}{'outcome':<9}{'steps':>6}{'ms/step':>9}"
+            f"{'cpu ms':>8}{'target':>8}{'ratio':>7}{'cand/step':>10}{'rollout':>9}"
+            f"{'compiled':>9}{'sweep':>7}{'other':>7}{'recheck s':>10}")
+    if old:
+        head += f"  | {'before ms/step':>14}{'speed-up':>9}  same run"
+    print(head)
+    print("-" * len(head))
+    for pname in PLANNERS:
+        tot = defaultdict(float)
+        for r in (r for r in rows if r["planner"] == pname):
+            target = TARGETS.get((pname, r["model"]))
+            line = f"{pname:<18}{r['scenario']:<19}{r['outcome']:<9}{r['steps']:>6}"
+            if r["steps"]:
+                pt, n = r["seconds"], r["steps"]
+                for k in ("seconds", "cpu", "steps", "rows", "rollout_plan", "compiled_plan",
+                          "feasible_plan"):
+                    tot[k] += r[k]
+                ms = 1e3 * pt / n
+                line += (f"{ms:>9.1f}{1e3 * r['cpu'] / n:>8.1f}"
+                         f"{target if target else float('nan'):>8.0f}"
+                         f"{ms / target if target else float('nan'):>7.2f}{r['rows'] / n:>10.0f}"
+                         f"{r['rollout_plan'] / pt:>9.0%}{r['compiled_plan'] / pt:>9.0%}"
+                         f"{(r['feasible_plan'] - r['rollout_plan']) / pt:>7.0%}"
+                         f"{1 - r['feasible_plan'] / pt:>7.0%}{r['rollout_other']:>10.3f}")
             else:
-                print(f"{pname:<18}{sname:<19}{outcome:<9}{0:>6}{'-':>9}{'-':>10}{'-':>9}{'-':>9}"
-                      f"{'-':>7}{'-':>7}{t['rollout_other']:>10.3f}   (no step planned: the "
-                      f"straight line is free)")
-        if tot_calls:
-            sweep = tot["feasible_plan"] - tot["rollout_plan"]
-            print(f"{pname:<18}{'all':<19}{'':<9}{tot_calls:>6.0f}"
-                  f"{1e3 * tot_time / tot_calls:>9.1f}{tot['rows'] / tot_calls:>10.0f}"
-                  f"{tot['rollout_plan'] / tot_time:>9.0%}{tot['compiled_plan'] / tot_time:>9.0%}"
-                  f"{sweep / tot_time:>7.0%}{1 - tot['feasible_plan'] / tot_time:>7.0%}")
+                line += (f"{'-':>9}{'-':>8}{target or float('nan'):>8.0f}{'-':>7}{'-':>10}"
+                         f"{'-':>9}{'-':>9}{'-':>7}{'-':>7}{r['rollout_other']:>10.3f}")
+            if old:
+                o = old.get((pname, r["scenario"]))
+                if o and o["steps"] and r["steps"]:
+                    before_ms = 1e3 * o["seconds"] / o["steps"]
+                    line += (f"  | {before_ms:>14.1f}"
+                             f"{before_ms / (1e3 * r['seconds'] / r['steps']):>8.1f}x")
+                else:
+                    line += f"  | {'-':>14}{'-':>9}"
+                line += f"  {'yes' if o and o['run'] == r['run'] else 'NO'}"
+            if not r["steps"]:
+                line += "   (no step planned: the straight line is free)"
+            print(line)
+        if tot["steps"]:
+            pt, n = tot["seconds"], tot["steps"]
+            print(f"{pname:<18}{'all':<19}{'':<9}{n:>6.0f}{1e3 * pt / n:>9.1f}"
+                  f"{1e3 * tot['cpu'] / n:>8.1f}{'':>8}{'':>7}{tot['rows'] / n:>10.0f}"
+                  f"{tot['rollout_plan'] / pt:>9.0%}{tot['compiled_plan'] / pt:>9.0%}"
+                  f"{(tot['feasible_plan'] - tot['rollout_plan']) / pt:>7.0%}"
+                  f"{1 - tot['feasible_plan'] / pt:>7.0%}")
         print()
-    print("steps: planned steps (planning_calls); cand/step: candidates checked per step; "
-          "rollout: Model.rollout\n(compiled: the CasADi call inside it); sweep: swept-footprint "
-          "check of feasible_steps; other: fitness,\noptimizer, bookkeeping; recheck s: rollout "
-          "seconds outside planning (checking the current move).")
+    print("steps: planned steps (planning_calls); ms/step: wall clock, cpu ms: CPU time; target: "
+          "ms/step to reach,\nratio: ms/step / target; cand/step: candidates checked per step; "
+          "rollout: Model.rollout (compiled:\nthe CasADi call inside it); sweep: swept-footprint "
+          "check of feasible_steps; other: fitness, optimizer,\nbookkeeping; recheck s: rollout "
+          "seconds outside planning (checking the current move)" +
+          (f"; before: commit {before},\nsame run: every robot's states bit for bit, outcome and "
+           "number of states." if old else "."))
+
+
+def table_at(rev: str, scenarios: list[str]) -> list[dict]:
+    """:func:`measure_table` for the ``hybridnav`` package of commit ``rev``, in a fresh
+    interpreter."""
+    tmp = Path(tempfile.mkdtemp(prefix="bench_before_"))
+    try:
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "hybridnav"],
+                                 check=True, capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive, check=True)
+        proc = subprocess.run([sys.executable, __file__, "--table-json", "--root", str(tmp),
+                               "--scenarios", *scenarios], capture_output=True, text=True,
+                              cwd=tempfile.gettempdir())
+        if proc.returncode:
+            raise SystemExit(f"the table failed at {rev}:\n{proc.stderr[-3000:]}")
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def compare_child(workers: int, runs: int) -> None:
@@ -218,16 +293,25 @@ def main() -> None:
     ap.add_argument("--scenarios", nargs="+", default=SCENARIOS)
     ap.add_argument("--runs", type=int, default=4, help="runs per planner x scenario in part 3")
     ap.add_argument("--skip-compare", action="store_true")
+    ap.add_argument("--before", help="a git revision whose planning times to print beside")
     ap.add_argument("--compare-child", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--table-json", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--root", default=str(ROOT), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    sys.path.insert(0, args.root)           # this tree's hybridnav, not an installed one
     if args.compare_child:
         compare_child(args.compare_child, args.runs)
         return
+    if args.table_json:
+        print(json.dumps(measure_table(args.scenarios)))
+        return
     tic = time.perf_counter()
-    planning_table(args.scenarios)
+    print(f"uptime: {subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
+    planning_table(args.scenarios, args.before)
     if not args.skip_compare:
         throughput(args.runs)
-    print(f"\ntotal {time.perf_counter() - tic:.0f} s")
+    print(f"\ntotal {time.perf_counter() - tic:.0f} s; uptime: "
+          f"{subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
 
 
 if __name__ == "__main__":

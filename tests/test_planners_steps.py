@@ -112,11 +112,11 @@ def _feasible_by_brute_force(model, x0, P, world, steps, reach, margin):
 @pytest.mark.parametrize("name, x0, dt", [("unicycle", [8.0, 10.0, 0.3], 0.1),
                                           ("tractor_trailer", [8.0, 10.0, 0.3, 0.3], 0.5)])
 def test_feasibility_of_curved_moves_is_the_piecewise_exact_test(name, x0, dt, steps):
-    """Unicycle and tractor-trailer moves curve: feasible_steps (blocked rollout that stops at
-    the move's end, stretches proven safe from their ends' clearance) must agree with testing
-    every piece of the whole rollout exactly; with moves that end in the first, a later or no
-    rollout block (dt 0.1: the unicycle needs more than 64 cycles for the far candidates), a
-    horizon that is no multiple of the stretch length, and a candidate already within reach."""
+    """Unicycle and tractor-trailer moves curve: feasible_steps (a blocked rollout that stops at
+    the move's end, stretches proven safe by bounding boxes) must agree with testing every piece
+    of the whole rollout exactly; with moves that end in the first, a later or no rollout block
+    (dt 0.1: the unicycle needs more than 64 cycles for the far candidates), a horizon that is no
+    multiple of the stretch length, and a candidate already within reach."""
     world = World((0, 50, 0, 50), (Circle((20, 20), 4), Circle((35, 30), 3),
                                    Segment((10, 35), (25, 42))))
     m = models.get(name, dt=dt)

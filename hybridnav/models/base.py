@@ -408,7 +408,7 @@ class Model(ABC):
 
             fn = _compile(self._key() + ("rollout", n, steps), build, self._use_jit())
             b = _Buffered(fn, [(n, nx), (n, self.target_size)], [(n, steps, nx)])
-        if len(cache) > 32:
+        if len(cache) > 64:
             cache.pop(next(iter(cache)))
         cache[bkey] = b
         return b
@@ -569,6 +569,16 @@ class Model(ABC):
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         return X[:, None, :2].copy(), np.array([self.radius])
+
+    @property
+    def footprint_extent(self) -> float | None:
+        """An upper bound on how far the footprint reaches from the robot's position: every
+        disk of :meth:`footprint` lies within this distance of the state's ``(x, y)``
+        (``max_j |c_j - (x, y)| + r_j``); collision checks prune with it. ``None``: unknown (a
+        model that overrides :meth:`footprint` says it too)."""
+        if type(self).footprint is Model.footprint:
+            return self.radius
+        return None
 
     def closed_loop_at(self, target) -> cs.SX:
         """The closed loop driving to ``target``, in the state symbols only (the target and the

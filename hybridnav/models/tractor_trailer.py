@@ -129,6 +129,17 @@ class TractorTrailer(Model):
         """Half-diagonal of the tractor body, ``sqrt(L^2 + b^2) / 2`` (the papers' clearance)."""
         return math.hypot(self.values["L"], self.values["b"]) / 2
 
+    @property
+    def footprint_extent(self) -> float:
+        """How far the footprint's disks reach from ``(x, y)`` at most: the tractor's disks
+        are centred on its axis within ``L/2`` of it, the trailer's on its axis at most
+        ``L/2 + c + Lt`` behind it (the hitch is ``L/2 + c`` behind ``(x, y)``)."""
+        q = self.values
+        (lt, nt, rt), (lr, nr, rr) = self._bodies()
+        tractor = (nt - 0.5) / nt * lt - lt / 2 + rt
+        trailer = q["L"] / 2 + q["c"] + (nr - 0.5) / nr * lr + rr
+        return max(tractor, trailer)
+
     def _bodies(self):
         """(offset of the body centre along its axis from its anchor, length, disks) per body."""
         q = self.values
@@ -149,17 +160,21 @@ class TractorTrailer(Model):
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         q = self.values
         (lt, nt, rt), (lr, nr, rr) = self._bodies()
-        u0 = np.stack([np.cos(X[:, 2]), np.sin(X[:, 2])], axis=1)
-        u1 = np.stack([np.cos(X[:, 3]), np.sin(X[:, 3])], axis=1)
-        pos = X[:, :2]
-        # tractor: centred on (x, y); trailer: from the hitch back to the trailer axle
+        c0, s0 = np.cos(X[:, 2]), np.sin(X[:, 2])
+        c1, s1 = np.cos(X[:, 3]), np.sin(X[:, 3])
+        px, py = X[:, 0], X[:, 1]
+        # tractor: centred on (x, y); trailer: from the hitch back to the trailer axle (one
+        # coordinate at a time: NumPy is slow on a last axis of length 2)
         s_t = (np.arange(nt) + 0.5) / nt * lt - lt / 2
-        hitch = pos - (q["L"] / 2 + q["c"]) * u0
+        back = q["L"] / 2 + q["c"]
+        hx, hy = px - back * c0, py - back * s0
         s_r = (np.arange(nr) + 0.5) / nr * lr
-        centers = np.concatenate(
-            [pos[:, None, :] + s_t[None, :, None] * u0[:, None, :],
-             hitch[:, None, :] - s_r[None, :, None] * u1[:, None, :]],
-            axis=1,
-        )
+        centers = np.empty((len(X), nt + nr, 2))
+        for i, s in enumerate(s_t):
+            centers[:, i, 0] = px + s * c0
+            centers[:, i, 1] = py + s * s0
+        for i, s in enumerate(s_r):
+            centers[:, nt + i, 0] = hx - s * c1
+            centers[:, nt + i, 1] = hy - s * s1
         radii = np.concatenate([np.full(nt, rt), np.full(nr, rr)])
         return centers, radii

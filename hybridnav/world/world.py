@@ -3,12 +3,14 @@ obstacles."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
+from hybridnav.world.clearmap import ClearMap
 from hybridnav.world.geometry import (
     FloatArray,
     _cross,
@@ -320,6 +322,42 @@ class World:
                 hit |= np.any(inner, axis=1)
         return hit
 
+    def boxes(self, t0: ArrayLike = 0.0, t1: ArrayLike | None = None
+              ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Where each obstacle is, as a box and a pad: obstacle ``k`` lies within ``pad[k]`` of
+        the box ``[lo[..., k, :], hi[..., k, :]]`` (circles: the centre and the radius; moving
+        circles: their centres from time ``t0`` to ``t1``, default ``t0``, and the radius;
+        segments and polygons: their bounding box and 0). For pruning: a point farther than
+        ``pad[k]`` from the box is outside obstacle ``k``.
+
+        Parameters
+        ----------
+        t0, t1 : float or array_like
+            Times (broadcasting against each other).
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (..., K, 2)
+            ``...`` is the times' shape.
+        pad : ndarray, shape (K,)
+        """
+        t0 = np.asarray(t0, dtype=float)
+        t1 = t0 if t1 is None else np.asarray(t1, dtype=float)
+        shape = np.broadcast_shapes(t0.shape, t1.shape) + (len(self.obstacles), 2)
+        lo, hi, pad = np.empty(shape), np.empty(shape), np.zeros(len(self.obstacles))
+        if self._c_idx.size:
+            ca = self._c0 + t0[..., None, None] * self._cv
+            cb = self._c0 + t1[..., None, None] * self._cv
+            lo[..., self._c_idx, :] = np.minimum(ca, cb)
+            hi[..., self._c_idx, :] = np.maximum(ca, cb)
+            pad[self._c_idx] = self._cr
+        if self._g_idx.size:
+            lo[..., self._g_idx, :] = np.minimum.reduceat(np.minimum(self._eA, self._eB),
+                                                           self._g_start)
+            hi[..., self._g_idx, :] = np.maximum.reduceat(np.maximum(self._eA, self._eB),
+                                                           self._g_start)
+        return lo, hi, pad
+
     def circles(self, t: float = 0.0) -> tuple[FloatArray, FloatArray]:
         """Centres ``(C, 2)`` at time ``t`` and radii ``(C,)`` of the circles and moving circles."""
         return self._centers(float(t), 0)[0].copy(), self._cr.copy()
@@ -337,6 +375,30 @@ class World:
     def moving(self) -> World:
         """A world with the same workspace and only the moving circles (indices renumbered)."""
         return self._view("moving", lambda o: isinstance(o, MovingCircle))
+
+    def clear_map(self, reach: float) -> ClearMap:
+        """The cells of the workspace farther than (at least) ``reach`` from every static
+        obstacle and from the border (:class:`~hybridnav.world.clearmap.ClearMap`). Maps are
+        built once, for ``reach`` rounded up to a multiple of 1/1024 of the workspace's longer
+        side, so close values share one."""
+        maps = self.__dict__.setdefault("_clear_maps", {})
+        xmin, xmax, ymin, ymax = self.workspace
+        q = max(xmax - xmin, ymax - ymin) / 1024
+        key = math.ceil(float(reach) / q * (1 + 1e-9)) + 1      # a step up: never below reach
+        if key not in maps:
+            if len(maps) >= 16:
+                maps.pop(next(iter(maps)))
+            maps[key] = ClearMap(self, key * q)
+        return maps[key]
+
+    def singles(self) -> tuple[World, ...]:
+        """One world per obstacle, with the same workspace, in :attr:`obstacles` order (built
+        once). A query of this world is the combination of theirs (e.g. ``segment_collides``
+        is true where one of theirs is), each computed by the same operations."""
+        views = self.__dict__.setdefault("_views", {})
+        if "singles" not in views:
+            views["singles"] = tuple(World(self.workspace, (o,)) for o in self.obstacles)
+        return views["singles"]
 
     def _view(self, name: str, keep) -> World:
         # worlds are immutable: each view is built once (planners ask for them in their loops)

@@ -21,7 +21,7 @@ Planning a step: candidates lie in the workspace (shrunk by the robot's radius; 
 ``window`` around the robot), farther than ``reach`` from the robot unless they are the goal, with
 the whole-body disk (radius ``model.radius``, for the tractor-trailer ``sqrt(L^2 + b^2) / 2``) at
 least ``margin`` from obstacles and robots; the robot's compiled model is rolled out from its state
-towards every candidate in one batched call and the candidates whose swept footprint comes closer
+towards every candidate in batched calls and the candidates whose swept footprint comes closer
 than ``margin`` are infeasible (:func:`~hybridnav.planners.step.stepfit.feasible_steps`). The goal is
 always one of the candidates, so a robot that can drive straight to its goal does. A robot that
 finds no feasible step holds its position and tries again every second; after ``patience`` seconds

@@ -16,9 +16,10 @@ empty (no circles, no lines, a single robot) is left out.
 
 :func:`feasible_steps` is what the papers leave to the fitness and a serious planner cannot: it
 simulates the robot's own compiled closed loop from its current state towards every candidate in
-one batched rollout and rejects a candidate when the swept footprint comes closer than a safety
+batched rollouts and rejects a candidate when the swept footprint comes closer than a safety
 margin to an obstacle (moving circles where they are at each sample's time), to another robot or to
-the workspace border before the robot gets within ``reach`` of it.
+the workspace border before the robot gets within ``reach`` of it (:mod:`.sweep`: block by block,
+pruned by bounding boxes).
 """
 
 from __future__ import annotations
@@ -30,19 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from hybridnav.planners.step.sweep import sweep
 from hybridnav.world import World, point_segment_distance
 
 __all__ = ["GoalDistance", "Surroundings", "feasible_steps", "step_fitness"]
 
 FloatArray = NDArray[np.float64]
-
-# segments checked per block (bounds the memory of the (segments, obstacles) distance arrays)
-_BLOCK = 1 << 16
-# rollout pieces per stretch whose safety is first bounded from the clearance at its two ends
-_STRIDE = 8
-# control cycles integrated at a time: a candidate the robot has reached is not integrated
-# further (a multiple of _STRIDE, so every stretch a used piece lies in is computed)
-_ROLL_BLOCK = 8 * _STRIDE
 
 
 @dataclass(frozen=True)
@@ -112,47 +106,6 @@ def step_fitness(P: FloatArray, goal: FloatArray, env: Surroundings, a: float, b
     return f
 
 
-def rollout_until_reached(model, x0: FloatArray, P: FloatArray, steps: int,
-                          reach: float) -> FloatArray:
-    """``model.rollout`` from ``x0`` towards each candidate, integrated :data:`_ROLL_BLOCK`
-    cycles at a time and no further for a candidate once a sample is within ``reach`` of it.
-
-    What :func:`feasible_steps` reads is the same as the full rollout's, sample for sample:
-    everything up to the end of the block in which the move ends (the RK4 cycle is a function of
-    the state and the target alone). Later samples, which it does not read, repeat that last
-    state.
-
-    Parameters
-    ----------
-    model : Model
-    x0 : ndarray, shape (nx,)
-    P : ndarray, shape (N, 2)
-    steps : int
-    reach : float
-
-    Returns
-    -------
-    ndarray, shape (N, steps + 1, nx)
-    """
-    n = len(P)
-    traj = np.empty((n, steps + 1, model.nx))
-    traj[:, 0] = x0
-    active = np.flatnonzero(np.hypot(x0[0] - P[:, 0], x0[1] - P[:, 1]) > reach)
-    traj[np.setdiff1d(np.arange(n), active), 1:] = x0
-    k = 0
-    while k < steps and len(active):
-        b = min(_ROLL_BLOCK, steps - k)
-        part = model.rollout(traj[active, k], P[active], b)[:, 1:]       # (na, b, nx)
-        traj[active, k + 1:k + b + 1] = part
-        d = np.hypot(part[:, :, 0] - P[active, None, 0], part[:, :, 1] - P[active, None, 1])
-        done = (d <= reach).any(axis=1)
-        k += b
-        finished = active[done]
-        traj[finished, k + 1:] = traj[finished, k][:, None]
-        active = active[~done]
-    return traj
-
-
 def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, steps: int,
                    reach: float, margin: float,
                    end_margin: float | None = None) -> NDArray[np.bool_]:
@@ -185,94 +138,18 @@ def feasible_steps(model, x0: FloatArray, P: FloatArray, env: Surroundings, *, s
         The footprint, swept along straight pieces between consecutive rollout samples, keeps
         ``margin``, and the candidate is in sight from where the move ends. (Moving circles are
         frozen at each piece's start time.)
+
+    Notes
+    -----
+    The rollout and the sweep run block by block (:func:`~hybridnav.planners.step.sweep.
+    sweep`): a candidate is integrated no further once its move ends or collides, and only the
+    pieces of stretches whose bounding box comes near something are tested exactly.
     """
     P = np.asarray(P, dtype=float).reshape(-1, 2)
-    n = P.shape[0]
-    ok = np.ones(n, dtype=bool)
-    if n == 0:
-        return ok
-    traj = rollout_until_reached(model, x0, P, steps, reach)            # (n, steps+1, nx)
-    # a move ends at its first sample within reach of the candidate
-    dist = np.hypot(traj[:, :, 0] - P[:, None, 0], traj[:, :, 1] - P[:, None, 1])
-    within = dist <= reach
-    last = np.where(within.any(axis=1), within.argmax(axis=1), steps)     # last checked sample
-    used = np.arange(steps)[None, :] < last[:, None]                    # pieces k -> k+1
-    # the candidate itself must be in sight: the whole-body disk swept straight from where the
-    # move ends to the candidate keeps the margin too (the next step is planned from there)
-    end = traj[np.arange(n), last, :2]
-    body = model.radius + (margin if end_margin is None else end_margin)
-    world = env.world
-    t_end = env.t + last * model.dt
-    if world.obstacles:
-        ok &= ~world.segment_collides(end, P, radius=body, t=t_end)
-    other_c, other_r = env.robot_discs
-    if len(other_r):
-        dd, _ = point_segment_distance(other_c[None], end[:, None], P[:, None])
-        ok &= ~np.any(dd < body + other_r[None], axis=1)
-    if not used.any():
-        return ok
-    coarse = np.arange(0, steps + 1, _STRIDE)
-    if coarse[-1] != steps:
-        coarse = np.append(coarse, steps)
-    chunk_of = np.searchsorted(coarse, np.arange(steps), side="right") - 1  # piece -> stretch
-    # the last stretch a candidate's used pieces lie in, and the samples any of them needs:
-    # nothing after that is read, so the footprint and clearances stop there
-    top = np.where(last > 0, chunk_of[np.maximum(last, 1) - 1] + 1, 0)
-    horizon = int(coarse[top.max()])
-    if horizon < steps:
-        steps, traj, used = horizon, traj[:, :horizon + 1], used[:, :horizon]
-        coarse, chunk_of = coarse[:top.max() + 1], chunk_of[:horizon]
-    centres, radii = model.footprint(traj.reshape(-1, model.nx))
-    centres = centres.reshape(n, steps + 1, len(radii), 2)
-    static, moving = env.static, env.moving
-    needed = np.arange(len(coarse))[None, :] <= top[:, None]          # coarse samples read
-    bad = np.zeros(n, dtype=bool)
-
-    def frozen_clearance(Q: FloatArray) -> FloatArray:
-        # everything that does not move during the plan: static obstacles, border, other robots
-        c = world.border_clearance(Q)
-        if static.obstacles:
-            c = np.minimum(c, static.clearance(Q))
-        if len(other_r):
-            d = np.hypot(Q[:, None, 0] - other_c[None, :, 0], Q[:, None, 1] - other_c[None, :, 1])
-            c = np.minimum(c, np.min(d - other_r[None], axis=1))
-        return c
-
-    for j, rad in enumerate(radii):
-        need = rad + margin
-        C = centres[:, :, j]
-        # A stretch of the move between two samples with clearances cA, cB and arc length s
-        # cannot come closer than (cA + cB - s) / 2 to anything frozen (each of its points is
-        # within arc length a of one sample and s - a of the other): stretches of _STRIDE pieces
-        # proven safe that way skip the exact swept-disk tests of their pieces.
-        seg = np.hypot(*np.diff(C, axis=1).transpose(2, 0, 1))                  # (n, steps)
-        arc = np.concatenate([np.zeros((n, 1)), np.cumsum(seg, axis=1)], axis=1)
-        pts = C[:, coarse][needed]
-        clear = np.full((n, len(coarse)), np.inf)              # inf: a stretch nobody uses
-        got = np.empty(len(pts))
-        for lo in range(0, len(pts), _BLOCK):
-            got[lo:lo + _BLOCK] = frozen_clearance(pts[lo:lo + _BLOCK])
-        clear[needed] = got
-        bound = 0.5 * (clear[:, :-1] + clear[:, 1:] - np.diff(arc[:, coarse], axis=1))
-        rows, ks = np.nonzero(used & (bound < need)[:, chunk_of])
-        for lo in range(0, len(rows), _BLOCK):
-            r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
-            A, B = C[r_, k_], C[r_, k_ + 1]
-            hit = ~world.inside_workspace(B, need)
-            if static.obstacles:
-                hit |= static.segment_collides(A, B, radius=need)
-            if len(other_r):
-                dd, _ = point_segment_distance(other_c[None], A[:, None], B[:, None])
-                hit |= np.any(dd < need + other_r[None], axis=1)
-            bad[r_[hit]] = True
-        if moving.obstacles:
-            rows, ks = np.nonzero(used)
-            for lo in range(0, len(rows), _BLOCK):
-                r_, k_ = rows[lo:lo + _BLOCK], ks[lo:lo + _BLOCK]
-                hit = moving.segment_collides(C[r_, k_], C[r_, k_ + 1], radius=need,
-                                              t=env.t + k_ * model.dt)
-                bad[r_[hit]] = True
-    return ok & ~bad
+    if P.shape[0] == 0:
+        return np.ones(0, dtype=bool)
+    return sweep(model, x0, P, env, steps=steps, reach=reach, margin=margin,
+                 end_margin=end_margin)
 
 
 class GoalDistance:
