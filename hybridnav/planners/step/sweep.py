@@ -184,12 +184,13 @@ class _Sweep:
         if not len(rows):
             return bad
         # 2. the footprint along those stretches: each disk's box
-        idx = np.minimum(gs[:, None] * _STRIDE + np.arange(_STRIDE + 1)[None, :], b)
+        idx = rows[:, None] * b1 + np.minimum(gs[:, None] * _STRIDE
+                                              + np.arange(_STRIDE + 1)[None, :], b)
         if full is None:
-            C, radii = model.footprint(S[rows[:, None], idx].reshape(-1, nx))
+            C, radii = model.footprint(S.reshape(-1, nx)[idx.ravel()])
             C = C.reshape(len(rows), _STRIDE + 1, len(radii), 2)       # (ns, 9, nd, 2)
         else:
-            C = full[rows[:, None], idx]
+            C = full.reshape((-1,) + full.shape[2:])[idx]
         need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
         if len(need) > 1:
             c_lo, c_hi = C.min(axis=1), C.max(axis=1)                 # (ns, nd, 2)
