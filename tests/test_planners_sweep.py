@@ -144,6 +144,20 @@ def test_feasible_steps_in_a_world_without_obstacles_and_with_no_candidates():
         _reference(m, x0, P, env, 0, 0.5, 0.1).tolist()
 
 
+def test_feasible_steps_of_nan_states_and_candidates_are_those_of_the_exact_test():
+    """NaN boxes are near everything, so NaN samples reach the exact tests (which reject a move
+    through NaN at the border, and a NaN segment for a polygon's interior)."""
+    m = models.get("point_mass", dt=0.5, radius=0.5, jit=False)
+    env = Surroundings.at(_world(), 1.0, np.zeros((0, 2)), NO_ROBOTS)
+    P = np.array([[5.0, 5.0], [np.nan, 20.0], [44.0, 30.0], [26.0, np.nan]])
+    for x0 in ([30.0, 20.0], [np.nan, 20.0]):
+        x0 = np.array(x0)
+        for n in (4, 1200):            # without and with the clear map
+            Pn = np.resize(P, (n, 2))
+            got = feasible_steps(m, x0, Pn, env, steps=40, reach=1.0, margin=0.1)
+            assert np.array_equal(got, _reference(m, x0, Pn, env, 40, 1.0, 0.1))
+
+
 # ---- what the check prunes with ---------------------------------------------------------------
 
 @pytest.mark.parametrize("scenario", ["fastep-s2", "pso-ba-dynamic", "aco-case-study-2"])

@@ -57,6 +57,7 @@ class ClearMap:
         blocked[1:-1, 1:-1] = ~clear
         self.table = np.zeros((gx + 3, gy + 3), dtype=np.int64)
         self.table[1:, 1:] = blocked.cumsum(axis=0).cumsum(axis=1)
+        self.flat = self.table.ravel()
         self.shape = (gx, gy)
 
     def free(self, lo: FloatArray, hi: FloatArray) -> NDArray[np.bool_]:
@@ -71,6 +72,8 @@ class ClearMap:
         i1 = np.fmax(np.fmin(np.floor((hi[..., 0] - (ox - s)) / h), gx), -1.0).astype(np.intp)
         j0 = np.fmin(np.fmax(np.floor((lo[..., 1] - (oy + s)) / h), -1.0), gy).astype(np.intp)
         j1 = np.fmax(np.fmin(np.floor((hi[..., 1] - (oy - s)) / h), gy), -1.0).astype(np.intp)
-        t = self.table
-        blocked = t[i1 + 2, j1 + 2] - t[i0 + 1, j1 + 2] - t[i1 + 2, j0 + 1] + t[i0 + 1, j0 + 1]
+        t, w = self.flat, self.table.shape[1]
+        a0, a1 = (i0 + 1) * w, (i1 + 2) * w
+        b0, b1 = j0 + 1, j1 + 2
+        blocked = t.take(a1 + b1) - t.take(a0 + b1) - t.take(a1 + b0) + t.take(a0 + b0)
         return (blocked == 0) & (i0 <= i1) & (j0 <= j1)

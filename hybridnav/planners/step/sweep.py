@@ -115,8 +115,8 @@ class _Sweep:
         (broadcasting against (...); (..., M))."""
         thr = np.asarray(reach) + self.slack
         xmin, xmax, ymin, ymax = self.world.workspace
-        border = ((lo[..., 0] - xmin < thr) | (xmax - hi[..., 0] < thr)
-                  | (lo[..., 1] - ymin < thr) | (ymax - hi[..., 1] < thr))
+        border = ~((lo[..., 0] - xmin >= thr) & (xmax - hi[..., 0] >= thr)   # NaN: near
+                   & (lo[..., 1] - ymin >= thr) & (ymax - hi[..., 1] >= thr))
         frozen = _boxes_near(lo, hi, self.f_lo, self.f_hi, self.f_pad, thr)
         if self.movers:
             m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
@@ -184,12 +184,13 @@ class _Sweep:
         if not len(rows):
             return bad
         # 2. the footprint along those stretches: each disk's box
-        idx = np.minimum(gs[:, None] * _STRIDE + np.arange(_STRIDE + 1)[None, :], b)
+        idx = rows[:, None] * b1 + np.minimum(gs[:, None] * _STRIDE
+                                              + np.arange(_STRIDE + 1)[None, :], b)
         if full is None:
-            C, radii = model.footprint(S[rows[:, None], idx].reshape(-1, nx))
+            C, radii = model.footprint(S.reshape(-1, nx)[idx.ravel()])
             C = C.reshape(len(rows), _STRIDE + 1, len(radii), 2)       # (ns, 9, nd, 2)
         else:
-            C = full[rows[:, None], idx]
+            C = full.reshape((-1,) + full.shape[2:])[idx]
         need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
         if len(need) > 1:
             c_lo, c_hi = C.min(axis=1), C.max(axis=1)                 # (ns, nd, 2)
@@ -269,13 +270,13 @@ def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArr
     """Whether each obstacle box ``[o_lo, o_hi]`` (shape (K, 2) or (..., K, 2)), padded by
     ``o_pad``, is closer than ``thr`` to each box ``[lo, hi]`` (shape (..., 2)): (..., K).
     (The Euclidean distance between two boxes is a lower bound of the distance between their
-    points.)"""
+    points; a box with a NaN corner is near everything.)"""
     reach = np.asarray(thr)[..., None] + o_pad
     gx = np.maximum(np.maximum(o_lo[..., 0] - hi[..., 0, None], lo[..., 0, None] - o_hi[..., 0]),
                     0.0)
     gy = np.maximum(np.maximum(o_lo[..., 1] - hi[..., 1, None], lo[..., 1, None] - o_hi[..., 1]),
                     0.0)
-    return gx * gx + gy * gy < reach * reach
+    return ~(gx * gx + gy * gy >= reach * reach)
 
 
 def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: float):
