@@ -2,7 +2,8 @@
 
 1. The GA of the built-in EFFC job (population 100, 25 generations, the paper's 2 training
    environments plus 30 generated worlds, validation on 24 more, early stopping) on this machine
-   with ``--workers`` local processes (default 2) and with one, in this one run: wall times,
+   with ``--workers`` local processes (default 2) and with one, in this one run (best of
+   ``--repeat`` interleaved runs each: this shared machine's load swings): wall times,
    their ratio and whether both return the same system. Targets (issue 25): <= 20 s on two
    workers, >= 1.8x one worker (``bench_generalization.py`` times the whole job: <= 45 s).
 2. The paper's reward (length if reached, else the penalty; ``reward.kind = "length"``, no
@@ -12,7 +13,7 @@
    (individual, environment) evaluation and their ratio. Target: >= 100x. The two rewards are
    also compared (they must agree).
 
-Run: ``python benchmarks/bench_tuning.py [--workers 2] [--reduced 6] [--skip-full]``.
+Run: ``python benchmarks/bench_tuning.py [--workers 2] [--repeat 2] [--reduced 6] [--skip-full]``.
 """
 
 from __future__ import annotations
@@ -87,20 +88,26 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--reduced", type=int, default=6, help="individuals in the reduced job")
     ap.add_argument("--skip-full", action="store_true")
+    ap.add_argument("--repeat", type=int, default=2,
+                    help="GA runs per worker count, interleaved; the best wall time counts")
     args = ap.parse_args()
     job = load_job()
     if not args.skip_full:
         import os
 
-        walls, results = {}, {}
+        walls: dict[int, float] = {}
+        results = {}
         load = os.getloadavg()[0]
-        for w in sorted({1, args.workers}, reverse=True):
-            job2 = job.with_backend(workers=w)
-            with tempfile.TemporaryDirectory() as out, make_backend(w) as be:
-                tic = time.perf_counter()
-                res = tune(job2.start_system(), job2.cost("train"), backend=be, checkpoint=out,
-                           judge=False, **job2.tune_kwargs())
-                walls[w], results[w] = time.perf_counter() - tic, res
+        for _ in range(max(1, args.repeat)):
+            for w in sorted({1, args.workers}, reverse=True):
+                job2 = job.with_backend(workers=w)
+                with tempfile.TemporaryDirectory() as out, make_backend(w) as be:
+                    tic = time.perf_counter()
+                    res = tune(job2.start_system(), job2.cost("train"), backend=be,
+                               checkpoint=out, judge=False, **job2.tune_kwargs())
+                    wall = time.perf_counter() - tic
+                walls[w] = min(walls.get(w, math.inf), wall)
+                results[w] = res
         res, wall = results[args.workers], walls[args.workers]
         evals = res.evaluations
         E = len(job.scenarios("train"))
@@ -113,7 +120,8 @@ def main() -> None:
         if args.workers != 1:
             same = list(results[1].x) == list(res.x)
             print(f"1 worker {walls[1]:.1f} s, {args.workers} workers {wall:.1f} s: "
-                  f"{walls[1] / wall:.2f}x (target >= 1.8x); the same tuned system: {same}; "
+                  f"{walls[1] / wall:.2f}x (target >= 1.8x; best of {max(1, args.repeat)} each, "
+                  f"interleaved); the same tuned system: {same}; "
                   f"load {load:.2f} -> {os.getloadavg()[0]:.2f}")
     import pathlib
 
