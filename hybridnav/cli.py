@@ -361,7 +361,7 @@ def _clear_tuning_outputs(out) -> None:
 
     for name in ("checkpoint.json", "evaluations.jsonl", "result.json", "report.md",
                  "pareto.csv", "front.png", "paths.png", "coverage.png", "surface.png",
-                 "falsified.csv", "validation.csv", "heldout.csv", "heldout_summary.csv"):
+                 "falsified.csv", "falsification.csv", "validation.csv", "heldout.csv", "heldout_summary.csv"):
         (out / name).unlink(missing_ok=True)
     for name in ("learning", "front", "falsified"):
         if (out / name).is_dir():

@@ -57,3 +57,40 @@ def test_vectors_breaking_the_rules_are_rejected():
     x[5:] = [2.5, 2.5, 0.3, 2.5, 3.15, 0.3]              # a 5 cm gap between the two: dropped
     w = world_from_vector(x, gen, "w")
     assert len(w.world.obstacles) == 1
+
+
+def test_apf_is_searched_like_a_fuzzy_system_and_its_finds_replay_with_the_apf_planner(job):
+    from hybridnav.tuner.falsify import falsify_systems, rates
+
+    cost = job.cost("train")
+    got = falsify_systems(cost, {"start": job.start_system(), "apf": "apf"}, budget=90,
+                          population=30, keep=3, seed=4)
+    assert list(got) == ["start", "apf"]
+    again = falsify(cost, "apf", budget=90, population=30, keep=3, seed=4)
+    a = got["apf"]
+    assert a.evaluations == 90 and 0 < a.valid and a.costs == again.costs
+    for w, outcome, clear in zip(a.worlds, a.outcomes, a.clearances):
+        ref = planners.get("apf", **dict(job["planner"])).run(w).robots[0]
+        assert ref.outcome == outcome != "reached"
+        assert ref.min_clearance == pytest.approx(clear, abs=1e-9)
+    # the start searched alone with the same seed is the same search
+    assert got["start"].costs == falsify(cost, job.start_system(), budget=90, population=30,
+                                         keep=3, seed=4).costs
+    table = rates(got).set_index("system")
+    from scipy.stats import binomtest
+
+    for label, r in got.items():
+        row = table.loc[label]
+        assert (row.valid, row.failures, row.collisions) == (r.valid, r.failures, r.collisions)
+        assert r.collisions <= r.failures
+        ci = binomtest(r.collisions, r.valid).proportion_ci(method="wilson")
+        assert (row.collisions_ci_low, row.collisions_ci_high) == pytest.approx(
+            (ci.low, ci.high), abs=1e-12)
+
+
+def test_an_unknown_baseline_is_refused(job):
+    from hybridnav.errors import HybridnavError
+
+    with pytest.raises(HybridnavError, match=r"falsify: system: expected a FuzzySystem or "
+                                             r"'apf', got 'hapf'"):
+        falsify(job.cost("train"), "hapf", budget=30)

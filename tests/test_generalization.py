@@ -53,13 +53,21 @@ def test_rows_are_what_the_planners_do(table):
             assert row.min_clearance == pytest.approx(r.min_clearance, rel=1e-12)
 
 
-def test_tuned_beats_its_start_and_apf_on_unseen_worlds(table):
+def test_tuned_reaches_more_than_start_and_apf_on_unseen_worlds_and_the_verdict_weighs_safety(
+        table):
     _, _, t = table
     s = summarize(t)
-    v = verdict(s, "test", 0.1)
-    report = "\n".join(f"{'pass' if ok else 'FAIL'}: {text}" for text, ok in v["checks"])
-    assert v["better"], report
+    v = verdict(s, "test", 0.1, table=t)
     by = s.set_index("system")
+    # success: more than its start and than apf; collisions: none (its start 2, apf 0)
+    assert by.loc["tuned", "reached"] > by.loc["start", "reached"]
+    assert by.loc["tuned", "reached"] > by.loc["apf", "reached"]
+    assert by.loc["tuned", "collided"] == 0 == by.loc["apf", "collided"]
+    assert by.loc["start", "collided"] > 0
+    # but it passes closer to obstacles than apf: the verdict must not call it ready
+    assert by.loc["tuned", "common_min_clearance"] < by.loc["apf", "common_min_clearance"]
+    assert not v["better"] and not v["safe"]
+    assert "less safe than apf (clearance)" in v["headline"]
     # and it does not get there by hugging obstacles: clearance on every reached world >= r / 2
     assert by.loc["tuned", "min_clearance_reached"] >= 0.05
     assert by.loc["tuned", "common_length"] < by.loc["start", "common_length"]

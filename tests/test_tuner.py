@@ -418,7 +418,12 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
     assert tuned.input_names == ("dtheta", "alpha")
     report = (tmp_path / "o" / "report.md").read_text()
     assert "Training objective (deploy reward, minimized): start" in report
-    assert "**Verdict: on the test set (2 worlds) the tuned system is" in report
+    assert "**Verdict: on the test set (2 worlds) tuned reaches" in report
+    assert "Safety first (the tuned system against apf and its start):" in report
+    # the falsification searched start, tuned and apf with the same budget: one row each
+    fals = pd.read_csv(tmp_path / "o" / "falsification.csv")
+    assert list(fals.system) == ["tuned", "start", "apf"] and set(fals.tried) == {60}
+    assert "| apf | 60 |" in report
     assert "Returned system: the best on **validation**" in report
     summary = pd.read_csv(tmp_path / "o" / "heldout_summary.csv")
     assert set(summary.system) == {"start", "tuned", "apf"}
@@ -480,11 +485,74 @@ def test_summary_and_verdict_on_a_known_table():
     assert t.reached == 3 and t.common_worlds == 2                  # w0 and w2: all reached
     assert t.common_length == pytest.approx((4.8 + 6.8) / 2)
     assert summ.set_index("system").loc["start"].collided == 1
+    # tuned keeps 0.07 m where apf keeps 0.2 m: a safety figure worse than apf's
     v = verdict(summ, "test", 0.1)
-    assert v["better"] and all(ok for _, ok in v["checks"])
+    assert not v["better"] and not v["safe"] and v["better_than_start"]
+    assert [ok for _, ok in v["checks"]] == [True, True, False, True, True, True, True, True]
+    assert v["checks"][2][0].startswith("smallest clearance on the 2 worlds every system "
+                                        "reached 0.070 m; apf 0.200 m")
+    assert "NOT ready to deploy: less safe than apf (clearance)" in v["headline"]
+    for r in rows:                                   # apf as close as tuned: nothing worse
+        if r["system"] == "apf":
+            r["min_clearance"] = 0.07
+    v = verdict(summarize(pd.DataFrame(rows)), "test", 0.1)
+    assert v["better"] and all(ok for _, ok in v["checks"]) and "ready to deploy" in v["headline"]
     rows[4]["min_clearance"] = 0.04                                  # tuned grazes w1
     v = verdict(summarize(pd.DataFrame(rows)), "test", 0.1)
-    assert not v["better"] and [ok for _, ok in v["checks"]] == [True, True, True, True, False]
+    assert not v["better"] and [text for text, ok in v["checks"] if not ok] == [
+        "keeps at least half the robot radius (0.05 m) from obstacles on every world it "
+        "reaches (smallest 0.040 m)"]
+
+
+def _three(outcomes, clear=(0.1, 0.1, 0.1)):
+    """A judged table of start, tuned and apf on len(outcomes) worlds."""
+    import pandas as pd
+
+    rows = []
+    for w, trio in enumerate(outcomes):
+        for sys_, out, c, L in zip(("start", "tuned", "apf"), trio, clear, (5.0, 4.8, 5.2)):
+            rows.append({"set": "test", "scenario": f"w{w}", "system": sys_, "outcome": out,
+                         "path_length": L, "time": 1.0, "min_clearance": c})
+    return pd.DataFrame(rows)
+
+
+def test_a_tuned_system_that_collides_where_apf_does_not_is_not_called_better():
+    from hybridnav.tuner.heldout import summarize, verdict
+
+    # better than its start (fewer collisions, more reached) but one collision apf avoids
+    t = _three([("collided", "reached", "reached")] * 2 + [("collided", "collided", "stuck")]
+               + [("reached", "reached", "reached")] * 5)
+    v = verdict(summarize(t), "test", 0.1, table=t)
+    assert not v["better"] and not v["safe"]
+    assert v["headline"].startswith("on the test set (8 worlds) tuned reaches 7, collides 1")
+    assert "apf reaches 7, collides 0" in v["headline"]
+    assert v["headline"].endswith("NOT ready to deploy: less safe than apf (collisions)")
+    failed = [text for text, ok in v["checks"] if not ok]
+    assert failed == ["collides or leaves the workspace in 1 of 8 (2-47 %) test worlds; apf "
+                      "in 0 of 8 (0-32 %)"]
+    # the wrong comparator is gone: it IS better than its start on every figure
+    assert v["better_than_start"]
+
+
+def test_falsification_rates_enter_the_verdict():
+    import pandas as pd
+
+    from hybridnav.tuner.heldout import summarize, verdict
+
+    t = _three([("reached", "reached", "reached")] * 4)
+    fals = pd.DataFrame([
+        {"system": s, "tried": 100, "valid": v, "failures": f, "collisions": c,
+         "failures_rate": f / v, "collisions_rate": c / v}
+        for s, v, f, c in (("tuned", 80, 6, 3), ("start", 70, 9, 5), ("apf", 75, 4, 0))])
+    v = verdict(summarize(t), "test", 0.1, fals, t)
+    assert not v["better"] and not v["safe"] and v["better_than_start"]
+    bad = [text for text, ok in v["checks"] if not ok]
+    assert bad[0] == ("an adversarial search (100 worlds each, the same seed) makes it collide "
+                      "in 3 of 80 (1-10 %) valid worlds; apf in 0 of 75 (0-5 %)")
+    assert "(collisions under falsification)" in v["headline"]
+    fals.loc[0, ["collisions", "collisions_rate"]] = [0, 0.0]
+    v = verdict(summarize(t), "test", 0.1, fals, t)
+    assert v["safe"]
 
 
 EARLY = SMALL.replace("generations = 2", "generations = 6") + """

@@ -13,20 +13,29 @@ solvable (:func:`hybridnav.worldgen.solvable`); a candidate breaking a rule scor
 Each swarm iteration simulates all its worlds in one lockstep batch.
 
 The worst distinct worlds where the system did not reach its goal are kept (sorted by cost),
-ready to be written as scenario TOML files.
+ready to be written as scenario TOML files. The searched system is a fuzzy system (run by the
+cost's planner) or ``"apf"`` (the plain potential field with the cost's planner settings), so
+that a tuned system, its start and the simplest baseline can be searched with the same budget
+and seed and their failure and collision rates compared (:func:`falsify_systems`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+if TYPE_CHECKING:
+    import pandas as pd
+
 from hybridnav.worldgen import WorldGenerator, _no_narrow_gap, _shape, solvable
 
-__all__ = ["FalsifyResult", "falsify", "world_from_vector"]
+__all__ = ["FalsifyResult", "falsify", "falsify_systems", "rates", "world_from_vector"]
+
+#: outcomes that count as collisions (touching an obstacle or leaving the workspace)
+CRASH = ("collided", "out_of_bounds")
 
 
 @dataclass
@@ -40,6 +49,7 @@ class FalsifyResult:
     evaluations: int = 0
     valid: int = 0
     failures: int = 0                                # valid worlds where the system failed
+    collisions: int = 0                              # ... by colliding or leaving the workspace
 
 
 def bounds(gen: WorldGenerator, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -111,7 +121,9 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
     ----------
     cost : NavigationCost
         Its planner, planner settings and reward define the search's cost.
-    system : FuzzySystem
+    system : FuzzySystem or "apf"
+        The controller searched: a fuzzy system run by the cost's planner, or the plain
+        ``apf`` planner with the cost's planner settings.
     budget : int
         Candidate worlds to try in all (the swarm's ``max_evals``).
     population : int
@@ -133,12 +145,26 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
     from hybridnav.fuzzy.family import SystemFamily
     from hybridnav.planners.swarm import minimize
 
-    family = SystemFamily(system)
-    tables = family.tables_of([system])
+    if isinstance(system, str):
+        if system != "apf":
+            from hybridnav.errors import HybridnavError
+
+            raise HybridnavError(f"falsify: system: expected a FuzzySystem or 'apf', got "
+                                 f"{system!r}")
+        from hybridnav.planners.field.apf import apf_lockstep
+
+        def simulate(on):
+            return apf_lockstep(on.packed, dict(on.planner_params))
+    else:
+        family = SystemFamily(system)
+        tables = family.tables_of([system])
+
+        def simulate(on):
+            return on.simulate(family, tables, None, noise=False)[0]
     gen = generator or WorldGenerator(resolution=0.05)
     lo, hi = bounds(gen, obstacles)
     seen: list[tuple[float, Any, str, float]] = []
-    count = {"evals": 0, "valid": 0, "fail": 0}
+    count = {"evals": 0, "valid": 0, "fail": 0, "crash": 0}
 
     def f(X: np.ndarray) -> np.ndarray:
         out = np.full(len(X), np.inf)
@@ -151,13 +177,14 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
         count["evals"] += len(X)
         if worlds:
             on = cost.with_scenarios(worlds, "falsification")
-            res, _ = on.simulate(family, tables, None, noise=False)
+            res = simulate(on)
             value = on.run_costs(res)[:, 0]
             out[rows] = -value
             count["valid"] += len(worlds)
             for w, c, o, cl in zip(worlds, value, res.outcome[:, 0], res.min_clearance[:, 0]):
                 if o != "reached":
                     count["fail"] += 1
+                    count["crash"] += o in CRASH
                     seen.append((float(c), w, str(o), float(cl)))
         if progress:
             progress(count["evals"], budget)
@@ -167,7 +194,7 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
              seed=seed)
     seen.sort(key=lambda t: -t[0])
     res = FalsifyResult(evaluations=count["evals"], valid=count["valid"],
-                        failures=count["fail"])
+                        failures=count["fail"], collisions=count["crash"])
     kept: list = []
     for c, w, o, cl in seen:
         if any(_same(w, k) for k in kept):
@@ -180,6 +207,32 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
         if len(kept) == keep:
             break
     return res
+
+
+def falsify_systems(cost, systems: dict[str, Any], *, seed: int = 0, **kwargs: Any
+                    ) -> dict[str, FalsifyResult]:
+    """:func:`falsify` of every system (label -> ``FuzzySystem`` or ``"apf"``) with the same
+    budget, swarm, world class and seed: their failure and collision rates compare (each search
+    is driven by its own system's failures, as an adversary would be)."""
+    return {label: falsify(cost, system, seed=seed, **kwargs) for label, system in systems.items()}
+
+
+def rates(results: dict[str, FalsifyResult]) -> "pd.DataFrame":
+    """Per searched system: valid worlds, failures and collisions with their rates and 95 %
+    Wilson intervals."""
+    import pandas as pd
+
+    from hybridnav.tuner.heldout import wilson
+
+    rows = []
+    for label, r in results.items():
+        row: dict[str, Any] = {"system": label, "tried": r.evaluations, "valid": r.valid}
+        for key, k in (("failures", r.failures), ("collisions", r.collisions)):
+            lo, hi = wilson(k, r.valid)
+            row.update({key: k, f"{key}_rate": k / r.valid if r.valid else math.nan,
+                        f"{key}_ci_low": lo, f"{key}_ci_high": hi})
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def _same(a, b, tol: float = 0.05) -> bool:

@@ -5,7 +5,8 @@ nominal: no noise) and the plain ``apf`` planner (through the backend) on a set 
 :func:`run_systems` does it for any systems; :func:`summarize` gives per set and system the success rate with a
 95 % Wilson interval, the collisions and other failures, and the mean path length and clearance
 on the worlds that *every* system reached (so that lengths compare like with like), and
-:func:`verdict` checks the acceptance conditions one by one.
+:func:`verdict` weighs the tuned system against its start and against ``apf``: safety first
+(collisions, clearance, the falsification search's collision rate), then success, then length.
 """
 
 from __future__ import annotations
@@ -140,36 +141,136 @@ def summarize(table: pd.DataFrame) -> pd.DataFrame:
                 "common_clearance": float(c.min_clearance.mean()) if len(c) else math.nan,
                 "min_clearance_reached": float(mine.min_clearance.min()) if len(mine)
                 else math.nan,
+                "common_min_clearance": float(c.min_clearance.min()) if len(c) else math.nan,
             })
     return pd.DataFrame(out)
 
 
-def verdict(summary: pd.DataFrame, which: str, robot_radius: float) -> dict[str, Any]:
-    """The acceptance checks of the tuned system on one set.
+def _paired(table: pd.DataFrame | None, a: str, b: str, worlds: set) -> str:
+    """' (a - b per world: mean m, 95 % interval lo to hi)' of the clearance on ``worlds``."""
+    if table is None or len(worlds) < 2:
+        return ""
+    from scipy import stats
+
+    t = table[table.scenario.isin(worlds)].pivot_table(index="scenario", columns="system",
+                                                       values="min_clearance", aggfunc="min")
+    d = (t[a] - t[b]).to_numpy(dtype=float)
+    m, se = float(d.mean()), float(d.std(ddof=1) / math.sqrt(len(d)))
+    lo, hi = (m, m) if se == 0 else stats.t.interval(0.95, len(d) - 1, loc=m, scale=se)
+    return f"; per world {a} - {b}: mean {m:+.3f} m, 95 % interval {lo:+.3f} to {hi:+.3f}"
+
+
+def _count(k: int, n: int) -> str:
+    lo, hi = wilson(k, n)
+    return f"{k} of {n} ({100 * lo:.0f}-{100 * hi:.0f} %)"
+
+
+def verdict(summary: pd.DataFrame, which: str, robot_radius: float,
+            falsified: pd.DataFrame | None = None, table: pd.DataFrame | None = None
+            ) -> dict[str, Any]:
+    """Whether the tuned system can replace ``apf`` and its start, figure by figure.
+
+    Safety figures come first and each is compared with ``apf`` and with the start: collisions
+    (and leaving the workspace) on the set's worlds, the smallest clearance on the worlds every
+    system reached (like with like), and — when ``falsified`` (:func:`hybridnav.tuner.falsify.
+    rates` of searches with the same budget and seed) is given — the rate of collisions an
+    adversarial search finds. Then success (reached worlds), then path length against the start.
+    Counts carry 95 % Wilson intervals; the clearance comparison the per-world difference's
+    mean and t-interval (``table``: the judged rows, optional).
 
     Returns
     -------
     dict
-        ``checks``: list of (description, passed); ``better``: all passed.
+        ``checks``: list of (description, passed), safety first; ``safe``: no safety figure is
+        worse than apf's (True without apf only if none is worse than the start's);
+        ``better_than_start``: every comparison with the start passed; ``better``: ready to
+        deploy — safe, reaches at least as many worlds as apf, and better than its start;
+        ``headline``: the conclusion in words, naming the figures.
     """
     s = summary[summary.set == which].set_index("system")
     if not {"start", "tuned"} <= set(s.index):
-        return {"checks": [], "better": False}
-    t, st = s.loc["tuned"], s.loc["start"]
-    checks = [
-        (f"reaches at least as many worlds as its start ({t.reached} vs {st.reached})",
-         bool(t.reached >= st.reached)),
-        (f"collides no more often than its start ({t.collided} vs {st.collided})",
-         bool(t.collided <= st.collided)),
-        (f"is shorter on the {int(t.common_worlds)} worlds all systems reached "
-         f"({t.common_length:.3f} vs {st.common_length:.3f})",
-         bool(t.common_length < st.common_length)),
-        (f"keeps at least half the robot radius ({robot_radius / 2:g}) from obstacles on every "
-         f"world it reaches (smallest {t.min_clearance_reached:.3f})",
-         bool(t.min_clearance_reached >= robot_radius / 2)),
-    ]
-    if "apf" in s.index:
-        a = s.loc["apf"]
-        checks.insert(1, (f"reaches at least as many worlds as apf ({t.reached} vs "
-                          f"{a.reached})", bool(t.reached >= a.reached)))
-    return {"checks": checks, "better": all(ok for _, ok in checks)}
+        return {"checks": [], "better": False, "safe": False, "better_than_start": False,
+                "headline": ""}
+    t = s.loc["tuned"]
+    others = [o for o in ("apf", "start") if o in s.index]
+    n = int(t.worlds)
+    crash = {k: int(s.loc[k, "collided"] + s.loc[k, "out_of_bounds"]) for k in s.index}
+    common = int(t.common_worlds)
+    worlds = set(table[table.outcome == "reached"].groupby("scenario").system.nunique()
+                 .loc[lambda c: c == len(s)].index) if table is not None else set()
+    checks: list[tuple[str, bool]] = []
+    kind: dict[str, list[str]] = {o: [] for o in others}      # failed figures per comparator
+
+    def add(text: str, ok: bool, against: str, figure: str) -> None:
+        checks.append((text, ok))
+        if not ok:
+            kind[against].append(figure)
+
+    for o in others:
+        name = "apf" if o == "apf" else "its start"
+        add(f"collides or leaves the workspace in {_count(crash['tuned'], n)} {which} worlds; "
+            f"{name} in {_count(crash[o], n)}", crash["tuned"] <= crash[o], o, "collisions")
+    for o in others:
+        name = "apf" if o == "apf" else "its start"
+        a, b = float(t.common_min_clearance), float(s.loc[o, "common_min_clearance"])
+        if common == 0:
+            continue
+        add(f"smallest clearance on the {common} worlds every system reached {a:.3f} m; "
+            f"{name} {b:.3f} m" + _paired(table, "tuned", o, worlds), bool(a >= b), o,
+            "clearance")
+    if falsified is not None and len(falsified):
+        f = falsified.set_index("system")
+        if "tuned" in f.index:
+            ft = f.loc["tuned"]
+            for o in others:
+                if o not in f.index:
+                    continue
+                fo = f.loc[o]
+                name = "apf" if o == "apf" else "its start"
+                ok = bool(ft.collisions == 0 or ft.collisions_rate <= fo.collisions_rate)
+                add(f"an adversarial search ({int(ft.tried)} worlds each, the same seed) makes "
+                    f"it collide in {_count(int(ft.collisions), int(ft.valid))} valid worlds; "
+                    f"{name} in {_count(int(fo.collisions), int(fo.valid))}", ok, o,
+                    "collisions under falsification")
+    if t.reached:
+        add(f"keeps at least half the robot radius ({robot_radius / 2:g} m) from obstacles on "
+            f"every world it reaches (smallest {t.min_clearance_reached:.3f} m)",
+            bool(t.min_clearance_reached >= robot_radius / 2), others[-1], "clearance margin")
+    safety = len(checks)
+    for o in others:
+        name = "apf" if o == "apf" else "its start"
+        add(f"reaches {_count(int(t.reached), n)} {which} worlds; {name} "
+            f"{_count(int(s.loc[o, 'reached']), n)}", bool(t.reached >= s.loc[o, "reached"]), o,
+            "success")
+    if "start" in others:
+        add(f"is shorter than its start on the {common} worlds every system reached "
+            f"({t.common_length:.3f} vs {s.loc['start', 'common_length']:.3f} m)",
+            bool(t.common_length < s.loc["start", "common_length"]), "start", "length")
+    unsafe_apf = [k for k in kind.get("apf", []) if k != "success"]
+    safe = not unsafe_apf if "apf" in others else not [
+        k for k in kind["start"] if k not in ("success", "length")]
+    better_start = not kind.get("start")
+    ready = safe and better_start and "success" not in kind.get("apf", [])
+    def clear(o: str) -> str:
+        c = float(s.loc[o, "common_min_clearance"])
+        return f", smallest clearance {c:.3f} m" if math.isfinite(c) else ""
+
+    figures = "; ".join(f"{o} reaches {int(s.loc[o, 'reached'])}, collides {crash[o]}{clear(o)}"
+                        for o in ["tuned", *others])
+    if common == 0:
+        figures += " (no world every system reached: no clearance compared)"
+    if ready:
+        end = ("no safety figure worse than apf's and better than its start on every figure: "
+               "ready to deploy on worlds like these")
+    elif not safe:
+        worse = ", ".join(dict.fromkeys(unsafe_apf if "apf" in others else kind["start"]))
+        end = (f"NOT ready to deploy: less safe than {'apf' if 'apf' in others else 'its start'}"
+               f" ({worse})")
+    elif not better_start:
+        end = ("as safe as apf but NOT better than its start ("
+               + ", ".join(dict.fromkeys(kind["start"])) + ")")
+    else:
+        end = "as safe as apf and better than its start, but reaches fewer worlds than apf"
+    head = f"on the {which} set ({n} worlds) {figures} — {end}"
+    return {"checks": checks, "better": ready, "safe": safe, "better_than_start": better_start,
+            "safety_checks": safety, "headline": head}

@@ -116,6 +116,12 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     backend = backend or SerialBackend()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    nav = job["cost"]["kind"] == "navigation"
+    falsified = None
+    if nav:
+        # the falsification search's rates belong to the verdict: before result.json is written
+        falsified = _falsify(job, job.cost("train"), result, backend, out)
+        _reweigh(job, result, falsified)
     files = result.save(out)
     start = result.start
     save_figure(_convergence(result), out / "convergence.png")
@@ -133,8 +139,7 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     if len(result.objective_names) > 1:
         save_figure(_front(result), out / "front.png")
         files.append("front.png")
-    nav = job["cost"]["kind"] == "navigation"
-    summary, unc, falsified = None, None, None
+    summary, unc = None, None
     if nav:
         cost = job.cost("train")
         summary = summarize(result.heldout) if result.heldout is not None else pd.DataFrame()
@@ -145,7 +150,6 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         # of the systems themselves (the start as given, not a repaired or learned form)
         unc = np.concatenate([Candidates.of(s).uncovered(job["coverage"]["grid"])
                               for s in (start, result.system)])
-        falsified = _falsify(job, cost, result, backend, out)
         if falsified is not None:
             files += falsified["files"]
         if len(start.inputs) == 2:          # a map over the two inputs
@@ -163,33 +167,60 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
 
 
 def _paths(job: Job, result: TuningResult, out: Path) -> list[str]:
-    """The paper's worlds and a few generated test worlds, start vs tuned."""
+    """Start, tuned and ``apf`` on the paper's worlds, on every test world where the tuned
+    system fails, and on a few more generated test worlds."""
     from hybridnav import planners
 
-    shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
     test = job.scenarios("test")
+    failed: set[str] = set()
+    if result.heldout is not None and len(result.heldout):
+        h = result.heldout
+        failed = set(h[(h.set == "test") & (h.system == "tuned")
+                       & (h.outcome != "reached")].scenario)
+    shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
     shown += [("test", s) for s in test if not s.name.startswith("gen-")]
-    shown += [("test", s) for s in test if s.name.startswith("gen-")][:4]
+    shown += [("test: tuned fails", s) for s in test
+              if s.name.startswith("gen-") and s.name in failed]
+    shown += [("test", s) for s in test
+              if s.name.startswith("gen-") and s.name not in failed][:max(0, 4 - len(failed))]
     if not shown:
         return []
-    fig = Figure(figsize=(8.5, 4.0 * len(shown)), layout="constrained")
-    axes = fig.subplots(len(shown), 2, squeeze=False)
+    fig = Figure(figsize=(12.5, 4.0 * len(shown)), layout="constrained")
+    axes = fig.subplots(len(shown), 3, squeeze=False)
+    runs = (("start", job["cost"]["planner"], {"fis": result.start}),
+            ("tuned", job["cost"]["planner"], {"fis": result.system}),
+            ("apf", "apf", {}))
     for row, (kind, s) in enumerate(shown):
-        for col, (label, system) in enumerate((("start", result.start),
-                                               ("tuned", result.system))):
-            res = planners.get(job["cost"]["planner"], fis=system, **job["planner"]).run(s)
+        for col, (label, planner, extra) in enumerate(runs):
+            res = planners.get(planner, **extra, **job["planner"]).run(s)
             plot_result(s, res, ax=axes[row, col])
-            axes[row, col].set_title(f"{s.name} ({kind}): {label}", fontsize=9)
+            outcome = res.robots[0].outcome if res.robots else "-"
+            axes[row, col].set_title(f"{s.name} ({kind}): {label}, {outcome}", fontsize=9)
     save_figure(fig, out / "paths.png")
     return ["paths.png"]
 
 
+def _reweigh(job: Job, result: TuningResult, falsified: dict[str, Any] | None) -> None:
+    """The deployment verdict of the final held-out set again, with the falsification rates."""
+    if falsified is None or result.heldout is None:
+        return
+    which = "test" if "test" in result.verdicts else "validation"
+    if which not in result.verdicts:
+        return
+    cost = job.cost(which)
+    v = cost.verdict(result.heldout, which, falsified["rates"])
+    if which == "validation" and v.get("headline"):
+        v["headline"] += " — on the data that chose the returned system, not an independent test"
+    result.verdicts[which] = v
+
+
 def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Backend,
              out: Path) -> dict[str, Any] | None:
-    """The falsification search against the tuned system; its worst worlds as TOML files and
+    """The falsification search against the tuned system, its start and ``apf`` (the same
+    budget, swarm and seed): their rates, and the tuned system's worst worlds as TOML files with
     how start and ``apf`` do there."""
     from hybridnav.fuzzy.family import SystemFamily
-    from hybridnav.tuner.falsify import falsify
+    from hybridnav.tuner.falsify import falsify_systems, rates
     from hybridnav.tuner.heldout import _apf_rows
     from hybridnav.world import save_scenario, scenario_to_dict
 
@@ -197,10 +228,16 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
     if cfg["budget"] == 0:
         return None
     seed = int(np.random.SeedSequence(job.seed, spawn_key=(13,)).generate_state(1)[0])
-    res = falsify(cost, result.system, budget=cfg["budget"], population=cfg["population"],
-                  obstacles=cfg["obstacles"], keep=cfg["keep"], optimizer=cfg["optimizer"],
-                  seed=seed)
+    searched = falsify_systems(cost, {"tuned": result.system, "start": result.start,
+                                      "apf": "apf"},
+                               budget=cfg["budget"], population=cfg["population"],
+                               obstacles=cfg["obstacles"], keep=cfg["keep"],
+                               optimizer=cfg["optimizer"], seed=seed)
+    res = searched["tuned"]
+    table = rates(searched)
     rows, files = [], []
+    atomic_write_text(out / "falsification.csv", table.to_csv(index=False))
+    files.append("falsification.csv")
     if res.worlds:
         folder = out / "falsified"
         folder.mkdir(exist_ok=True)
@@ -220,7 +257,7 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
                          "apf": apf[i]["outcome"], "apf_clearance": apf[i]["min_clearance"]})
         atomic_write_text(out / "falsified.csv", pd.DataFrame(rows).to_csv(index=False))
         files.append("falsified.csv")
-    return {"result": res, "rows": rows, "files": files, "config": cfg}
+    return {"result": res, "rows": rows, "files": files, "config": cfg, "rates": table}
 
 
 def _exports(system, out: Path, c_name: str = C_BASENAME) -> list[str]:
@@ -378,8 +415,15 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         if not v or not v["checks"]:
             continue
         lines += [f"**Verdict: {v['headline']}.**", ""]
-        lines += [f"- {'pass' if ok else 'FAIL'}: {text}" for text, ok in v["checks"]]
-        lines.append("")
+        cut = v.get("safety_checks")
+        groups = [("Safety first (the tuned system against apf and its start):",
+                   v["checks"][:cut]), ("Then success and length:", v["checks"][cut:])] \
+            if cut is not None else [("", v["checks"])]
+        for title, checks in groups:
+            if title:
+                lines += [title, ""]
+            lines += [f"- {'pass' if ok else 'FAIL'}: {text}" for text, ok in checks]
+            lines.append("")
     vs, ss = result.validation_score, result.start_validation_score
     if len(result.objective_names) > 1:
         f = result.front
@@ -484,11 +528,21 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
                   else "```\n" + result.heldout.to_string(index=False) + "\n```"]
     if falsified is not None:
         fr, cfg = falsified["result"], falsified["config"]
-        lines += ["", "## Falsification: worlds where the tuned system fails", "",
+        lines += ["", "## Falsification: worlds an adversary finds", "",
                   f"A {cfg['optimizer']} search over solvable worlds with {cfg['obstacles']} "
-                  f"circles (start, goal, heading, positions and radii) tried {fr.evaluations} "
-                  f"candidates, {fr.valid} of them valid and solvable; the tuned system failed "
-                  f"in {fr.failures}."]
+                  f"circles (start, goal, heading, positions and radii) for each system, the "
+                  f"same budget ({cfg['budget']} candidate worlds) and seed, each search driven "
+                  "by its own system's failures (collisions score worst, then traps). Rates are "
+                  "over the valid (solvable) worlds tried, with 95 % Wilson intervals.", "",
+                  "| system | tried | valid | failures | rate | collisions | rate |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in falsified["rates"].itertuples():
+            lines.append(f"| {r.system} | {r.tried} | {r.valid} | {r.failures} | "
+                         f"{_pct(r.failures_rate, r.failures_ci_low, r.failures_ci_high)} | "
+                         f"{r.collisions} | "
+                         f"{_pct(r.collisions_rate, r.collisions_ci_low, r.collisions_ci_high)} |")
+        lines += ["", f"The tuned system's worst worlds (of its {fr.failures} failures in "
+                      f"{fr.valid} valid worlds), replayed with its start and apf:"]
         if falsified["rows"]:
             lines += ["", "| world | tuned | clearance | start | apf |", "|---|---|---|---|---|"]
             for r in falsified["rows"]:
@@ -503,6 +557,12 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
     evals = result.evaluations + (lr.evaluations if lr is not None else 0)
     lines += ["", f"Wall time {wall:.1f} s for {evals} evaluations (tuning only).", "", "Files: " + ", ".join(files + ["report.md"]), ""]
     return "\n".join(lines)
+
+
+def _pct(rate: float, lo: float, hi: float) -> str:
+    if not np.isfinite(rate):
+        return "-"
+    return f"{100 * rate:.1f} % ({100 * lo:.1f}-{100 * hi:.1f})"
 
 
 def _has_tabulate() -> bool:

@@ -251,8 +251,10 @@ class Cost(ABC):
                          **ev.info[0]})
         return pd.DataFrame(rows)
 
-    def verdict(self, table: pd.DataFrame, role: str) -> dict[str, Any]:
-        """Checks of the tuned system against its start on a judged table."""
+    def verdict(self, table: pd.DataFrame, role: str,
+                falsified: pd.DataFrame | None = None) -> dict[str, Any]:
+        """Checks of the tuned system against its start on a judged table (``falsified`` is for
+        costs with a falsification search; unused here)."""
         t = table[table.set == role].set_index("system")
         if not {"start", "tuned"} <= set(t.index):
             return {"checks": [], "better": False, "headline": ""}

@@ -458,11 +458,11 @@ class NavigationCost(Cost):
         return table.sort_values(["scenario"], key=lambda c: c.map(order), kind="stable") \
             .reset_index(drop=True)
 
-    def verdict(self, table: pd.DataFrame, role: str) -> dict[str, Any]:
+    def verdict(self, table: pd.DataFrame, role: str,
+                falsified: pd.DataFrame | None = None) -> dict[str, Any]:
+        """The deployment verdict of :func:`hybridnav.tuner.heldout.verdict` on ``role``'s rows
+        (``falsified``: the falsification rates of start, tuned and apf, when searched)."""
         from hybridnav.tuner.heldout import summarize, verdict
 
-        v = verdict(summarize(table[table.set == role]), role, self.robot_radius)
-        v["headline"] = (f"on the {role} set ({len(set(table[table.set == role].scenario))} "
-                         f"worlds) the tuned system is {'better' if v['better'] else 'NOT better'}"
-                         " than its start") if v["checks"] else ""
-        return v
+        rows = table[table.set == role]
+        return verdict(summarize(rows), role, self.robot_radius, falsified, rows)
