@@ -199,3 +199,57 @@ def test_apf_lockstep_is_the_planner_run_by_run():
         if r.outcome == "reached":
             assert res.time[e, 0] == pytest.approx(r.time_to_goal, rel=1e-12)
     assert {"reached", "stuck"} <= outcomes
+
+
+def _scaled_scenario(name: str, k: float):
+    """The scenario with every length times k (time and angles unchanged)."""
+    from hybridnav.world import scenario_from_dict, scenario_to_dict
+
+    d = scenario_to_dict(load_scenario(name))
+    d["name"] = f"{name}-x{k:g}"
+    d["workspace"] = {key: v * k for key, v in d["workspace"].items()}
+    for o in d["obstacles"]:
+        for key in ("min", "max", "center", "start", "end"):
+            if key in o:
+                o[key] = [v * k for v in o[key]]
+        for key in ("vertices", "points"):
+            if key in o:
+                o[key] = [[v * k for v in p] for p in o[key]]
+        if "radius" in o:
+            o["radius"] *= k
+    for r in d["robots"]:
+        r["start"], r["goal"] = [v * k for v in r["start"]], [v * k for v in r["goal"]]
+        r["radius"] *= k
+        r["goal_radius"] *= k
+    return scenario_from_dict(d)
+
+
+@pytest.mark.parametrize("planner", ["apf", "effc", "hapf"])
+def test_field_planners_defaults_follow_the_scale_of_the_scenario(planner):
+    # every length x4 (exact in binary): the same run, every position x4
+    ref = planners.get(planner).run(load_scenario("effc-env-a"))
+    big = planners.get(planner).run(_scaled_scenario("effc-env-a", 4.0))
+    a, b = ref.robots[0], big.robots[0]
+    assert big.params["scale"] == 4.0 and ref.params["scale"] == 1.0
+    assert big.params["speed"] == pytest.approx(4 * ref.params["speed"])
+    assert a.outcome == b.outcome
+    n = min(len(a.states), len(b.states))
+    assert abs(len(a.states) - len(b.states)) <= 1
+    assert np.allclose(b.states[:n, :2], 4 * a.states[:n, :2], atol=1e-6 * 4)
+    assert b.path_length == pytest.approx(4 * a.path_length, rel=1e-6)
+
+
+def test_apf_reaches_on_a_centimetre_scenario_and_set_values_are_kept():
+    s = load_scenario("fastep-s1")                 # cm, robot radius 0.5: scale 5
+    r = planners.get("apf").run(s)
+    assert r.robots[0].outcome == "reached" and r.params["scale"] == 5.0
+    assert r.params["speed"] == pytest.approx(0.5) and r.params["eta"] == pytest.approx(0.05 * 5**4)
+    # the declared defaults as written (scale 1): the EFFC-scale speed stalls there
+    assert planners.get("apf", scale=1).run(s).robots[0].outcome == "stuck"
+    # a value the user sets is not scaled
+    p = planners.get("apf", speed=1.0).run(s).params
+    assert p["speed"] == 1.0 and p["rho0"] == pytest.approx(2.5)
+    # the instance can run scenarios of other scales one after the other
+    planner = planners.get("apf")
+    assert planner.run(load_scenario("effc-env-b")).params["speed"] == 0.1
+    assert planner.run(s).params["speed"] == pytest.approx(0.5)

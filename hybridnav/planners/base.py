@@ -88,6 +88,9 @@ class Planner(ABC):
             values[key] = self.parameters[key].check(key, value, f"planner {self.name}: ",
                                                      parse=True)
         self.values = values
+        #: the parameters the user (or the chosen profile) set: the rest are defaults
+        self.given = frozenset(params) | frozenset(
+            self.profiles.get(values.get("profile", ""), {}))
 
     def check_scenario(self, scenario) -> None:
         """Raise :class:`HybridnavError` when the scenario needs what this planner lacks."""

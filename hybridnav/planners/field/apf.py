@@ -105,6 +105,9 @@ class APF(FieldPlanner):
                                  "local minimum", lo=0.0),
         **COMMON,
     }
+    # F_att ~ xi sigma0 (a length), F_rep ~ eta / rho^3: eta scales as length^4 so that the
+    # field's directions are the same at any scale
+    scaled: ClassVar[dict[str, int]] = {"speed": 1, "sigma0": 1, "rho0": 1, "eta": 4}
 
     def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
         """The APF gains of the robots ``idx`` (PBPF tunes them per robot)."""

@@ -30,13 +30,44 @@ COMMON = {
     "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
                                 "(0: off)", lo=0.0),
     "stuck_radius": Param(2.0, "that disk's radius, in goal radii", lo=0.0),
+    "scale": Param(0.0, "length scale of the defaults of speed and the length gains (0: the "
+                        "scenario's: its robots' median radius / 0.1 m, the EFFC paper's "
+                        "robot; 1: the declared defaults as written)", lo=0.0),
 }
+
+#: the EFFC paper's robot radius (m): the defaults are written for it
+REFERENCE_RADIUS = 0.1
 
 
 class FieldPlanner(Planner):
     """Base of the potential-field planners: ``velocity(...)`` each cycle, batched over robots."""
 
     parameters: ClassVar[dict[str, Param]] = dict(COMMON)
+    #: parameters whose defaults are lengths (exponent 1: speed, distances) or carry other
+    #: powers of length (APF's repulsive gain: 4), scaled by ``scale ** exponent`` unless set
+    scaled: ClassVar[dict[str, int]] = {"speed": 1}
+
+    def scale_for(self, scenario) -> float:
+        """The length scale of this run: ``scale`` when set, else the scenario's robots' median
+        radius over the EFFC paper's 0.1 m (1 on the paper's worlds: its defaults unchanged)."""
+        given = getattr(self, "_declared", self.values)["scale"]
+        if given > 0:
+            return float(given)
+        radii = [float(r.radius) for r in scenario.robots]
+        return float(np.median(radii)) / REFERENCE_RADIUS if radii else 1.0
+
+    def _scaled(self, scenario) -> None:
+        """Set the run's values: defaults of :attr:`scaled` parameters times ``scale ** p``
+        (values the user or the profile set stay as they are); ``scale`` records the factor."""
+        if not hasattr(self, "_declared"):
+            self._declared = dict(self.values)
+        s = self.scale_for(scenario)
+        values = dict(self._declared)
+        for key, power in self.scaled.items():
+            if key not in self.given:
+                values[key] = self._declared[key] * s ** power
+        values["scale"] = s
+        self.values = values
 
     def prepare(self, scenario, rng: np.random.Generator) -> Any:
         """Work done once per run before the loop (a harmonic field, tuned gains, ...)."""
@@ -84,6 +115,7 @@ class FieldPlanner(Planner):
 
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
+        self._scaled(scenario)
         rng = np.random.default_rng(seed)
         tic = time.perf_counter()
         state = self.prepare(scenario, rng)

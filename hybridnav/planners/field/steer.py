@@ -116,6 +116,7 @@ class FuzzySteer(FieldPlanner):
                              lo_open=True, hi=math.pi / 2),
         **COMMON,
     }
+    scaled: ClassVar[dict[str, int]] = {"speed": 1, "sensor_range": 1}
     #: robots with a heading to steer (the unicycle)
     drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"robot", "heading_control"}),)
     #: the fuzzy inputs this planner provides (what a tuned system must take)
