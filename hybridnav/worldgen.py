@@ -5,7 +5,9 @@ default), circles (and optionally segments and axis-aligned rectangles) whose si
 drawn from ranges, a start and goal on a diagonal with jitter (or anywhere, far enough apart) and
 an initial heading towards the goal with jitter (or uniform). ``clutter`` is the fraction of
 obstacles placed in a corridor around the straight start-goal line, where they matter; the rest
-are spread over the workspace.
+are spread over the workspace. Structures that trap reactive controllers — cups facing the
+start, corridors, narrow gaps and walls of segments — can be placed across the start-goal line
+(off by default).
 
 Every world is **solvable**: its obstacles are rasterized at ``resolution`` inflated by the robot
 radius (and kept that far from the border), and an 8-connected A* path (no corner cutting) must
@@ -52,6 +54,20 @@ class WorldGenerator:
         Ranges of the numbers of wall segments and axis-aligned rectangles (default none).
     segment_length, rectangle_size : (float, float)
         Ranges of a segment's length and of a rectangle's side lengths.
+    cups, corridors, gaps, walls : (int, int)
+        Ranges of the numbers of the structures that trap reactive controllers (default none),
+        each placed across the start-goal line (between 0.35 and 0.65 of the way, ``lateral``
+        off it) and built of wall segments: a **cup** (a U of ``cup_width`` by ``cup_depth``
+        whose opening faces the start: the classic potential-field trap), a **corridor** (two
+        parallel walls ``corridor_length`` long along the line, ``corridor_width`` apart), a
+        **gap** (a wall across the line, ``gap_wall`` long on each side of a ``gap_width``
+        opening) and a **wall** (a polyline of ``wall_pieces`` segments of ``segment_length``,
+        each turning up to 90 degrees from the last).
+    cup_width, cup_depth, corridor_width, corridor_length, gap_width, gap_wall : (float, float)
+        Their size ranges (the openings' defaults are at least ``min_gap``).
+    wall_pieces : (int, int)
+    lateral : float
+        Largest offset of a structure's centre from the start-goal line.
     clutter : float
         Fraction of obstacles placed in the corridor around the start-goal line.
     corridor : float
@@ -92,6 +108,18 @@ class WorldGenerator:
     segment_length: tuple[float, float] = (0.5, 1.5)
     rectangles: tuple[int, int] = (0, 0)
     rectangle_size: tuple[float, float] = (0.2, 0.8)
+    cups: tuple[int, int] = (0, 0)
+    cup_width: tuple[float, float] = (0.6, 1.2)
+    cup_depth: tuple[float, float] = (0.4, 0.8)
+    corridors: tuple[int, int] = (0, 0)
+    corridor_width: tuple[float, float] = (0.35, 0.7)
+    corridor_length: tuple[float, float] = (0.8, 1.6)
+    gaps: tuple[int, int] = (0, 0)
+    gap_width: tuple[float, float] = (0.3, 0.45)
+    gap_wall: tuple[float, float] = (0.8, 1.6)
+    walls: tuple[int, int] = (0, 0)
+    wall_pieces: tuple[int, int] = (2, 4)
+    lateral: float = 0.2
     clutter: float = 0.7
     corridor: float = 0.6
     layout: str = "diagonal"
@@ -131,6 +159,8 @@ class WorldGenerator:
         name = f"{self.name}-{seed}-{index:03d}"
         for attempt in range(self.max_tries):
             data = self._draw(rng, name, seed, index)
+            if data is None:
+                continue
             scen = scenario_from_dict(data, source=f"generated world {name}")
             if solvable(scen, self.resolution):
                 return scen
@@ -138,7 +168,8 @@ class WorldGenerator:
             f"world generator: no solvable world in {self.max_tries} draws for {name} (seed "
             f"{seed}); expected settings that leave a free passage (fewer or smaller obstacles)")
 
-    def _draw(self, rng: np.random.Generator, name: str, seed: int, index: int) -> dict:
+    def _draw(self, rng: np.random.Generator, name: str, seed: int, index: int
+              ) -> dict | None:
         L = self.size
         r = self.robot_radius
         lo, hi = r + 1e-9, L - r - 1e-9
@@ -188,6 +219,67 @@ class WorldGenerator:
                 placed.append(shape)
                 return
 
+        along = goal - start
+        u = along / max(float(np.hypot(*along)), 1e-12)
+        n = np.array([-u[1], u[0]])
+
+        def on_line() -> np.ndarray:
+            return (start + rng.uniform(0.35, 0.65) * along
+                    + rng.uniform(-self.lateral, self.lateral) * n)
+
+        def seg_of(a, b) -> dict:
+            return {"type": "segment", "a": [float(v) for v in a], "b": [float(v) for v in b]}
+
+        def cup(c):                  # the back wall beyond c, the opening towards the start
+            w, dep = rng.uniform(*self.cup_width) / 2, rng.uniform(*self.cup_depth)
+            back, front = c + dep / 2 * u, c - dep / 2 * u
+            return [seg_of(back - w * n, back + w * n), seg_of(back - w * n, front - w * n),
+                    seg_of(back + w * n, front + w * n)]
+
+        def corridor(c):
+            w, h = rng.uniform(*self.corridor_width) / 2, rng.uniform(*self.corridor_length) / 2
+            return [seg_of(c - h * u + side * w * n, c + h * u + side * w * n)
+                    for side in (-1, 1)]
+
+        def gap(c):
+            g = rng.uniform(*self.gap_width) / 2
+            return [seg_of(c + side * g * n, c + side * (g + rng.uniform(*self.gap_wall)) * n)
+                    for side in (-1, 1)]
+
+        def wall(c):
+            ang = math.atan2(n[1], n[0]) + rng.uniform(-math.pi / 4, math.pi / 4)
+            pts = [c]
+            for _ in range(int(rng.integers(self.wall_pieces[0], self.wall_pieces[1] + 1))):
+                step = rng.uniform(*self.segment_length)
+                pts.append(pts[-1] + step * np.array([math.cos(ang), math.sin(ang)]))
+                ang += rng.uniform(-math.pi / 2, math.pi / 2)
+            shift = (pts[0] + pts[-1]) / 2 - c          # centred on c
+            return [seg_of(a - shift, b - shift) for a, b in zip(pts[:-1], pts[1:])]
+
+        def place_group(make) -> bool:
+            """A structure of several parts: all clear of start and goal, each part keeping
+            min_gap from the obstacles placed before it (not from its own parts)."""
+            for _ in range(50):
+                parts = make(on_line())
+                shapes = [_shape(o) for o in parts]
+                if not all(_clear_of(sh, (start, goal), keep_out) for sh in shapes):
+                    continue
+                if self.min_gap > 0 and not all(
+                        _no_narrow_gap(sh, placed, L, self.min_gap) for sh in shapes):
+                    continue
+                obstacles.extend(parts)
+                placed.extend(shapes)
+                return True
+            return False
+
+        # the structures first (they need the room on the line), then the loose obstacles
+        for count, make in ((self.cups, cup), (self.corridors, corridor), (self.gaps, gap),
+                            (self.walls, wall)):
+            if count[1] == 0:            # no draw at all: worlds without these classes unchanged
+                continue
+            for _ in range(int(rng.integers(count[0], count[1] + 1))):
+                if not place_group(make):
+                    return None          # a structure asked for did not fit: draw again
         for _ in range(int(rng.integers(self.circles[0], self.circles[1] + 1))):
             place(lambda c: {"type": "circle", "center": [float(c[0]), float(c[1])],
                              "radius": float(rng.uniform(*self.radius))})
@@ -291,8 +383,9 @@ def solvable(scenario, resolution: float | None = None) -> bool:
     return True
 
 
-_INT_RANGES = ("circles", "segments", "rectangles")
-_FLOAT_RANGES = ("radius", "segment_length", "rectangle_size")
+_INT_RANGES = ("circles", "segments", "rectangles", "cups", "corridors", "gaps", "walls")
+_FLOAT_RANGES = ("radius", "segment_length", "rectangle_size", "cup_width", "cup_depth",
+                 "corridor_width", "corridor_length", "gap_width", "gap_wall")
 _CHOICES = {"layout": ("diagonal", "random"), "heading": ("goal", "random")}
 #: Keys a generated set takes in a job file (besides ``generate`` and ``seed``).
 GENERATOR_KEYS = tuple(f.name for f in fields(WorldGenerator))
@@ -313,6 +406,8 @@ def _check_settings(d: Mapping[str, Any], where: str, prefix: str = "") -> dict[
             if not out[k].strip() or any(c in out[k] for c in "/\\\n"):
                 raise HybridnavError(f"{where}{key}: expected a non-empty name without slashes, "
                                      f"got {v!r}")
+        elif k == "wall_pieces":
+            out[k] = check_range(where, key, v, int, 1, 100)
         elif k == "max_tries":
             out[k] = check_value(where, key, v, int, 1, 10_000)
         elif k in ("clutter",):

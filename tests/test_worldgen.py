@@ -132,6 +132,10 @@ def test_generate_command_writes_toml_files(tmp_path):
     ({"generate": 3, "name": "a/b"}, "w.name", "without slashes"),
     ({"generate": 3, "size": 1.0, "robot_radius": 0.3}, "w.robot_radius", "quarter"),
     ({"generate": 3, "colour": 1}, "w.colour", "unknown key"),
+    ({"generate": 3, "cups": [2, 1]}, "w.cups", "low <= high"),
+    ({"generate": 3, "gap_width": [0.0, 0.3]}, "w.gap_width[0]", "expected a number in [1e-06"),
+    ({"generate": 3, "wall_pieces": [0, 2]}, "w.wall_pieces[0]", "expected an integer in [1, 100]"),
+    ({"generate": 3, "lateral": -1}, "w.lateral", "expected a non-negative number, got -1"),
     ({"generate": -1}, "w.generate", "expected an integer in [1, 10000], got -1"),
     ({"seed": 1}, "w.generate", "missing"),
     ([1, 2], "w", "expected a table"),
@@ -164,3 +168,87 @@ def test_no_gap_narrower_than_min_gap():
                 d = min(float(np.min(World((-9, 9, -9, 9), (b,)).clearance(pts))),
                         float(np.min(World((-9, 9, -9, 9), (a,)).clearance(_outline(b, 400)))))
                 assert not 0.001 < d < 0.3 - 0.001, (a, b, d)
+
+
+def _segments(w):
+    return [(np.array(o.a), np.array(o.b)) for o in w.world.obstacles if isinstance(o, Segment)]
+
+
+def _frame(w):
+    r = w.robots[0]
+    start, goal = np.array(r.start), np.array(r.goal)
+    u = (goal - start) / np.linalg.norm(goal - start)
+    return start, goal, u, np.array([-u[1], u[0]])
+
+
+def _crosses(a, b, p, q) -> bool:
+    """Whether segment ab crosses segment pq (proper intersection)."""
+    def side(o, x, y):
+        return np.sign((x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]))
+    return side(a, b, p) != side(a, b, q) and side(p, q, a) != side(p, q, b)
+
+
+def test_the_default_worlds_do_not_change_when_the_trap_classes_are_off():
+    gen = WorldGenerator()
+    off = WorldGenerator(cups=(0, 0), corridors=(0, 0), gaps=(0, 0), walls=(0, 0))
+    assert gen.generate(6, seed=5) == off.generate(6, seed=5)
+    assert all(not isinstance(o, Segment) for w in gen.generate(6, seed=5)
+               for o in w.world.obstacles)
+
+
+def test_a_cup_faces_the_start_across_the_straight_line():
+    worlds = WorldGenerator(cups=(1, 1), circles=(0, 0), name="cup").generate(8, seed=2)
+    for w in worlds:
+        segs = _segments(w)
+        assert len(segs) == 3 and solvable(w) and _networkx_path_exists(w, 0.05)
+        start, goal, u, n = _frame(w)
+        (b0, b1), (s0, s1), (t0, t1) = segs
+        # the back wall is perpendicular to the line and crosses it; the sides run from its
+        # ends towards the start: the opening faces the robot
+        assert abs(np.dot(b1 - b0, u)) < 1e-9 and _crosses(b0, b1, start, goal)
+        for a, b in ((s0, s1), (t0, t1)):
+            assert abs(np.dot(b - a, n)) < 1e-9
+            assert np.dot(b - start, u) < np.dot(a - start, u)       # the open end is nearer
+        width = np.linalg.norm(b1 - b0)
+        depth = np.linalg.norm(s1 - s0)
+        assert 0.6 <= width <= 1.2 and 0.4 <= depth <= 0.8
+
+
+def test_corridors_gaps_and_walls_have_their_shapes_and_sizes():
+    for w in WorldGenerator(corridors=(1, 1), circles=(0, 0), name="c").generate(6, seed=4):
+        (a0, a1), (b0, b1) = _segments(w)
+        start, goal, u, n = _frame(w)
+        assert abs(np.dot(a1 - a0, n)) < 1e-9 and abs(np.dot(b1 - b0, n)) < 1e-9   # along
+        assert 0.35 - 1e-9 <= abs(np.dot(b0 - a0, n)) <= 0.7 + 1e-9                 # width
+        assert 0.8 - 1e-9 <= np.linalg.norm(a1 - a0) <= 1.6 + 1e-9
+    for w in WorldGenerator(gaps=(1, 1), circles=(0, 0), name="g").generate(6, seed=4):
+        (a0, a1), (b0, b1) = _segments(w)
+        start, goal, u, n = _frame(w)
+        assert abs(np.dot(a1 - a0, u)) < 1e-9 and abs(np.dot(b1 - b0, u)) < 1e-9   # across
+        assert 0.3 - 1e-9 <= np.linalg.norm(b0 - a0) <= 0.45 + 1e-9                # opening
+        assert not _crosses(a0, a1, start, goal) or not _crosses(b0, b1, start, goal)
+        assert _networkx_path_exists(w, 0.05)
+    for w in WorldGenerator(walls=(1, 1), circles=(0, 0), name="w").generate(6, seed=4):
+        segs = _segments(w)
+        assert 2 <= len(segs) <= 4
+        for (a0, a1), (b0, b1) in zip(segs[:-1], segs[1:]):
+            assert np.allclose(a1, b0)                                # one polyline
+        assert _networkx_path_exists(w, 0.05)
+
+
+def test_the_trap_classes_stop_apf_and_are_reproducible():
+    from hybridnav import planners
+
+    gen = WorldGenerator(cups=(1, 1), circles=(0, 0), name="cup")
+    assert gen.generate(4, seed=9) == gen.generate(4, seed=9)
+    outcomes = [planners.get("apf").run(w).robots[0].outcome for w in gen.generate(4, seed=9)]
+    assert outcomes.count("stuck") >= 3, outcomes        # the trap the classic field falls in
+
+
+def test_generate_command_takes_the_trap_classes(tmp_path):
+    from hybridnav.cli import main
+
+    assert main(["generate", "--count", "2", "--set", "cups=1", "--set", "gaps=[0, 1]",
+                 "--out", str(tmp_path)]) == 0
+    w = load_scenario(str(tmp_path / "gen-0-000.toml"))
+    assert sum(isinstance(o, Segment) for o in w.world.obstacles) >= 3
