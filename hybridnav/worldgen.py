@@ -32,7 +32,8 @@ import numpy as np
 from hybridnav.errors import HybridnavError
 from hybridnav.params import check_range, check_value
 
-__all__ = ["WorldGenerator", "generator_from_table", "GENERATOR_KEYS"]
+__all__ = ["WorldGenerator", "generator_from_table", "GENERATOR_KEYS", "corridor_parts",
+           "cup_parts", "gap_parts"]
 
 #: Largest number of worlds one set may ask for (each is checked by a grid search).
 MAX_WORLDS = 10_000
@@ -227,24 +228,16 @@ class WorldGenerator:
             return (start + rng.uniform(0.35, 0.65) * along
                     + rng.uniform(-self.lateral, self.lateral) * n)
 
-        def seg_of(a, b) -> dict:
-            return {"type": "segment", "a": [float(v) for v in a], "b": [float(v) for v in b]}
-
-        def cup(c):                  # the back wall beyond c, the opening towards the start
-            w, dep = rng.uniform(*self.cup_width) / 2, rng.uniform(*self.cup_depth)
-            back, front = c + dep / 2 * u, c - dep / 2 * u
-            return [seg_of(back - w * n, back + w * n), seg_of(back - w * n, front - w * n),
-                    seg_of(back + w * n, front + w * n)]
+        def cup(c):
+            return cup_parts(c, u, rng.uniform(*self.cup_width), rng.uniform(*self.cup_depth))
 
         def corridor(c):
-            w, h = rng.uniform(*self.corridor_width) / 2, rng.uniform(*self.corridor_length) / 2
-            return [seg_of(c - h * u + side * w * n, c + h * u + side * w * n)
-                    for side in (-1, 1)]
+            return corridor_parts(c, u, rng.uniform(*self.corridor_width),
+                                  rng.uniform(*self.corridor_length))
 
         def gap(c):
-            g = rng.uniform(*self.gap_width) / 2
-            return [seg_of(c + side * g * n, c + side * (g + rng.uniform(*self.gap_wall)) * n)
-                    for side in (-1, 1)]
+            g = rng.uniform(*self.gap_width)
+            return gap_parts(c, u, g, rng.uniform(*self.gap_wall), rng.uniform(*self.gap_wall))
 
         def wall(c):
             ang = math.atan2(n[1], n[0]) + rng.uniform(-math.pi / 4, math.pi / 4)
@@ -254,7 +247,7 @@ class WorldGenerator:
                 pts.append(pts[-1] + step * np.array([math.cos(ang), math.sin(ang)]))
                 ang += rng.uniform(-math.pi / 2, math.pi / 2)
             shift = (pts[0] + pts[-1]) / 2 - c          # centred on c
-            return [seg_of(a - shift, b - shift) for a, b in zip(pts[:-1], pts[1:])]
+            return [_segment(a - shift, b - shift) for a, b in zip(pts[:-1], pts[1:])]
 
         def place_group(make) -> bool:
             """A structure of several parts: all clear of start and goal, each part keeping
@@ -309,6 +302,39 @@ class WorldGenerator:
                         "goal_radius": self.goal_radius, "radius": r,
                         "initial": {"theta": float(theta)}}],
         }
+
+
+def _segment(a, b) -> dict:
+    return {"type": "segment", "a": [float(v) for v in a], "b": [float(v) for v in b]}
+
+
+def _normal(u: np.ndarray) -> np.ndarray:
+    return np.array([-u[1], u[0]])
+
+
+def cup_parts(c: np.ndarray, u: np.ndarray, width: float, depth: float) -> list[dict]:
+    """A cup centred at ``c`` whose opening faces ``-u`` (the start, for ``u`` the unit vector
+    from start to goal): the back wall ``depth / 2`` beyond ``c``, ``width`` wide, and two side
+    walls ``depth`` long (three segment obstacles)."""
+    n, w = _normal(u), width / 2
+    back, front = c + depth / 2 * u, c - depth / 2 * u
+    return [_segment(back - w * n, back + w * n), _segment(back - w * n, front - w * n),
+            _segment(back + w * n, front + w * n)]
+
+
+def corridor_parts(c: np.ndarray, u: np.ndarray, width: float, length: float) -> list[dict]:
+    """Two parallel walls along ``u``, ``length`` long, ``width`` apart, centred at ``c``."""
+    n, w, h = _normal(u), width / 2, length / 2
+    return [_segment(c - h * u + side * w * n, c + h * u + side * w * n) for side in (-1, 1)]
+
+
+def gap_parts(c: np.ndarray, u: np.ndarray, width: float, left: float, right: float
+              ) -> list[dict]:
+    """A wall across ``u`` through ``c`` with an opening ``width`` wide at ``c``: ``left`` and
+    ``right`` long on either side."""
+    n, g = _normal(u), width / 2
+    return [_segment(c + side * g * n, c + side * (g + length) * n)
+            for side, length in ((-1, left), (1, right))]
 
 
 def _shape(obs: dict):

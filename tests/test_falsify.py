@@ -94,3 +94,49 @@ def test_an_unknown_baseline_is_refused(job):
     with pytest.raises(HybridnavError, match=r"falsify: system: expected a FuzzySystem or "
                                              r"'apf', got 'hapf'"):
         falsify(job.cost("train"), "hapf", budget=30)
+
+
+def test_structures_in_the_search_space_are_switched_and_placed_as_the_generator_does():
+    from hybridnav.errors import HybridnavError
+    from hybridnav.tuner.falsify import STRUCTURES
+    from hybridnav.world import Segment
+    from hybridnav.worldgen import cup_parts
+
+    gen = WorldGenerator(resolution=0.05)
+    lo, hi = bounds(gen, 1, {"cups": 1, "gaps": 1})
+    assert len(lo) == 5 + 3 + 5 + 5
+    assert list(lo[8:13]) == [0.0, 0.35, -gen.lateral, gen.cup_width[0], gen.cup_depth[0]]
+    assert list(hi[13:]) == [1.0, 0.65, gen.lateral, gen.gap_width[1], gen.gap_wall[1]]
+    start, goal = np.array([0.8, 0.8]), np.array([4.2, 4.2])
+    circle = [4.2, 0.8, 0.2]                               # far from the line
+    cup = [1.0, 0.5, 0.0, 1.0, 0.6]
+    x = np.array([*start, *goal, 0.0, *circle, *cup, 0.0, 0.5, 0.0, 0.3, 1.0])
+    w = world_from_vector(x, gen, "t", {"cups": 1, "gaps": 1})
+    segs = [o for o in w.world.obstacles if isinstance(o, Segment)]
+    assert len(segs) == 3                                  # the cup on, the gap off
+    u = (goal - start) / np.linalg.norm(goal - start)
+    ref = cup_parts(start + 0.5 * (goal - start), u, 1.0, 0.6)
+    assert np.allclose([[s.a, s.b] for s in segs], [[r["a"], r["b"]] for r in ref])
+    x[8] = 0.0                                             # the cup off too: the circle only
+    assert len(world_from_vector(x, gen, "t", {"cups": 1, "gaps": 1}).world.obstacles) == 1
+    x[13] = 1.0                                            # a gap across the line, 0.3 wide
+    assert len(world_from_vector(x, gen, "t", {"cups": 1, "gaps": 1}).world.obstacles) == 3
+    x[8] = 1.0                                             # cup and gap at the same place:
+    assert world_from_vector(x, gen, "t", {"cups": 1, "gaps": 1}) is None     # too narrow
+    assert set(STRUCTURES) == {"cups", "corridors", "gaps"}
+    with pytest.raises(HybridnavError, match="falsify: structures.walls: unknown"):
+        bounds(gen, 1, {"walls": 1})
+    with pytest.raises(HybridnavError, match=r"structures.cups: expected an integer in \[0, 10\]"):
+        bounds(gen, 1, {"cups": -1})
+
+
+def test_a_search_with_structures_is_reproducible_and_replays(job):
+    fis = job.start_system()
+    a = falsify(job.cost("train"), fis, budget=60, population=30, keep=2, seed=1,
+                structures={"cups": 1})
+    b = falsify(job.cost("train"), fis, budget=60, population=30, keep=2, seed=1,
+                structures={"cups": 1})
+    assert a.costs == b.costs and a.valid > 0
+    for w, outcome in zip(a.worlds, a.outcomes):
+        assert solvable(w, 0.05)
+        assert planners.get("effc", fis=fis).run(w).robots[0].outcome == outcome

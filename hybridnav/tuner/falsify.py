@@ -1,8 +1,11 @@
 """Looking for failures before a user does: a swarm search for worlds where a system fails.
 
-A world of the generator's class is a vector ``x = (sx, sy, gx, gy, theta, (cx, cy, r) * n)``:
-start, goal, initial heading (an offset from the goal direction, within the generator's
-``heading_jitter``) and ``n`` circles. :func:`falsify` minimizes, with one of the
+A world of the generator's class is a vector ``x = (sx, sy, gx, gy, theta, (cx, cy, r) * n,
+(on, s, lateral, a, b) * m)``: start, goal, initial heading (an offset from the goal direction,
+within the generator's ``heading_jitter``), ``n`` circles and ``m`` structures that trap reactive
+controllers (:data:`STRUCTURES`: cups facing the start, corridors, narrow gaps; each present when
+its ``on`` gene is >= 0.5, centred ``s`` of the way from start to goal and ``lateral`` off the
+line, sized ``a``, ``b`` within the generator's ranges). :func:`falsify` minimizes, with one of the
 project's swarm optimizers (:mod:`hybridnav.planners.swarm`; PSO by default), *minus* the
 deploy cost of the system in that world (:meth:`NavigationCost.run_costs`: a collision
 costs more than getting stuck, which costs more than any detour) — so the search climbs towards
@@ -34,6 +37,11 @@ from hybridnav.worldgen import WorldGenerator, _no_narrow_gap, _shape, solvable
 
 __all__ = ["FalsifyResult", "falsify", "falsify_systems", "rates", "world_from_vector"]
 
+#: the structures a search vector can hold: (the generator's two size ranges, its parts)
+STRUCTURES = {"cups": ("cup_width", "cup_depth"),
+              "corridors": ("corridor_width", "corridor_length"),
+              "gaps": ("gap_width", "gap_wall")}
+
 #: outcomes that count as collisions (touching an obstacle or leaving the workspace)
 CRASH = ("collided", "out_of_bounds")
 
@@ -52,8 +60,25 @@ class FalsifyResult:
     collisions: int = 0                              # ... by colliding or leaving the workspace
 
 
-def bounds(gen: WorldGenerator, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The search box of worlds with ``n`` circles.
+def _structures(structures: dict[str, int] | None) -> list[str]:
+    """The structure kinds of a search vector, in order (``{"cups": 1}`` -> ``["cups"]``)."""
+    from hybridnav.errors import HybridnavError
+
+    out = []
+    for kind, count in (structures or {}).items():
+        if kind not in STRUCTURES:
+            raise HybridnavError(f"falsify: structures.{kind}: unknown; expected one of "
+                                 + ", ".join(STRUCTURES))
+        if not isinstance(count, int) or isinstance(count, bool) or not 0 <= count <= 10:
+            raise HybridnavError(f"falsify: structures.{kind}: expected an integer in [0, 10], "
+                                 f"got {count!r}")
+        out += [kind] * count
+    return out
+
+
+def bounds(gen: WorldGenerator, n: int, structures: dict[str, int] | None = None
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The search box of worlds with ``n`` circles and ``structures`` (kind -> count).
 
     Start and goal range over the generator's own span (``0.15 size - jitter`` to ``0.85 size +
     jitter`` for the diagonal layout, the whole workspace less the robot radius otherwise); the
@@ -68,11 +93,32 @@ def bounds(gen: WorldGenerator, n: int) -> tuple[np.ndarray, np.ndarray]:
     h = gen.heading_jitter if gen.heading == "goal" else math.pi
     lo = [a, a, a, a, -h] + [0.0, 0.0, gen.radius[0]] * n
     hi = [b, b, b, b, h] + [L, L, gen.radius[1]] * n
+    for kind in _structures(structures):
+        ra, rb = (getattr(gen, k) for k in STRUCTURES[kind])
+        lo += [0.0, 0.35, -gen.lateral, ra[0], rb[0]]
+        hi += [1.0, 0.65, gen.lateral, ra[1], rb[1]]
     return np.array(lo), np.array(hi)
 
 
-def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
-    """The scenario of one search vector, or None when it breaks the generator's rules."""
+def _structure_parts(kind: str, g: np.ndarray, start: np.ndarray, goal: np.ndarray
+                     ) -> list[dict]:
+    from hybridnav.worldgen import corridor_parts, cup_parts, gap_parts
+
+    along = goal - start
+    u = along / max(float(np.hypot(*along)), 1e-12)
+    c = start + g[1] * along + g[2] * np.array([-u[1], u[0]])
+    if kind == "cups":
+        return cup_parts(c, u, g[3], g[4])
+    if kind == "corridors":
+        return corridor_parts(c, u, g[3], g[4])
+    return gap_parts(c, u, g[3], g[4], g[4])
+
+
+def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str,
+                      structures: dict[str, int] | None = None):
+    """The scenario of one search vector, or None when it breaks the generator's rules (a
+    structure that is on must fit: clear of start and goal, no narrow gap to what is placed;
+    a circle that breaks a rule is left out)."""
     from hybridnav.errors import HybridnavError
     from hybridnav.world import scenario_from_dict
 
@@ -85,7 +131,22 @@ def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
         return None
     keep = gen.robot_radius + gen.margin
     obstacles, placed = [], []
-    for c in x[5:].reshape(-1, 3):
+    kinds = _structures(structures)
+    ncirc = (len(x) - 5 - 5 * len(kinds)) // 3
+    genes = x[5 + 3 * ncirc:].reshape(-1, 5)
+    for kind, g in zip(kinds, genes):
+        if g[0] < 0.5:
+            continue
+        parts = _structure_parts(kind, g, start, goal)
+        shapes = [_shape(o) for o in parts]
+        if not all(np.all(sh.clearance(np.array([start, goal])) >= keep) for sh in shapes):
+            return None
+        if gen.min_gap > 0 and not all(_no_narrow_gap(sh, placed, gen.size, gen.min_gap)
+                                       for sh in shapes):
+            return None
+        obstacles += parts
+        placed += shapes
+    for c in x[5:5 + 3 * ncirc].reshape(-1, 3):
         obs = {"type": "circle", "center": [float(c[0]), float(c[1])], "radius": float(c[2])}
         shape = _shape(obs)
         if np.any(shape.clearance(np.array([start, goal])) < keep):
@@ -114,7 +175,7 @@ def world_from_vector(x: np.ndarray, gen: WorldGenerator, name: str):
 def falsify(cost, system, *, budget: int = 600, population: int = 30,
             obstacles: int = 6, keep: int = 5, optimizer: str = "pso",
             generator: WorldGenerator | None = None, seed: int = 0,
-            progress=None) -> FalsifyResult:
+            progress=None, structures: dict[str, int] | None = None) -> FalsifyResult:
     """Search worlds where ``system`` fails.
 
     Parameters
@@ -141,6 +202,9 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
         Seeds the swarm.
     progress : callable, optional
         ``progress(evaluated, budget)`` after each swarm iteration.
+    structures : dict, optional
+        Structures in the search space, kind (``cups``, ``corridors``, ``gaps``) -> count; the
+        search switches each on or off.
     """
     from hybridnav.fuzzy.family import SystemFamily
     from hybridnav.planners.swarm import minimize
@@ -162,7 +226,7 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
         def simulate(on):
             return on.simulate(family, tables, None, noise=False)[0]
     gen = generator or WorldGenerator(resolution=0.05)
-    lo, hi = bounds(gen, obstacles)
+    lo, hi = bounds(gen, obstacles, structures)
     seen: list[tuple[float, Any, str, float]] = []
     count = {"evals": 0, "valid": 0, "fail": 0, "crash": 0}
 
@@ -170,7 +234,7 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
         out = np.full(len(X), np.inf)
         worlds, rows = [], []
         for i, x in enumerate(X):
-            w = world_from_vector(x, gen, f"falsified-{count['evals'] + i:04d}")
+            w = world_from_vector(x, gen, f"falsified-{count['evals'] + i:04d}", structures)
             if w is not None:
                 worlds.append(w)
                 rows.append(i)

@@ -137,6 +137,10 @@ SCHEMA: dict[str, dict[str, Param]] = {
         "obstacles": Param(6, "circles per candidate world", lo=1, hi=50),
         "keep": Param(5, "worst failure worlds written", lo=1, hi=100),
         "optimizer": Param("pso", "pso, bat or firefly", choices=("pso", "bat", "firefly")),
+        "cups": Param(1, "cups facing the start the search may place (each switched on or off "
+                         "by the search)", lo=0, hi=10),
+        "corridors": Param(1, "corridors the search may place", lo=0, hi=10),
+        "gaps": Param(1, "narrow gaps the search may place", lo=0, hi=10),
     },
     "planner": PLANNER,
     "backend": {

@@ -232,7 +232,8 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
                                       "apf": "apf"},
                                budget=cfg["budget"], population=cfg["population"],
                                obstacles=cfg["obstacles"], keep=cfg["keep"],
-                               optimizer=cfg["optimizer"], seed=seed)
+                               optimizer=cfg["optimizer"], seed=seed,
+                               structures={k: cfg[k] for k in ("cups", "corridors", "gaps")})
     res = searched["tuned"]
     table = rates(searched)
     rows, files = [], []
@@ -530,7 +531,10 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         fr, cfg = falsified["result"], falsified["config"]
         lines += ["", "## Falsification: worlds an adversary finds", "",
                   f"A {cfg['optimizer']} search over solvable worlds with {cfg['obstacles']} "
-                  f"circles (start, goal, heading, positions and radii) for each system, the "
+                  f"circles (start, goal, heading, positions and radii)"
+                  + "".join(f", up to {cfg[k]} {k}" for k in ("cups", "corridors", "gaps")
+                            if cfg[k])
+                  + " across the start-goal line for each system, the "
                   f"same budget ({cfg['budget']} candidate worlds) and seed, each search driven "
                   "by its own system's failures (collisions score worst, then traps). Rates are "
                   "over the valid (solvable) worlds tried, with 95 % Wilson intervals.", "",
