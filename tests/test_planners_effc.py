@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, fuzzy, planners
-from hybridnav.planners.field.effc import effc_force, effc_inputs
+from hybridnav.planners.field.effc import effc_force, effc_inputs, effc_inputs_from
 from hybridnav.world import Circle, World, load_scenario
 
 
@@ -85,3 +85,38 @@ def test_effc_records_its_weight_signal(tmp_path):
     assert main(["run", "effc-train-1", "--planner", "effc", "--fis", "effc-5rule", "--out",
                  str(out)]) == 0
     assert (out / "signals.png").exists()
+
+
+def test_a_third_input_clearance_is_fed_the_footprints_gap():
+    from hybridnav import HybridnavError
+    from hybridnav.planners.field.effc import effc_clearance
+    from hybridnav.tuner.heldout import run_systems
+
+    safe = fuzzy.builtin("effc-safe")
+    assert safe.input_names == ("dtheta", "alpha", "clearance")
+    scen = load_scenario("effc-env-a")
+    p = planners.get("effc", fis=safe)
+    res = p.run(scen).robots[0]
+    # the planner's weight is the system's at the inputs it computes, clearance included
+    world = scen.world
+    X = res.states[:40]
+    clear, near, _ = world.nearest(X[:, :2])
+    goals = np.tile(scen.robots[0].goal, (len(X), 1))
+    d, a, fa, fr = effc_inputs_from(X[:, :2], goals, clear, near, 0.1)
+    c = effc_clearance(clear, 0.1)
+    assert np.allclose(c, np.maximum(clear - 0.1, 0.0))
+    w = safe.evaluate(dtheta=d, alpha=a, clearance=c)
+    assert np.all((0 <= w) & (w <= 1))
+    # the lockstep batch (what tuning and judging run) is the planner run by run
+    table = run_systems({"safe": safe}, [scen, load_scenario("effc-env-b")], apf=False)
+    for name, row in zip(table.scenario, table.itertuples()):
+        ref = planners.get("effc", fis=safe).run(load_scenario(name)).robots[0]
+        assert row.outcome == ref.outcome
+        assert row.path_length == pytest.approx(ref.path_length, rel=1e-9)
+    # no obstacle: clearance is inf and the system clips it to its range
+    assert effc_clearance(np.array([np.inf]), 0.1)[0] == np.inf
+    # a fourth input, or clearance without alpha, is refused
+    two = fuzzy.builtin("steer-7rule")
+    with pytest.raises(HybridnavError, match=r"inputs dtheta and alpha \(and optionally "
+                                             r"clearance\)"):
+        planners.get("effc", fis=two)

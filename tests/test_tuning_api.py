@@ -266,7 +266,8 @@ def test_navigation_cost_needs_the_planners_inputs():
 
     cost = NavigationCost([load_scenario("effc-train-1")])
     with pytest.raises(HybridnavError, match="the effc planner provides the fuzzy inputs "
-                                             "dtheta, alpha; 'tipper' has service, food"):
+                                             "dtheta, alpha \\(and optionally clearance\\); 'tipper' has "
+                                             "service, food"):
         tune(tipper, cost)
     with pytest.raises(HybridnavError, match="planner: expected a planner that takes a fuzzy "
                                              "system"):
@@ -378,7 +379,8 @@ def test_a_data_job_file_tunes_from_the_command_line(tmp_path):
     ('[free]\nmf = ["dtheta"]\n[settings]\nfree = ["alpha"]\n', "settings",
      "expected either [settings] or its old name [free]"),
     ('[system]\nstart = "tipper.fis"\n', "system.start",
-     "the effc planner provides the fuzzy inputs dtheta, alpha; 'tipper' has service, food"),
+     "the effc planner provides the fuzzy inputs dtheta, alpha (and optionally clearance); "
+     "'tipper' has service, food"),
 ])
 def test_bad_job_files_fail_before_any_work(tmp_path, extra, key, text):
     (tmp_path / "tipper.fis").write_text(TIPPER)

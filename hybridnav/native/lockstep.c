@@ -404,6 +404,7 @@ typedef struct {
     const int64_t *member;     /* (N) index into the population (noise) */
     int64_t repeats;           /* tables member = member / repeats */
     int in_dtheta, in_alpha;   /* positions of the inputs in the family's order */
+    int in_clear;              /* position of the optional input clearance, or -1 */
     double *X;                 /* (N, nx) in/out */
     const double *goals;       /* (N, 2) */
     const double *goal_r;      /* (N) */
@@ -518,9 +519,11 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
                 size_t plane = (size_t)E * Mt * S;
                 dtheta = dtheta + r->noise[plane + nz];
                 alpha = hn_maximum(alpha * (1.0 + r->noise[2 * plane + nz]), 0.0);
+                if (!none) dobs = hn_maximum(dobs * (1.0 + r->noise[2 * plane + nz]), 0.0);
             }
             fx[r->in_dtheta] = dtheta;
             fx[r->in_alpha] = alpha;
+            if (r->in_clear >= 0) fx[r->in_clear] = none ? INFINITY : dobs;
             double wgt = hn_fuzzy(f, r->member[n] / r->repeats, fx, fwork);
             double Fx = wgt * frx + (1.0 - wgt) * fax, Fy = wgt * fry + (1.0 - wgt) * fay;
             if (none) { Fx = fax; Fy = fay; }

@@ -49,7 +49,8 @@ class _Run(Structure):
                 ("dt", c_double), ("speed", c_double), ("stuck_radius", c_double),
                 ("foot_radius", c_double), ("div_x", c_double), ("div_y", c_double),
                 ("env", c_void_p), ("member", c_void_p), ("repeats", c_int64),
-                ("in_dtheta", c_int), ("in_alpha", c_int), ("X", c_void_p),
+                ("in_dtheta", c_int), ("in_alpha", c_int), ("in_clear", c_int),
+                ("X", c_void_p),
                 ("goals", c_void_p), ("goal_r", c_void_p), ("budget", c_void_p),
                 ("radius", c_void_p), ("noise", c_void_p), ("noise_members", c_int64),
                 ("noise_steps", c_int64), ("status", c_void_p), ("length", c_void_p),
@@ -284,7 +285,8 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
 
     model = batch.model
     names = [v.name for v in family.inputs]
-    if not _single_disk(model) or sorted(names) != ["alpha", "dtheta"]:
+    if not _single_disk(model) or sorted(names) not in (["alpha", "dtheta"],
+                                                        ["alpha", "clearance", "dtheta"]):
         return None
     repeats = int(repeats)
     if repeats < 1 or (batch.M - 1) // repeats >= tables.size:
@@ -324,6 +326,7 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     r.member = keep.ptr(batch.member, np.int64)
     r.repeats = repeats
     r.in_dtheta, r.in_alpha = names.index("dtheta"), names.index("alpha")
+    r.in_clear = names.index("clearance") if "clearance" in names else -1
     r.X = X.ctypes.data
     r.goals = keep.ptr(batch.goals, np.float64)
     r.goal_r = keep.ptr(batch.goal_r, np.float64)

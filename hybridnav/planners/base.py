@@ -121,6 +121,22 @@ class Planner(ABC):
         return dict(self.values)
 
 
+def accepts_inputs(cls: type[Planner], names) -> bool:
+    """Whether a planner that takes a fuzzy system (``fuzzy_inputs``, and
+    ``optional_fuzzy_inputs`` it also provides) can feed a system with inputs ``names``."""
+    names = list(names)
+    need = set(cls.fuzzy_inputs)
+    may = need | set(getattr(cls, "optional_fuzzy_inputs", ()))
+    return len(set(names)) == len(names) and need <= set(names) <= may
+
+
+def inputs_text(cls: type[Planner]) -> str:
+    """``dtheta, alpha (and optionally clearance)``: what :func:`accepts_inputs` accepts."""
+    extra = getattr(cls, "optional_fuzzy_inputs", ())
+    return ", ".join(cls.fuzzy_inputs) + (
+        f" (and optionally {', '.join(extra)})" if extra else "")
+
+
 def _declare_profiles(cls: type[Planner]) -> None:
     """Add the ``profile`` parameter to a planner with profiles, checking every profile's values
     against the declarations (a wrong profile is a programming error, found at import)."""

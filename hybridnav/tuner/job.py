@@ -435,9 +435,11 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
         if wanted is None:
             raise fail("cost.planner", "expected a planner that takes a fuzzy system (effc), "
                                        f"got {data['cost']['planner']!r}")
-        if set(system.input_names) != set(wanted):
+        from hybridnav.planners.base import accepts_inputs, inputs_text
+
+        if not accepts_inputs(cls, system.input_names):
             raise fail("system.start", f"the {data['cost']['planner']} planner provides the "
-                                       f"fuzzy inputs {', '.join(wanted)}; {system.name!r} has "
+                                       f"fuzzy inputs {inputs_text(cls)}; {system.name!r} has "
                                        f"{', '.join(system.input_names)}")
     every = [*system.input_names, system.output.name]
     if data["learning"]["max_rules"] and data.get("settings") and data["settings"]["rules"]:

@@ -6,7 +6,8 @@ Each control cycle, per robot (batched over robots):
   obstacle point to the robot (the paper's Section 3);
 * the fuzzy system's inputs: ``dtheta = |direction to target - direction to nearest obstacle|``
   (wrapped to [0, pi]; the system clips it to its range) and ``alpha = d_obstacle / d_target``,
-  with ``d_obstacle`` measured from the robot's footprint;
+  with ``d_obstacle`` measured from the robot's footprint; a system may also take
+  ``clearance = d_obstacle`` itself (absolute: a margin it can keep whatever the goal distance);
 * ``w = FIS(dtheta, alpha)`` through the compiled batched evaluator, and
   ``F_w = w F_rep + (1 - w) F_att`` (eq. 8);
 * the unicycle turns towards ``F_w`` by at most ``max_turn`` (pi/4) per cycle at constant
@@ -29,7 +30,8 @@ from hybridnav.planners.field.base import COMMON, FieldPlanner
 from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field, prepare
 from hybridnav.planners.simulate import Simulation
 
-__all__ = ["EFFC", "effc_inputs", "effc_inputs_from", "effc_force", "effc_lockstep"]
+__all__ = ["EFFC", "effc_clearance", "effc_inputs", "effc_inputs_from", "effc_force",
+           "effc_lockstep"]
 
 
 def effc_inputs(world, P: np.ndarray, goals: np.ndarray, radius, t: float):
@@ -73,6 +75,16 @@ def effc_inputs_from(P: np.ndarray, goals: np.ndarray, clear: np.ndarray, near: 
     return dtheta, alpha, f_att, f_rep
 
 
+def effc_clearance(clear: np.ndarray, radius) -> np.ndarray:
+    """The optional fuzzy input ``clearance``: the distance from the robot's footprint to the
+    nearest obstacle, ``max(clear - radius, 0)`` (``inf`` without obstacles) — the numerator of
+    ``alpha``, absolute instead of relative to the goal distance, so that a system can keep a
+    margin however far the goal is."""
+    clear = np.asarray(clear, dtype=float)
+    return np.where(np.isinf(clear), np.inf,
+                    np.maximum(clear - np.asarray(radius, dtype=float), 0.0))
+
+
 def effc_force(w: np.ndarray, f_att: np.ndarray, f_rep: np.ndarray) -> np.ndarray:
     """``F_w = w F_rep + (1 - w) F_att`` (rows)."""
     w = np.asarray(w, dtype=float)[:, None]
@@ -106,14 +118,23 @@ def effc_lockstep(st, family, tables, n_members: int,
     if res is not None:                  # the compiled control cycle
         return res
 
+    wants_clearance = "clearance" in [v.name for v in family.inputs]
+
     def field(env, members, P, goals, t):
         clear, near = st.stack.nearest(P, env, t)
         dtheta, alpha, f_att, f_rep = effc_inputs_from(P, goals, clear, near, radius[env])
+        inputs = {"dtheta": dtheta, "alpha": alpha}
+        if wants_clearance:
+            inputs["clearance"] = effc_clearance(clear, radius[env])
         if noise is not None:
             i = min(int(round(t / dt)), last)
-            dtheta = dtheta + noise[1, env, members, i]
-            alpha = np.maximum(alpha * (1.0 + noise[2, env, members, i]), 0.0)
-        w = family.evaluate(tables, members // repeats, {"dtheta": dtheta, "alpha": alpha})
+            inputs["dtheta"] = dtheta + noise[1, env, members, i]
+            inputs["alpha"] = np.maximum(alpha * (1.0 + noise[2, env, members, i]), 0.0)
+            if wants_clearance:          # the same distance sensor as alpha's numerator
+                c = inputs["clearance"]
+                inputs["clearance"] = np.where(
+                    np.isinf(c), c, np.maximum(c * (1.0 + noise[2, env, members, i]), 0.0))
+        w = family.evaluate(tables, members // repeats, inputs)
         F = effc_force(w, f_att, f_rep)
         F = np.where(np.isinf(clear)[:, None], f_att, F)     # no obstacle: go to the goal
         if noise is not None:
@@ -153,24 +174,33 @@ class EFFC(FieldPlanner):
         if not isinstance(system, (fuzzy.FuzzySystem, CompiledFIS)):
             spec = self.values["fis"]
             system = CompiledFIS(spec) if spec.endswith(".c") else fuzzy.load_any(spec)
-        missing = {"dtheta", "alpha"} - set(system.input_names)
-        if missing or len(system.input_names) != 2:
+        from hybridnav.planners.base import accepts_inputs
+
+        if not accepts_inputs(type(self), system.input_names):
             raise HybridnavError(
-                f"planner effc: fis: expected a fuzzy system with the inputs dtheta and alpha, "
-                f"{system.name!r} has {', '.join(system.input_names)}")
+                f"planner effc: fis: expected a fuzzy system with the inputs dtheta and alpha "
+                f"(and optionally clearance), {system.name!r} has "
+                f"{', '.join(system.input_names)}")
         self.fis = system
 
     #: the fuzzy inputs this planner provides (what a tuned system must take)
     fuzzy_inputs: ClassVar[tuple[str, ...]] = ("dtheta", "alpha")
+    #: inputs it also provides to a system that takes them (the footprint's clearance)
+    optional_fuzzy_inputs: ClassVar[tuple[str, ...]] = ("clearance",)
     #: many controllers on many worlds in one batch (what the tuner simulates)
     lockstep = staticmethod(effc_lockstep)
 
     def velocity(self, state, sim: Simulation, idx, P, goals):
         radius = np.array([sim.models[i].radius for i in idx])
-        dtheta, alpha, f_att, f_rep = effc_inputs(sim.scenario.world, P, goals, radius, sim.t)
-        if not sim.scenario.world.obstacles:
-            return f_att
-        w = self.fis.evaluate(dtheta=dtheta, alpha=alpha)
+        world = sim.scenario.world
+        if not world.obstacles:
+            return effc_inputs(world, P, goals, radius, sim.t)[2]
+        clear, near, _ = world.nearest(P, t=sim.t)
+        dtheta, alpha, f_att, f_rep = effc_inputs_from(P, goals, clear, near, radius)
+        inputs = {"dtheta": dtheta, "alpha": alpha}
+        if "clearance" in self.fis.input_names:
+            inputs["clearance"] = effc_clearance(clear, radius)
+        w = self.fis.evaluate(**inputs)
         self.trace(sim, idx, w=w, dtheta=dtheta, alpha=np.minimum(alpha, 1e3))
         return effc_force(w, f_att, f_rep)
 

@@ -64,7 +64,10 @@ def effc_field(fis, p, goal: Sequence[float], circle: Sequence[float] | None,
     ang = cs.atan2(to_goal[1], to_goal[0]) - cs.atan2(-f_rep[1], -f_rep[0])
     dtheta = cs.fabs(cs.atan2(cs.sin(ang), cs.cos(ang)))
     alpha = cs.fmax(clear - radius, 0.0) / d_goal
-    w = fis.to_casadi(dtheta=dtheta, alpha=alpha)
+    inputs = {"dtheta": dtheta, "alpha": alpha}
+    if "clearance" in fis.input_names:              # the optional input: the footprint's gap
+        inputs["clearance"] = cs.fmax(clear - radius, 0.0)
+    w = fis.to_casadi(**inputs)
     force = w * f_rep + (1 - w) * f_att
     return force, {"dtheta": dtheta, "alpha": alpha, "w": w, "f_att": f_att, "f_rep": f_rep,
                    "clearance": clear}
@@ -94,13 +97,17 @@ def effc_closed_loop(model, fis, goal: Sequence[float], circle: Sequence[float] 
     Raises
     ------
     HybridnavError
-        A fuzzy system without the inputs ``dtheta`` and ``alpha``.
+        A fuzzy system without the inputs ``dtheta`` and ``alpha`` (``clearance`` may be a
+        third).
     """
     from hybridnav.analysis.system import System
 
-    if set(fis.input_names) != {"dtheta", "alpha"}:
-        raise HybridnavError(f"fis: expected a fuzzy system with the inputs dtheta and alpha, "
-                             f"got {', '.join(fis.input_names)}")
+    from hybridnav.planners.base import accepts_inputs
+    from hybridnav.planners.field.effc import EFFC
+
+    if not accepts_inputs(EFFC, fis.input_names):
+        raise HybridnavError(f"fis: expected a fuzzy system with the inputs dtheta and alpha "
+                             f"(and optionally clearance), got {', '.join(fis.input_names)}")
     s = model.sym
     x = s.x
     force, parts = effc_field(fis, x[:2], goal, circle, radius=model.radius)

@@ -238,10 +238,14 @@ class NavigationCost(Cost):
         return float(self.scenarios[0].robots[0].radius)
 
     def check(self, settings) -> None:
+        from hybridnav import planners
+        from hybridnav.planners.base import accepts_inputs, inputs_text
+
         names = settings.template.input_names
-        if set(names) != set(self.fuzzy_inputs):
+        cls = planners.PLANNERS[self.planner]
+        if not accepts_inputs(cls, names):
             raise HybridnavError(f"the {self.planner} planner provides the fuzzy inputs "
-                                 f"{', '.join(self.fuzzy_inputs)}; {settings.template.name!r} "
+                                 f"{inputs_text(cls)}; {settings.template.name!r} "
                                  f"has {', '.join(names)}")
 
     def config(self) -> dict[str, Any]:
