@@ -405,6 +405,7 @@ typedef struct {
     int64_t repeats;           /* tables member = member / repeats */
     int in_dtheta, in_alpha;   /* positions of the inputs in the family's order */
     int in_clear;              /* position of the optional input clearance, or -1 */
+    double safety, max_turn;   /* the escape-circle filter's margin (0: off), turn limit */
     double *X;                 /* (N, nx) in/out */
     const double *goals;       /* (N, 2) */
     const double *goal_r;      /* (N) */
@@ -448,6 +449,80 @@ static void hn_check(const hn_stack *s, const hn_run *r, hn_work *w, int64_t n, 
     int reached = g2 > gr * gr * (1.0 + 1e-9) ? 0 : hypot(gx, gy) <= gr;
     int code = clear < 0 ? COLLIDED : (!inside ? OUT_OF_BOUNDS : (reached ? REACHED : 0));
     if (code) { r->status[n] = code; r->t_end[n] = t; }
+}
+
+/* np.remainder(a, b): the sign of b */
+static double hn_remainder(double a, double b)
+{
+    double m = fmod(a, b);
+    if (m != 0.0 && ((b < 0) != (m < 0))) m += b;
+    return m;
+}
+
+/* clearance of (qx, qy) in world e at time t: nearest obstacle or the border */
+static double hn_clear_at(const hn_stack *s, hn_work *w, int64_t e, double qx, double qy,
+                          double t)
+{
+    double nxp = 0.0, nyp = 0.0;
+    double c = s->Kp ? hn_nearest(s, e, qx, qy, t, w->D, w->gedge, w->tmp_de, w->tmp_q, &nxp,
+                                  &nyp) : INFINITY;
+    double b = hn_border(s, e, qx, qy);
+    return b < c || isnan(b) ? b : c;      /* np.minimum */
+}
+
+#define HN_CANDIDATES 9
+
+/* the escape-circle safety filter of one robot (hybridnav/planners/field/safety.py, the same
+ * operations): V becomes a safe command when the wanted heading change ends unsafe */
+static void hn_escape(const hn_stack *s, const hn_run *r, hn_work *w, int64_t n, double t,
+                      double *V)
+{
+    const double *x = r->X + (size_t)n * r->nx;
+    int64_t e = r->env[n];
+    double mt = r->max_turn, step = r->speed * r->dt, rho = r->speed * r->dt / mt;
+    double theta = x[2];
+    double want = hn_remainder(atan2(V[1], V[0]) - theta + M_PI, 2 * M_PI) - M_PI;
+    want = want < -mt ? -mt : (want > mt ? mt : want);
+    double d[HN_CANDIDATES + 1], circle[HN_CANDIDATES + 1];
+    int ok[HN_CANDIDATES + 1];
+    d[0] = want;
+    double dl = (mt - -mt) / (HN_CANDIDATES - 1);
+    for (int i = 0; i < HN_CANDIDATES; ++i) d[1 + i] = i * dl + -mt;
+    d[HN_CANDIDATES] = mt;
+    double need = r->foot_radius + r->safety;
+    for (int i = 0; i <= HN_CANDIDATES; ++i) {
+        double th1 = theta + d[i], x1, y1;
+        if (fabs(d[i]) < 1e-12) {
+            x1 = x[0] + step * cos(theta);
+            y1 = x[1] + step * sin(theta);
+        } else {
+            double R = step / d[i];
+            x1 = x[0] + R * (sin(th1) - sin(theta));
+            y1 = x[1] + R * (cos(theta) - cos(th1));
+        }
+        double nx_ = -sin(th1), ny_ = cos(th1);
+        double c0 = hn_clear_at(s, w, e, x1, y1, t);
+        double cl = hn_clear_at(s, w, e, x1 + rho * nx_, y1 + rho * ny_, t);
+        double cr = hn_clear_at(s, w, e, x1 - rho * nx_, y1 - rho * ny_, t);
+        circle[i] = hn_maximum(cl, cr) - rho;
+        ok[i] = c0 >= need && circle[i] >= need;
+        if (i == 0 && ok[0]) return;              /* the wanted change ends safe */
+    }
+    int best = -1;
+    double bs = -INFINITY;
+    for (int i = 0; i <= HN_CANDIDATES; ++i)
+        if (ok[i] && (best < 0 || -fabs(d[i] - want) > bs)) { bs = -fabs(d[i] - want); best = i; }
+    if (best < 0) {                               /* none safe: the most room */
+        bs = -INFINITY;
+        best = 0;
+        for (int i = 0; i <= HN_CANDIDATES; ++i) {
+            double v = isnan(circle[i]) ? -INFINITY : circle[i];
+            if (v > bs) { bs = v; best = i; }
+        }
+    }
+    double pick = theta + d[best];
+    V[0] = r->speed * cos(pick);
+    V[1] = r->speed * sin(pick);
 }
 
 int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
@@ -547,6 +622,18 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
             else { last[2 * n] = vx; last[2 * n + 1] = vy; }
             V[2 * n] = vx;
             V[2 * n + 1] = vy;
+        }
+        if (r->safety > 0) {
+            double rho = r->speed * r->dt / r->max_turn, step = r->speed * r->dt;
+            for (int64_t n = 0; n < N; ++n) {
+                if (r->status[n] != RUNNING) continue;
+                const double *x = r->X + (size_t)n * nx;
+                double b = hn_border(s, r->env[n], x[0], x[1]), c = w.clear[n];
+                double here = b < c || isnan(b) ? b : c;
+                if (here - r->foot_radius >= r->safety + 2 * rho + 2 * step + 1e-12) continue;
+                if (!isfinite(V[2 * n]) || !isfinite(V[2 * n + 1])) continue;
+                hn_escape(s, r, &w, n, t, V + 2 * n);
+            }
         }
         double tn = (k + 1) * r->dt;
         for (int64_t n = 0; n < N; ++n) {

@@ -50,7 +50,7 @@ class _Run(Structure):
                 ("foot_radius", c_double), ("div_x", c_double), ("div_y", c_double),
                 ("env", c_void_p), ("member", c_void_p), ("repeats", c_int64),
                 ("in_dtheta", c_int), ("in_alpha", c_int), ("in_clear", c_int),
-                ("X", c_void_p),
+                ("safety", c_double), ("max_turn", c_double), ("X", c_void_p),
                 ("goals", c_void_p), ("goal_r", c_void_p), ("budget", c_void_p),
                 ("radius", c_void_p), ("noise", c_void_p), ("noise_members", c_int64),
                 ("noise_steps", c_int64), ("status", c_void_p), ("length", c_void_p),
@@ -327,6 +327,8 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     r.repeats = repeats
     r.in_dtheta, r.in_alpha = names.index("dtheta"), names.index("alpha")
     r.in_clear = names.index("clearance") if "clearance" in names else -1
+    r.safety = float(planner.get("safety_margin", 0.0))
+    r.max_turn = float(planner["max_turn"])
     r.X = X.ctypes.data
     r.goals = keep.ptr(batch.goals, np.float64)
     r.goal_r = keep.ptr(batch.goal_r, np.float64)

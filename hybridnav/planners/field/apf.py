@@ -87,7 +87,8 @@ def apf_lockstep(st, params: dict[str, Any] | None = None, *,
                                            "max_turn": v["max_turn"]},
                           speed=v["speed"], stuck_window=v["stuck_window"],
                           stuck_radius=v["stuck_radius"], record_paths=record_paths,
-                          stack=st.stack)
+                          stack=st.stack,
+                          safety={"margin": v["safety_margin"], "max_turn": v["max_turn"]})
 
 
 class APF(FieldPlanner):
@@ -107,7 +108,7 @@ class APF(FieldPlanner):
     }
     # F_att ~ xi sigma0 (a length), F_rep ~ eta / rho^3: eta scales as length^4 so that the
     # field's directions are the same at any scale
-    scaled: ClassVar[dict[str, int]] = {"speed": 1, "sigma0": 1, "rho0": 1, "eta": 4}
+    scaled: ClassVar[dict[str, int]] = {**FieldPlanner.scaled, "sigma0": 1, "rho0": 1, "eta": 4}
 
     def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
         """The APF gains of the robots ``idx`` (PBPF tunes them per robot)."""

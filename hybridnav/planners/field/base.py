@@ -30,6 +30,9 @@ COMMON = {
     "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
                                 "(0: off)", lo=0.0),
     "stuck_radius": Param(2.0, "that disk's radius, in goal radii", lo=0.0),
+    "safety_margin": Param(0.0, "unicycles: room (beyond the robot radius) the escape-circle "
+                                "safety filter keeps; 0: off (hybridnav.planners.field.safety)",
+                           lo=0.0),
     "scale": Param(0.0, "length scale of the defaults of speed and the length gains (0: the "
                         "scenario's: its robots' median radius / 0.1 m, the EFFC paper's "
                         "robot; 1: the declared defaults as written)", lo=0.0),
@@ -45,7 +48,27 @@ class FieldPlanner(Planner):
     parameters: ClassVar[dict[str, Param]] = dict(COMMON)
     #: parameters whose defaults are lengths (exponent 1: speed, distances) or carry other
     #: powers of length (APF's repulsive gain: 4), scaled by ``scale ** exponent`` unless set
-    scaled: ClassVar[dict[str, int]] = {"speed": 1}
+    scaled: ClassVar[dict[str, int]] = {"speed": 1, "safety_margin": 1}
+
+    def _filter(self, sim: Simulation, V: np.ndarray, groups) -> None:
+        """The escape-circle safety filter on the heading-controlled robots' commands (in place;
+        the world's obstacles and border, at the current time)."""
+        from hybridnav.planners.field.safety import escape_filter
+
+        world = sim.scenario.world
+
+        def clearance(Q, rows):
+            return np.minimum(world.clearance(Q, t=sim.t), world.border_clearance(Q))
+
+        for model, members in groups:
+            act = members[sim.active[members]]
+            if not len(act) or getattr(model, "options", {}).get("controller") != "heading":
+                continue
+            X = np.array([sim.X[i] for i in act])
+            V[act], _ = escape_filter(
+                X, V[act], speed=self.values["speed"], dt=sim.scenario.dt,
+                max_turn=self.values["max_turn"], margin=self.values["safety_margin"],
+                radius=np.full(len(act), model.radius), clearance=clearance)
 
     def scale_for(self, scenario) -> float:
         """The length scale of this run: ``scale`` when set, else the scenario's robots' median
@@ -138,6 +161,8 @@ class FieldPlanner(Planner):
             last[idx[~zero]] = V[~zero]
             Vall = np.zeros((sim.n, 2))
             Vall[idx] = V
+            if self.values["safety_margin"] > 0:
+                self._filter(sim, Vall, groups)
             for model, members in groups:          # one carrot call per model group
                 act = members[sim.active[members]]
                 if len(act):

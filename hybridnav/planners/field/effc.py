@@ -102,7 +102,7 @@ def effc_lockstep(st, family, tables, n_members: int,
     Member ``m`` uses the fuzzy system ``m // repeats`` of ``tables`` (a ``family`` table set);
     ``noise`` (``(3, E, n_members, steps)``: heading, ``dtheta``, relative ``alpha``) perturbs
     each cycle. ``planner`` holds ``speed``, ``max_turn``, ``stuck_window`` and
-    ``stuck_radius``. Without noise this is exactly what the ``effc`` planner does, run by run.
+    ``stuck_radius`` (and optionally ``safety_margin``: the escape-circle safety filter). Without noise this is exactly what the ``effc`` planner does, run by run.
     """
     scenarios = st.scenarios
     dt = scenarios[0].dt
@@ -146,7 +146,8 @@ def effc_lockstep(st, family, tables, n_members: int,
     return lockstep_field(scenarios, n_members, field, model_overrides=overrides,
                           speed=planner["speed"], stuck_window=planner["stuck_window"],
                           stuck_radius=planner["stuck_radius"], record_paths=record_paths,
-                          stack=st.stack)
+                          stack=st.stack, safety={"margin": planner.get("safety_margin", 0.0),
+                                                  "max_turn": planner["max_turn"]})
 
 
 class EFFC(FieldPlanner):

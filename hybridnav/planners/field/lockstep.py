@@ -46,6 +46,7 @@ def lockstep_field(
     record_paths: bool = False,
     stack=None,
     field_state: bool = False,
+    safety: dict | None = None,
 ) -> LockstepResult:
     """Simulate ``n_members`` controllers on each single-robot scenario, all in lockstep.
 
@@ -78,6 +79,9 @@ def lockstep_field(
     field_state : bool
         Pass the robots' whole states ``(m, nx)`` (x, y, heading, ...) to ``field`` instead of
         their positions (controllers that steer relative to the heading).
+    safety : dict, optional
+        ``{"margin": m, "max_turn": a}`` with ``m > 0``: the escape-circle safety filter
+        (:mod:`hybridnav.planners.field.safety`) on the commands of heading-controlled robots.
     """
     b = prepare(scenarios, n_members, model_overrides, stack)
     model, stack, N, dt, steps = b.model, b.stack, b.N, b.dt, b.steps
@@ -93,6 +97,10 @@ def lockstep_field(
     if record_paths:
         paths[:, 0] = X[:, :2]
     _check(stack, model, env, X, 0.0, status, min_clear, t_end, goals, goal_r)
+    filtering = bool(safety and safety.get("margin", 0) > 0
+                     and getattr(model, "options", {}).get("controller") == "heading")
+    if filtering:
+        from hybridnav.planners.field.safety import escape_filter
     for k in range(steps):
         run = status == 0
         if not run.any():
@@ -111,6 +119,14 @@ def lockstep_field(
         V[zero] = last[zero]
         last[~zero] = V[~zero]
         run = status == 0
+        if filtering:
+            sel = np.flatnonzero(run)
+            V[sel], _ = escape_filter(
+                X[sel], V[sel], speed=speed, dt=dt, max_turn=safety["max_turn"],
+                margin=safety["margin"], radius=np.full(len(sel), model.radius),
+                clearance=lambda Q, rows, t=t: np.minimum(
+                    stack.clearance(Q, env[sel][rows], t),
+                    stack.border_clearance(Q, env[sel][rows])))
         Xn = model.step(X, model.carrot(X, V))
         step_len = np.hypot(*(Xn[:, :2] - X[:, :2]).T)
         length[run] += step_len[run]

@@ -98,7 +98,9 @@ def steer_lockstep(st, family, tables, n_members: int, planner: dict[str, Any], 
     return lockstep_field(scenarios, n_members, field, model_overrides=overrides,
                           speed=planner["speed"], stuck_window=planner["stuck_window"],
                           stuck_radius=planner["stuck_radius"], record_paths=record_paths,
-                          stack=st.stack, field_state=True)
+                          stack=st.stack, field_state=True,
+                          safety={"margin": planner.get("safety_margin", 0.0),
+                                  "max_turn": planner["max_turn"]})
 
 
 class FuzzySteer(FieldPlanner):
@@ -116,7 +118,7 @@ class FuzzySteer(FieldPlanner):
                              lo_open=True, hi=math.pi / 2),
         **COMMON,
     }
-    scaled: ClassVar[dict[str, int]] = {"speed": 1, "sensor_range": 1}
+    scaled: ClassVar[dict[str, int]] = {**FieldPlanner.scaled, "sensor_range": 1}
     #: robots with a heading to steer (the unicycle)
     drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"robot", "heading_control"}),)
     #: the fuzzy inputs this planner provides (what a tuned system must take)

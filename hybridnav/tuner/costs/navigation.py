@@ -110,6 +110,8 @@ PLANNER: dict[str, Param] = {
                       lo=0.0, lo_open=True, hi=math.pi),
     "stuck_window": Param(10.0, "seconds without progress that count as stuck", **_POS),
     "stuck_radius": Param(2.0, "the no-progress disk, in goal radii", **_POS),
+    "safety_margin": Param(0.0, "room (m, beyond the robot radius) the escape-circle safety "
+                                "filter keeps (0: off; hybridnav.planners.field.safety)", **_POS),
 }
 
 

@@ -1,0 +1,136 @@
+"""The escape-circle safety filter: the safe set is invariant, the command changes only when it
+must, the planners and the lockstep runs (NumPy and compiled) apply it the same way, and it
+removes the collisions EFFC has on generated and trap worlds."""
+
+from __future__ import annotations
+
+import collections
+import math
+import os
+
+import numpy as np
+import pytest
+
+from hybridnav import fuzzy, planners
+from hybridnav.fuzzy.family import SystemFamily
+from hybridnav.planners.field.safety import escape_filter, escape_radius
+from hybridnav.tuner.evaluate import lockstep_effc, scenario_set
+from hybridnav.world import Circle, Segment, World
+from hybridnav.worldgen import WorldGenerator
+
+SPEED, DT, TURN, MARGIN, R = 0.1, 0.1, math.pi / 4, 0.02, 0.1
+PLANNER = {"speed": SPEED, "max_turn": TURN, "stuck_window": 10.0, "stuck_radius": 2.0,
+           "safety_margin": MARGIN}
+
+
+def _world():
+    return World((0.0, 2.0, 0.0, 2.0), (Circle((1.0, 1.0), 0.3), Segment((0.2, 1.6), (1.2, 1.9)),
+                                        Circle((1.5, 0.4), 0.15)))
+
+
+def _clearance(world):
+    return lambda Q, rows: np.minimum(world.clearance(Q), world.border_clearance(Q))
+
+
+def _safe(world, X):
+    """Whether each state has a free escape circle (the filter's invariant)."""
+    rho = escape_radius(SPEED, DT, TURN)
+    n = np.stack([-np.sin(X[:, 2]), np.cos(X[:, 2])], axis=1)
+    c = _clearance(world)
+    here = c(X[:, :2], None)
+    circle = np.maximum(c(X[:, :2] + rho * n, None), c(X[:, :2] - rho * n, None)) - rho
+    return (here >= R + MARGIN - 1e-9) & (circle >= R + MARGIN - 1e-9)
+
+
+def _arc(X, V):
+    """The exact arc of the heading controller's cycle towards V (turn clipped to TURN)."""
+    want = np.remainder(np.arctan2(V[:, 1], V[:, 0]) - X[:, 2] + np.pi, 2 * np.pi) - np.pi
+    d = np.clip(want, -TURN, TURN)
+    th1 = X[:, 2] + d
+    step = SPEED * DT
+    small = np.abs(d) < 1e-12
+    R_ = step / np.where(small, 1.0, d)
+    dx = np.where(small, step * np.cos(X[:, 2]), R_ * (np.sin(th1) - np.sin(X[:, 2])))
+    dy = np.where(small, step * np.sin(X[:, 2]), R_ * (np.cos(X[:, 2]) - np.cos(th1)))
+    return np.column_stack([X[:, 0] + dx, X[:, 1] + dy, th1])
+
+
+def test_the_safe_set_is_invariant_under_the_filter():
+    world = _world()
+    rng = np.random.default_rng(0)
+    X = np.column_stack([rng.uniform(0, 2, 20000), rng.uniform(0, 2, 20000),
+                         rng.uniform(-np.pi, np.pi, 20000)])
+    X = X[_safe(world, X)]
+    assert len(X) > 5000
+    V = rng.normal(size=(len(X), 2))                   # any command, even straight at a wall
+    for _ in range(30):                                # thirty cycles of adversarial commands
+        Vf, changed = escape_filter(X, V, speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN,
+                                    radius=np.full(len(X), R), clearance=_clearance(world))
+        X = _arc(X, Vf)
+        assert _safe(world, X).all()
+        V = -V + rng.normal(size=V.shape)
+    assert changed.any()
+
+
+def test_it_changes_nothing_far_from_obstacles_or_when_off():
+    world = _world()
+    X = np.array([[0.4, 0.4, 0.3], [1.0, 1.43, -np.pi / 2]])  # far away; 3 cm from the circle
+    V = np.array([[1.0, 0.0], [0.0, -1.0]]) * SPEED        # the second heads into the circle
+    Vf, changed = escape_filter(X, V, speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN,
+                                radius=np.full(2, R), clearance=_clearance(world))
+    assert changed.tolist() == [False, True] and np.array_equal(Vf[0], V[0])
+    assert np.hypot(*Vf[1]) == pytest.approx(SPEED)
+    off, none = escape_filter(X, V, speed=SPEED, dt=DT, max_turn=TURN, margin=0.0,
+                              radius=np.full(2, R), clearance=_clearance(world))
+    assert not none.any() and np.array_equal(off, V)
+
+
+def _worlds():
+    return (WorldGenerator().generate(12, 987654)
+            + WorldGenerator(cups=(1, 1), circles=(0, 3), name="cup").generate(6, 5)
+            + WorldGenerator(gaps=(1, 1), corridors=(0, 1), circles=(0, 3),
+                             name="gc").generate(6, 5))
+
+
+@pytest.mark.parametrize("native", ["1", "0"])
+def test_no_collision_on_worlds_where_effc_collides_and_the_margin_is_kept(native, monkeypatch):
+    monkeypatch.setenv("HYBRIDNAV_NATIVE", native)
+    st = scenario_set(_worlds())
+    fis = fuzzy.builtin("effc-5rule")
+    fam = SystemFamily(fis)
+    plain = lockstep_effc(st, fam, fam.tables_of([fis]), 1, {**PLANNER, "safety_margin": 0.0})
+    safe = lockstep_effc(st, fam, fam.tables_of([fis]), 1, PLANNER)
+    assert collections.Counter(plain.outcome.ravel())["collided"] >= 3
+    assert not np.isin(safe.outcome, ("collided", "out_of_bounds")).any()
+    assert safe.min_clearance.min() >= MARGIN - 1e-6
+    assert (safe.outcome == "reached").sum() >= (plain.outcome == "reached").sum()
+
+
+def test_compiled_and_numpy_cycles_and_the_planner_agree():
+    worlds = _worlds()
+    st = scenario_set(worlds)
+    fis = fuzzy.builtin("effc-tuned")
+    fam = SystemFamily(fis)
+    args = (st, fam, fam.tables_of([fis]), 1, PLANNER)
+    got = lockstep_effc(*args)
+    os.environ["HYBRIDNAV_NATIVE"] = "0"
+    try:
+        want = lockstep_effc(*args)
+    finally:
+        del os.environ["HYBRIDNAV_NATIVE"]
+    assert (got.outcome == want.outcome).all()
+    np.testing.assert_allclose(got.path_length, want.path_length, rtol=1e-9)
+    for i in (0, 13, 19):                              # run by run, the planner does the same
+        r = planners.get("effc", fis=fis, safety_margin=MARGIN).run(worlds[i]).robots[0]
+        assert r.outcome == got.outcome[i, 0]
+        assert r.path_length == pytest.approx(got.path_length[i, 0], rel=1e-9)
+
+
+def test_apf_and_the_planners_take_the_margin_and_scale_it():
+    from hybridnav.world import load_scenario
+
+    res = planners.get("apf", safety_margin=MARGIN).run(load_scenario("effc-env-a"))
+    assert res.params["safety_margin"] == MARGIN and res.robots[0].min_clearance >= MARGIN - 1e-6
+    cm = planners.get("effc", safety_margin=0.02).run(load_scenario("fastep-s1"))
+    assert cm.params["safety_margin"] == 0.02             # set by the user: not scaled
+    assert planners.get("effc").run(load_scenario("fastep-s1")).params["safety_margin"] == 0.0
