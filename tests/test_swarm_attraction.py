@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hybridnav import native
+from hybridnav.native import attract
 from hybridnav.planners.swarm._core import Run
 from hybridnav.planners.swarm.firefly import _attraction_moves, _beta
 
@@ -47,9 +49,13 @@ def _values(rng, n, kind):
     return F
 
 
+@pytest.mark.parametrize("compiled", [True, False])
 @pytest.mark.parametrize("kind", ["plain", "ties", "special", "mixed", "equal", "nan"])
 @pytest.mark.parametrize("d", [1, 2, 3])
-def test_attraction_moves_equal_the_loop_bit_for_bit(kind, d):
+def test_attraction_moves_equal_the_loop_bit_for_bit(kind, d, compiled, monkeypatch):
+    """Both paths: the compiled loop (d <= 2, where a compiler is) and the NumPy loop."""
+    if not compiled:
+        monkeypatch.setenv(native.ENV, "0")
     rng = np.random.default_rng([d, len(kind)])
     for trial in range(40):
         n = int(rng.integers(1, 60))
@@ -67,3 +73,35 @@ def test_attraction_moves_equal_the_loop_bit_for_bit(kind, d):
             states.append(run.rng.random())      # the same number of draws were taken
         assert outs[0].tobytes() == outs[1].tobytes()
         assert states[0] == states[1]
+
+
+def test_the_compiled_loop_runs_where_it_applies(monkeypatch):
+    """With a compiler, d <= 2 goes to C; d = 3 and HYBRIDNAV_NATIVE=0 do not (Ys untouched)."""
+    if attract._library() is None:
+        pytest.skip("no C compiler")
+    Xs = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.5]])
+    Es = np.zeros((2, 3, 2))
+    Ys = Xs.copy()
+    assert attract.moves(Xs, Ys, Es, np.array([1, 2]), 3, 0.1, 1.0, 2.0, 0.0)
+    assert not np.array_equal(Ys, Xs)
+    Y3 = np.zeros((3, 3))
+    assert not attract.moves(Y3, Y3, np.zeros((2, 3, 3)), np.array([1, 2]), 3, 0.1, 1.0, 2.0, 0.0)
+    monkeypatch.setenv(native.ENV, "0")
+    Ys = Xs.copy()
+    assert not attract.moves(Xs, Ys, Es, np.array([1, 2]), 3, 0.1, 1.0, 2.0, 0.0)
+    assert np.array_equal(Ys, Xs)
+
+
+def test_the_compiled_loop_equals_numpy_on_a_real_swarm():
+    """Whole runs of both firefly optimizers agree with the kernel on and off (history included)."""
+    from hybridnav.planners.swarm import fastep, firefly
+    from hybridnav.planners.swarm.functions import rastrigin
+
+    for fn in (fastep, firefly):
+        runs = []
+        for env in ("1", "0"):
+            with pytest.MonkeyPatch.context() as mp:
+                mp.setenv(native.ENV, env)
+                r = fn(rastrigin, ([-5.0, -5.0], [5.0, 5.0]), n=30, iterations=40, seed=3)
+            runs.append((r.x.tobytes(), r.population.tobytes(), np.asarray(r.history.best).tobytes()))
+        assert runs[0] == runs[1]

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hybridnav.native.attract import moves as compiled_moves
 from hybridnav.planners.swarm._core import (
     BoundsLike,
     Objective,
@@ -55,7 +56,8 @@ def _attraction_moves(run: Run, X: NDArray[np.float64], F: NDArray[np.float64], 
     movers in index order, then one row per firefly that did not move, in index order -- but in
     one call. The loop over ``j`` works on the swarm sorted by brightness, where the movers of
     ``j`` are a contiguous run (every firefly strictly dimmer than ``j``; NaN values sort last and
-    never move), so each attraction is a handful of operations on a slice.
+    never move), so each attraction is a handful of operations on a slice -- or one call of the
+    compiled loop (:mod:`hybridnav.native.attract`, with NumPy's exp), where it applies.
     """
     n, d = X.shape
     inv_diag2 = 1.0 / float(run.span @ run.span)
@@ -79,11 +81,13 @@ def _attraction_moves(run: Run, X: NDArray[np.float64], F: NDArray[np.float64], 
         Es = E[np.clip(off[:, None] + rank[:, order], 0, max(total - 1, 0))]   # (J, n, d) sorted
         Xs = X[order]
         Ys = Xs.copy()
-        for p, s in enumerate(first.tolist()):
-            V = Ys[s:m]
-            diff = Xs[p] - V
-            beta = _beta(np.einsum("ij,ij->i", diff, diff) * inv_diag2, beta0, gamma, beta_min)
-            V += beta[:, None] * diff + Es[p, s:m]
+        if not compiled_moves(Xs, Ys, Es, first, m, inv_diag2, gamma, beta0, beta_min):
+            for p, s in enumerate(first.tolist()):
+                V = Ys[s:m]
+                diff = Xs[p] - V
+                beta = _beta(np.einsum("ij,ij->i", diff, diff) * inv_diag2, beta0, gamma,
+                             beta_min)
+                V += beta[:, None] * diff + Es[p, s:m]
         Y[order] = Ys
     Y[~moved] += E[total:]
     return np.clip(Y, run.lower, run.upper)
