@@ -27,14 +27,14 @@ class _Attract(Structure):
                 ("neg_gamma", c_double), ("scale", c_double), ("beta_min", c_double)]
 
 
-_LIBS: dict = {}
+_LIB: list = []                            # [the library or None], once loaded
 
 
 def _library() -> ctypes.CDLL | None:
+    """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
     if not native.enabled():
         return None
-    key = native.cache_dir()
-    if key not in _LIBS:
+    if not _LIB:
         lib = native.build("attract", native.source("attract.c"))
         try:
             if lib is not None:
@@ -42,8 +42,8 @@ def _library() -> ctypes.CDLL | None:
                 lib.hn_attract_step.restype = c_int64
         except AttributeError:             # a library without the kernel's function
             lib = None
-        _LIBS[key] = lib
-    return _LIBS[key]
+        _LIB.append(lib)
+    return _LIB[0]
 
 
 def moves(Xs: np.ndarray, Ys: np.ndarray, Es: np.ndarray, first: np.ndarray, m: int,

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,6 +78,16 @@ class Surroundings:
         centres, _ = world.circles(t)
         return cls(world, float(t), centres, world.edges(), np.asarray(robots, float).reshape(-1, 2),
                    robot_discs, world.static(), world.moving())
+
+    @cached_property
+    def frozen_boxes(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Boxes ``lo, hi`` (K, 2) and pads (K,) of what stands still while a step is planned:
+        the static obstacles (:meth:`World.boxes`), then the other robots' disks (the centre
+        and the radius). Computed once for the many checks of one plan."""
+        lo, hi, pad = self.static.boxes()
+        oc = np.asarray(self.robot_discs[0], dtype=float).reshape(-1, 2)
+        return (np.concatenate([lo, oc]), np.concatenate([hi, oc]),
+                np.concatenate([pad, np.asarray(self.robot_discs[1], dtype=float).reshape(-1)]))
 
 
 def step_fitness(P: FloatArray, goal: FloatArray, env: Surroundings, a: float, b: float, c: float,

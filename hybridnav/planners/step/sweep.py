@@ -40,6 +40,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from hybridnav.native.boxes import boxes_near as compiled_boxes_near
 from hybridnav.world import point_segment_distance
 
 __all__ = ["roll_block", "sweep"]
@@ -100,11 +101,7 @@ class _Sweep:
         scale = max(abs(v) for v in world.workspace) + (self.extent or 0.0) + self.margin
         self.slack = 1e-9 * (1.0 + scale)
         # everything frozen during the plan: static obstacles, then the other robots' disks
-        lo, hi, pad = env.static.boxes()
-        oc = np.asarray(self.other_c, dtype=float).reshape(-1, 2)
-        self.f_lo = np.concatenate([lo, oc])
-        self.f_hi = np.concatenate([hi, oc])
-        self.f_pad = np.concatenate([pad, np.asarray(self.other_r, dtype=float).reshape(-1)])
+        self.f_lo, self.f_hi, self.f_pad = env.frozen_boxes
 
     # ---- which stretches and pieces need the exact test ------------------------------------
 
@@ -270,7 +267,11 @@ def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArr
     """Whether each obstacle box ``[o_lo, o_hi]`` (shape (K, 2) or (..., K, 2)), padded by
     ``o_pad``, is closer than ``thr`` to each box ``[lo, hi]`` (shape (..., 2)): (..., K).
     (The Euclidean distance between two boxes is a lower bound of the distance between their
-    points; a box with a NaN corner is near everything.)"""
+    points; a box with a NaN corner is near everything.) For one threshold and (K, 2) obstacle
+    boxes, the compiled test (:mod:`hybridnav.native.boxes`: the same operations) where it is."""
+    near = compiled_boxes_near(lo, hi, o_lo, o_hi, o_pad, thr)
+    if near is not None:
+        return near
     reach = np.asarray(thr)[..., None] + o_pad
     gx = np.maximum(np.maximum(o_lo[..., 0] - hi[..., 0, None], lo[..., 0, None] - o_hi[..., 0]),
                     0.0)

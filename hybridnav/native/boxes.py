@@ -1,0 +1,62 @@
+"""The box-to-box pruning test of the swept-footprint check (``boxes.c``) bound to NumPy:
+:func:`boxes_near` is :func:`hybridnav.planners.step.sweep._boxes_near` for one threshold and one
+set of obstacle boxes, in one pass instead of a dozen NumPy operations over (boxes, obstacles).
+The same IEEE operations in the same order: the same booleans, NaN boxes included (the tests
+compare them). ``None`` where it does not apply (no compiler, kernels switched off, arrays of other
+shapes), and the caller runs its NumPy path.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from ctypes import c_double, c_int64, c_void_p
+
+import numpy as np
+
+from hybridnav import native
+
+__all__ = ["boxes_near"]
+
+_LIB: list = []                            # [the library or None], once loaded
+
+
+def _library() -> ctypes.CDLL | None:
+    """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
+    if not native.enabled():
+        return None
+    if not _LIB:
+        lib = native.build("boxes", native.source("boxes.c"))
+        try:
+            if lib is not None:
+                lib.hn_boxes_near.argtypes = [c_int64, c_int64, c_void_p, c_void_p, c_void_p,
+                                              c_void_p, c_void_p, c_double, c_void_p]
+                lib.hn_boxes_near.restype = None
+        except AttributeError:             # a library without the kernel's function
+            lib = None
+        _LIB.append(lib)
+    return _LIB[0]
+
+
+def boxes_near(lo, hi, o_lo, o_hi, o_pad, thr) -> np.ndarray | None:
+    """Boxes ``lo, hi`` (..., 2) against obstacle boxes ``o_lo, o_hi`` (K, 2) padded by ``o_pad``
+    (K,) and a scalar ``thr``: near, (..., K); ``None`` for other shapes or without the kernel."""
+    if getattr(thr, "ndim", 0) or getattr(o_lo, "ndim", 0) != 2:
+        return None
+    lib = _library()
+    if lib is None:
+        return None
+    lo = np.ascontiguousarray(lo, dtype=np.float64)
+    hi = np.ascontiguousarray(hi, dtype=np.float64)
+    o_lo = np.ascontiguousarray(o_lo, dtype=np.float64)
+    o_hi = np.ascontiguousarray(o_hi, dtype=np.float64)
+    o_pad = np.ascontiguousarray(o_pad, dtype=np.float64)
+    K = o_lo.shape[0]
+    if (lo.shape[-1:] != (2,) or hi.shape != lo.shape or o_lo.shape != (K, 2)
+            or o_hi.shape != (K, 2) or o_pad.shape != (K,)):
+        return None
+    M = lo.size // 2
+    out = np.empty((K, M), dtype=bool)              # obstacle by obstacle: a view transposed
+    if M and K:
+        lib.hn_boxes_near(M, K, lo.ctypes.data, hi.ctypes.data, o_lo.ctypes.data,
+                          o_hi.ctypes.data, o_pad.ctypes.data, float(thr), out.ctypes.data)
+    return out.T.reshape(lo.shape[:-1] + (K,))
