@@ -56,3 +56,33 @@ def test_other_shapes_go_to_numpy():
                             0.5) is None                       # boxes per time
     assert boxes.boxes_near(lo, lo, np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3),
                             np.full(3, 0.5)) is None           # a threshold per box
+
+
+@pytest.mark.parametrize("na,n1,m,view", [(30, 65, 1, True), (30, 17, 3, False), (5, 9, 1, True),
+                                          (7, 12, 2, False), (4, 2, 1, True), (0, 17, 1, True)])
+def test_compiled_stretch_boxes_equal_numpy(na, n1, m, view, monkeypatch):
+    """Views of a rollout (positions among other state) and whole footprints; short last
+    stretches; NaN and infinite samples."""
+    from hybridnav.planners.step.sweep import _STRIDE, _stretch_boxes
+
+    if boxes._library() is None:
+        pytest.skip("no C compiler")
+    rng = np.random.default_rng([na, n1, m])
+    nst = -(-(n1 - 1) // _STRIDE)
+    for special in (False, True):
+        if view:
+            traj = rng.standard_normal((na, n1, 5))
+            pts = traj[:, :, None, :2]
+        else:
+            pts = rng.standard_normal((na, n1, m, 2))
+        if special:
+            flat = pts.reshape(-1) if not view else traj.reshape(-1)
+            flat[rng.random(flat.size) < 0.02] = np.nan
+            flat[rng.random(flat.size) < 0.02] = np.inf
+        got = boxes.stretch_boxes(pts, nst, _STRIDE)
+        assert got is not None
+        with monkeypatch.context() as mp:
+            mp.setenv(native.ENV, "0")
+            want = _stretch_boxes(pts, nst)
+        for g, w in zip(got, want):
+            assert g.shape == w.shape and np.array_equal(g, w, equal_nan=True)

@@ -28,3 +28,41 @@ void hn_boxes_near(long long M, long long K, const double *restrict lo,
         }
     }
 }
+
+/* The boxes of hybridnav.planners.step.sweep._stretch_boxes: lo, hi (na, nst, 2) of the points
+   pts[a, s, j, :] (na, n1, m, 2; element strides s0, s1, s2, the coordinates adjacent) of each
+   stretch g, samples g * stride to min((g + 1) * stride, n1 - 1), all m points. Minima and maxima
+   are exact; a NaN coordinate makes that coordinate of the box NaN, as np.min does. */
+void hn_stretch_boxes(long long na, long long n1, long long m, long long nst, long long stride,
+                      const double *restrict pts, long long s0, long long s1, long long s2,
+                      double *restrict lo, double *restrict hi)
+{
+    const double nan = __builtin_nan("");
+    for (long long a = 0; a < na; a++) {
+        const double *row = pts + a * s0;
+        for (long long g = 0; g < nst; g++) {
+            long long k0 = g * stride, k1 = k0 + stride;
+            if (k1 > n1 - 1)
+                k1 = n1 - 1;
+            double lx = row[k0 * s1], ly = row[k0 * s1 + 1], hx = lx, hy = ly;
+            int nx = 0, ny = 0;
+            for (long long k = k0; k <= k1; k++) {
+                const double *p = row + k * s1;
+                for (long long j = 0; j < m; j++, p += s2) {
+                    const double x = p[0], y = p[1];
+                    nx |= x != x;
+                    ny |= y != y;
+                    lx = x < lx ? x : lx;
+                    hx = x > hx ? x : hx;
+                    ly = y < ly ? y : ly;
+                    hy = y > hy ? y : hy;
+                }
+            }
+            double *L = lo + (a * nst + g) * 2, *H = hi + (a * nst + g) * 2;
+            L[0] = nx ? nan : lx;
+            H[0] = nx ? nan : hx;
+            L[1] = ny ? nan : ly;
+            H[1] = ny ? nan : hy;
+        }
+    }
+}

@@ -1,6 +1,8 @@
-"""The box-to-box pruning test of the swept-footprint check (``boxes.c``) bound to NumPy:
+"""The boxes of the swept-footprint check's pruning (``boxes.c``) bound to NumPy:
 :func:`boxes_near` is :func:`hybridnav.planners.step.sweep._boxes_near` for one threshold and one
-set of obstacle boxes, in one pass instead of a dozen NumPy operations over (boxes, obstacles).
+set of obstacle boxes, in one pass instead of a dozen NumPy operations over (boxes, obstacles);
+:func:`stretch_boxes` is :func:`~hybridnav.planners.step.sweep._stretch_boxes` (exact minima and
+maxima, NaN where a coordinate is NaN).
 The same IEEE operations in the same order: the same booleans, NaN boxes included (the tests
 compare them). ``None`` where it does not apply (no compiler, kernels switched off, arrays of other
 shapes), and the caller runs its NumPy path.
@@ -15,7 +17,7 @@ import numpy as np
 
 from hybridnav import native
 
-__all__ = ["boxes_near"]
+__all__ = ["boxes_near", "stretch_boxes"]
 
 _LIB: list = []                            # [the library or None], once loaded
 
@@ -31,6 +33,9 @@ def _library() -> ctypes.CDLL | None:
                 lib.hn_boxes_near.argtypes = [c_int64, c_int64, c_void_p, c_void_p, c_void_p,
                                               c_void_p, c_void_p, c_double, c_void_p]
                 lib.hn_boxes_near.restype = None
+                lib.hn_stretch_boxes.argtypes = [c_int64] * 5 + [c_void_p] + [c_int64] * 3 + [
+                    c_void_p, c_void_p]
+                lib.hn_stretch_boxes.restype = None
         except AttributeError:             # a library without the kernel's function
             lib = None
         _LIB.append(lib)
@@ -60,3 +65,24 @@ def boxes_near(lo, hi, o_lo, o_hi, o_pad, thr) -> np.ndarray | None:
         lib.hn_boxes_near(M, K, lo.ctypes.data, hi.ctypes.data, o_lo.ctypes.data,
                           o_hi.ctypes.data, o_pad.ctypes.data, float(thr), out.ctypes.data)
     return out.T.reshape(lo.shape[:-1] + (K,))
+
+
+def stretch_boxes(pts: np.ndarray, nst: int, stride: int):
+    """Boxes ``lo, hi`` (na, nst, 2) of the points ``pts`` (na, samples, m, 2) of each stretch of
+    ``stride`` pieces; ``None`` without the kernel or for points that are not float64 with
+    adjacent coordinates."""
+    if pts.dtype != np.float64 or pts.ndim != 4 or pts.shape[3] != 2:
+        return None
+    lib = _library()
+    if lib is None:
+        return None
+    na, n1, m, _ = pts.shape
+    lo, hi = np.empty((na, nst, 2)), np.empty((na, nst, 2))
+    if not lo.size:
+        return lo, hi
+    st = pts.strides
+    if not (n1 and m) or st[3] != 8 or min(st) < 0 or any(s % 8 for s in st):
+        return None
+    lib.hn_stretch_boxes(na, n1, m, nst, stride, pts.ctypes.data, st[0] // 8, st[1] // 8,
+                         st[2] // 8, lo.ctypes.data, hi.ctypes.data)
+    return lo, hi

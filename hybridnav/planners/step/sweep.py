@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.native.boxes import boxes_near as compiled_boxes_near
+from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
 __all__ = ["roll_block", "sweep"]
@@ -248,7 +249,11 @@ class _Sweep:
 
 def _stretch_boxes(pts: FloatArray, nst: int) -> tuple[FloatArray, FloatArray]:
     """Boxes ``lo, hi`` (na, nst, 2) of the points ``pts`` (na, samples, m, 2) of each stretch:
-    samples ``g * _STRIDE`` to ``(g + 1) * _STRIDE`` (the last stretch may be short)."""
+    samples ``g * _STRIDE`` to ``(g + 1) * _STRIDE`` (the last stretch may be short). Compiled
+    (:mod:`hybridnav.native.boxes`) where it is: the same minima and maxima."""
+    boxes = compiled_stretch_boxes(pts, nst, _STRIDE)
+    if boxes is not None:
+        return boxes
     na, n1, m, _ = pts.shape
     T = np.moveaxis(pts, 1, 0)                                  # (samples, na, m, 2)
     pad = nst * _STRIDE + 1 - n1
