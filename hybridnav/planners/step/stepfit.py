@@ -38,6 +38,8 @@ from hybridnav.world import World, point_segment_distance
 __all__ = ["GoalDistance", "Surroundings", "feasible_steps", "step_fitness"]
 
 FloatArray = NDArray[np.float64]
+#: the 2 x 2 cells round a point, (column, row) offsets from the lower left one
+_CORNERS = np.array([[0, 0], [0, 1], [1, 0], [1, 1]])
 
 
 @dataclass(frozen=True)
@@ -256,14 +258,12 @@ class GoalDistance:
         goal = np.asarray(goal, float).reshape(2)
         # the 2 x 2 cell centres around each point
         base = np.floor((P - np.asarray(g.origin)) / g.resolution - 0.5).astype(int)
-        best = np.full(len(P), np.inf)
-        for dc in (0, 1):
-            for dr in (0, 1):
-                cells = base + np.array([dc, dr])
-                inside = g.in_bounds(cells)
-                val = np.full(len(P), np.inf)
-                val[inside] = field[g.cell_index(cells[inside])]
-                c = g.to_world(cells)
-                best = np.minimum(best, val + np.hypot(P[:, 0] - c[:, 0], P[:, 1] - c[:, 1]))
+        cells = (base[None] + _CORNERS[:, None]).reshape(-1, 2)         # (4 N, 2), corner-major
+        inside = g.in_bounds(cells)
+        val = np.full(len(cells), np.inf)
+        val[inside] = field[g.cell_index(cells[inside])]
+        c = g.to_world(cells)
+        P4 = np.tile(P, (4, 1))
+        best = (val + np.hypot(P4[:, 0] - c[:, 0], P4[:, 1] - c[:, 1])).reshape(4, -1).min(axis=0)
         straight = np.hypot(P[:, 0] - goal[0], P[:, 1] - goal[1])
         return np.where(straight < radius, straight, best)
