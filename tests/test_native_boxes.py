@@ -86,3 +86,21 @@ def test_compiled_stretch_boxes_equal_numpy(na, n1, m, view, monkeypatch):
             want = _stretch_boxes(pts, nst)
         for g, w in zip(got, want):
             assert g.shape == w.shape and np.array_equal(g, w, equal_nan=True)
+
+
+@pytest.mark.parametrize("special", [False, True])
+@pytest.mark.parametrize("shape,K", [((50,), 9), ((20, 8), 5), ((7, 3), 1), ((0,), 4), ((6,), 0)])
+def test_compiled_near_any_equals_border_or_any_obstacle(shape, K, special, monkeypatch):
+    """As sweep._Sweep._near_each's ``border | frozen.any(axis=-1)``, NaN corners near."""
+    if boxes._library() is None:
+        pytest.skip("no C compiler")
+    rng = np.random.default_rng([K, len(shape), special, 7])
+    workspace = (-3.0, 3.0, -2.5, 3.5)
+    for _ in range(20):
+        lo, hi, o_lo, o_hi, o_pad, thr = _case(rng, shape, K, special)
+        got = boxes.near_any(lo, hi, thr, workspace, o_lo, o_hi, o_pad)
+        xmin, xmax, ymin, ymax = workspace
+        border = ~((lo[..., 0] - xmin >= thr) & (xmax - hi[..., 0] >= thr)
+                   & (lo[..., 1] - ymin >= thr) & (ymax - hi[..., 1] >= thr))
+        want = border | _numpy(monkeypatch, lo, hi, o_lo, o_hi, o_pad, thr).any(axis=-1)
+        assert got is not None and got.shape == want.shape and np.array_equal(got, want)

@@ -43,3 +43,18 @@ def test_goal_distance_equals_the_cell_by_cell_loop(name):
             P[rng.random(n) < 0.05] = np.nan
             P[rng.random(n) < 0.05] = goal
             assert gd(P, goal).tobytes() == _goal_distance_loop(gd, P, goal).tobytes()
+
+
+@pytest.mark.parametrize("planner,scenario", [("fastep-kinematic", "fastep-s3"),
+                                              ("aco-kinematic", "fastep-s1")])
+def test_runs_are_the_same_with_the_compiled_kernels_off(planner, scenario, monkeypatch):
+    """The attraction loop and the sweep's box kernels switched off (HYBRIDNAV_NATIVE=0, read
+    at every call): the same run, state for state."""
+    from hybridnav import planners
+
+    runs = []
+    for env in ("1", "0"):
+        monkeypatch.setenv("HYBRIDNAV_NATIVE", env)
+        result = planners.get(planner).run(load_scenario(scenario), seed=0)
+        runs.append([(r.outcome, r.states.tobytes()) for r in result.robots])
+    assert runs[0] == runs[1]

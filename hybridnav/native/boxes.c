@@ -66,3 +66,29 @@ void hn_stretch_boxes(long long na, long long n1, long long m, long long nst, lo
         }
     }
 }
+
+/* Whether anything may come within thr of each box [lo, hi] (M, 2): the workspace border
+   (xmin, xmax, ymin, ymax; a NaN corner is near it) or one of the obstacle boxes, as
+   hn_boxes_near; out (M) is `border | frozen.any(axis=-1)` of sweep._Sweep._near_each. */
+void hn_near_any(long long M, const double *restrict lo, const double *restrict hi, double thr,
+                 double xmin, double xmax, double ymin, double ymax, long long K,
+                 const double *restrict olo, const double *restrict ohi,
+                 const double *restrict opad, unsigned char *restrict out)
+{
+    for (long long i = 0; i < M; i++) {
+        const double lx = lo[2 * i], ly = lo[2 * i + 1], hx = hi[2 * i], hy = hi[2 * i + 1];
+        int near = !((lx - xmin >= thr) & (xmax - hx >= thr) & (ly - ymin >= thr)
+                     & (ymax - hy >= thr));
+        for (long long k = 0; k < K && !near; k++) {
+            double reach = thr + opad[k];
+            double ax = olo[2 * k] - hx, bx = lx - ohi[2 * k];
+            double ay = olo[2 * k + 1] - hy, by = ly - ohi[2 * k + 1];
+            int nan = (ax != ax) | (bx != bx) | (ay != ay) | (by != by);
+            double gx = ax > bx ? ax : bx, gy = ay > by ? ay : by;
+            gx = gx > 0.0 ? gx : 0.0;
+            gy = gy > 0.0 ? gy : 0.0;
+            near = nan | !(gx * gx + gy * gy >= reach * reach);
+        }
+        out[i] = (unsigned char)near;
+    }
+}

@@ -1,7 +1,8 @@
 """The boxes of the swept-footprint check's pruning (``boxes.c``) bound to NumPy:
 :func:`boxes_near` is :func:`hybridnav.planners.step.sweep._boxes_near` for one threshold and one
 set of obstacle boxes, in one pass instead of a dozen NumPy operations over (boxes, obstacles);
-:func:`stretch_boxes` is :func:`~hybridnav.planners.step.sweep._stretch_boxes` (exact minima and
+:func:`near_any` is the border test and the any over the obstacles of
+:meth:`~hybridnav.planners.step.sweep._Sweep._near_each` in one pass; :func:`stretch_boxes` is :func:`~hybridnav.planners.step.sweep._stretch_boxes` (exact minima and
 maxima, NaN where a coordinate is NaN).
 The same IEEE operations in the same order: the same booleans, NaN boxes included (the tests
 compare them). ``None`` where it does not apply (no compiler, kernels switched off, arrays of other
@@ -17,7 +18,7 @@ import numpy as np
 
 from hybridnav import native
 
-__all__ = ["boxes_near", "stretch_boxes"]
+__all__ = ["boxes_near", "near_any", "stretch_boxes"]
 
 _LIB: list = []                            # [the library or None], once loaded
 
@@ -36,6 +37,9 @@ def _library() -> ctypes.CDLL | None:
                 lib.hn_stretch_boxes.argtypes = [c_int64] * 5 + [c_void_p] + [c_int64] * 3 + [
                     c_void_p, c_void_p]
                 lib.hn_stretch_boxes.restype = None
+                lib.hn_near_any.argtypes = [c_int64, c_void_p, c_void_p] + [c_double] * 5 + [
+                    c_int64, c_void_p, c_void_p, c_void_p, c_void_p]
+                lib.hn_near_any.restype = None
         except AttributeError:             # a library without the kernel's function
             lib = None
         _LIB.append(lib)
@@ -86,3 +90,30 @@ def stretch_boxes(pts: np.ndarray, nst: int, stride: int):
     lib.hn_stretch_boxes(na, n1, m, nst, stride, pts.ctypes.data, st[0] // 8, st[1] // 8,
                          st[2] // 8, lo.ctypes.data, hi.ctypes.data)
     return lo, hi
+
+
+def near_any(lo, hi, thr, workspace, o_lo, o_hi, o_pad) -> np.ndarray | None:
+    """Whether each box ``lo, hi`` (..., 2) comes within the scalar ``thr`` of the border of
+    ``workspace`` (xmin, xmax, ymin, ymax) or of one of the obstacle boxes (K, 2) padded by
+    ``o_pad``: (...); ``None`` where :func:`boxes_near` would be."""
+    if getattr(thr, "ndim", 0) or getattr(o_lo, "ndim", 0) != 2:
+        return None
+    lib = _library()
+    if lib is None:
+        return None
+    lo = np.ascontiguousarray(lo, dtype=np.float64)
+    hi = np.ascontiguousarray(hi, dtype=np.float64)
+    o_lo = np.ascontiguousarray(o_lo, dtype=np.float64)
+    o_hi = np.ascontiguousarray(o_hi, dtype=np.float64)
+    o_pad = np.ascontiguousarray(o_pad, dtype=np.float64)
+    K = o_lo.shape[0]
+    if (lo.shape[-1:] != (2,) or hi.shape != lo.shape or o_hi.shape != (K, 2)
+            or o_pad.shape != (K,)):
+        return None
+    out = np.empty(lo.shape[:-1], dtype=bool)
+    if out.size:
+        xmin, xmax, ymin, ymax = (float(v) for v in workspace)
+        lib.hn_near_any(out.size, lo.ctypes.data, hi.ctypes.data, float(thr), xmin, xmax, ymin,
+                        ymax, K, o_lo.ctypes.data, o_hi.ctypes.data, o_pad.ctypes.data,
+                        out.ctypes.data)
+    return out

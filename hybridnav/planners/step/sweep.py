@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.native.boxes import boxes_near as compiled_boxes_near
+from hybridnav.native.boxes import near_any as compiled_near_any
 from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
@@ -128,8 +129,15 @@ class _Sweep:
         for many boxes, the static obstacles and the border by the world's
         :meth:`~World.clear_map` (a few operations per box), the others box by box."""
         if lo[..., 0].size * self.n_static < _MAP_FROM:
-            border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
-            return border | frozen.any(axis=-1) | moving.any(axis=-1)
+            near = compiled_near_any(lo, hi, np.asarray(reach) + self.slack, self.world.workspace,
+                                     self.f_lo, self.f_hi, self.f_pad)
+            if near is None:
+                border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
+                return border | frozen.any(axis=-1) | moving.any(axis=-1)
+            if self.movers:
+                m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
+                near |= _boxes_near(lo, hi, m_lo, m_hi, m_pad, reach + self.slack).any(axis=-1)
+            return near
         near = ~self.static_world.clear_map(reach).free(lo, hi)
         thr = reach + self.slack
         if len(self.other_r):
