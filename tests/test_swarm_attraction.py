@@ -80,15 +80,15 @@ def test_the_compiled_loop_runs_where_it_applies(monkeypatch):
     if attract._library() is None:
         pytest.skip("no C compiler")
     Xs = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.5]])
-    Es = np.zeros((2, 3, 2))
+    E, order, first = np.zeros((3, 2)), np.array([2, 0, 1]), np.array([1, 2])
     Ys = Xs.copy()
-    assert attract.moves(Xs, Ys, Es, np.array([1, 2]), 3, 0.1, 1.0, 2.0, 0.0)
+    assert attract.moves(Xs, Ys, E, order, first, 3, 0.1, 1.0, 2.0, 0.0)
     assert not np.array_equal(Ys, Xs)
     Y3 = np.zeros((3, 3))
-    assert not attract.moves(Y3, Y3, np.zeros((2, 3, 3)), np.array([1, 2]), 3, 0.1, 1.0, 2.0, 0.0)
+    assert not attract.moves(Y3, Y3, np.zeros((3, 3)), order, first, 3, 0.1, 1.0, 2.0, 0.0)
     monkeypatch.setenv(native.ENV, "0")
     Ys = Xs.copy()
-    assert not attract.moves(Xs, Ys, Es, np.array([1, 2]), 3, 0.1, 1.0, 2.0, 0.0)
+    assert not attract.moves(Xs, Ys, E, order, first, 3, 0.1, 1.0, 2.0, 0.0)
     assert np.array_equal(Ys, Xs)
 
 

@@ -22,8 +22,9 @@ __all__ = ["moves"]
 
 class _Attract(Structure):
     _fields_ = [("n", c_int64), ("d", c_int64), ("m", c_int64), ("Xs", c_void_p),
-                ("Ys", c_void_p), ("Es", c_void_p), ("first", c_void_p), ("diff", c_void_p),
-                ("arg", c_void_p), ("ex", c_void_p), ("inv_diag2", c_double),
+                ("Ys", c_void_p), ("E", c_void_p), ("order", c_void_p), ("first", c_void_p),
+                ("diff", c_void_p), ("arg", c_void_p), ("ex", c_void_p), ("row", c_void_p),
+                ("rank", c_void_p), ("off", c_int64), ("inv_diag2", c_double),
                 ("neg_gamma", c_double), ("scale", c_double), ("beta_min", c_double)]
 
 
@@ -46,11 +47,12 @@ def _library() -> ctypes.CDLL | None:
     return _LIB[0]
 
 
-def moves(Xs: np.ndarray, Ys: np.ndarray, Es: np.ndarray, first: np.ndarray, m: int,
-          inv_diag2: float, gamma: float, beta0: float, beta_min: float) -> bool:
+def moves(Xs: np.ndarray, Ys: np.ndarray, E: np.ndarray, order: np.ndarray, first: np.ndarray,
+          m: int, inv_diag2: float, gamma: float, beta0: float, beta_min: float) -> bool:
     """Move ``Ys`` (sorted by brightness, C-contiguous float64, in place) towards each of the
-    ``J = len(first)`` brightest in turn, as the NumPy loop of ``_attraction_moves`` does; False
-    (``Ys`` untouched) where the kernel does not apply."""
+    ``J = len(first)`` brightest in turn, as the NumPy loop of ``_attraction_moves`` does, the
+    random steps ``E`` rows in the order they were drawn (``order``: the index of the firefly
+    at each sorted position); False (``Ys`` untouched) where the kernel does not apply."""
     n, d = Xs.shape
     if d > 2 or d < 1:
         return False
@@ -58,15 +60,18 @@ def moves(Xs: np.ndarray, Ys: np.ndarray, Es: np.ndarray, first: np.ndarray, m: 
     if lib is None:
         return False
     Xs = np.ascontiguousarray(Xs, dtype=np.float64)
-    Es = np.ascontiguousarray(Es, dtype=np.float64)
+    E = np.ascontiguousarray(E, dtype=np.float64)
+    order = np.ascontiguousarray(order, dtype=np.int64)
     first = np.ascontiguousarray(first, dtype=np.int64)
     if not (Ys.flags.c_contiguous and Ys.dtype == np.float64):
         raise ValueError("Ys must be C-contiguous float64")
     diff = np.empty((n, d))
     arg, ex = np.empty(n), np.empty(n)
-    a = _Attract(n, d, int(m), Xs.ctypes.data, Ys.ctypes.data, Es.ctypes.data,
+    row, rank = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    a = _Attract(n, d, int(m), Xs.ctypes.data, Ys.ctypes.data, E.ctypes.data, order.ctypes.data,
                  first.ctypes.data, diff.ctypes.data, arg.ctypes.data, ex.ctypes.data,
-                 float(inv_diag2), -gamma, beta0 - beta_min, float(beta_min))
+                 row.ctypes.data, rank.ctypes.data, 0, float(inv_diag2), -gamma,
+                 beta0 - beta_min, float(beta_min))
     ref = ctypes.byref(a)
     step, exp = lib.hn_attract_step, np.exp
     J = len(first)

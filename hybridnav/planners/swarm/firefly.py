@@ -74,14 +74,14 @@ def _attraction_moves(run: Run, X: NDArray[np.float64], F: NDArray[np.float64], 
     E = alpha_t * (run.rng.random((total + n - int(np.count_nonzero(moved)), d)) - 0.5) * run.span
     Y = X.copy()
     if J:
-        # row of E of each (j, mover): j's block, then the mover's rank in index order
-        movers = Fs[:J, None] < F[None, :]                      # (J, n), index order
-        rank = np.cumsum(movers, axis=1) - 1
-        off = np.concatenate([[0], np.cumsum(m - first)[:-1]])
-        Es = E[np.clip(off[:, None] + rank[:, order], 0, max(total - 1, 0))]   # (J, n, d) sorted
         Xs = X[order]
         Ys = Xs.copy()
-        if not compiled_moves(Xs, Ys, Es, first, m, inv_diag2, gamma, beta0, beta_min):
+        if not compiled_moves(Xs, Ys, E, order, first, m, inv_diag2, gamma, beta0, beta_min):
+            # row of E of each (j, mover): j's block, then the mover's rank in index order
+            movers = Fs[:J, None] < F[None, :]                  # (J, n), index order
+            rank = np.cumsum(movers, axis=1) - 1
+            off = np.concatenate([[0], np.cumsum(m - first)[:-1]])
+            Es = E[np.clip(off[:, None] + rank[:, order], 0, max(total - 1, 0))]  # (J, n, d)
             for p, s in enumerate(first.tolist()):
                 V = Ys[s:m]
                 diff = Xs[p] - V
