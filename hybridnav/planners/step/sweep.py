@@ -199,9 +199,10 @@ class _Sweep:
             C = full.reshape((-1,) + full.shape[2:])[idx]
         need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
         if len(need) > 1:
-            c_lo, c_hi = C.min(axis=1), C.max(axis=1)                 # (ns, nd, 2)
-            near_disk = np.stack([self._near(c_lo[:, j], c_hi[:, j], need[j], t0[gs], t1[gs])
-                                  for j in range(len(need))], axis=1)  # (ns, nd)
+            # each disk's box along the stretch: its one stretch of (ns, 9) samples
+            boxes = [_stretch_boxes(C[:, :, j:j + 1], 1) for j in range(len(need))]
+            near_disk = np.stack([self._near(c_lo[:, 0], c_hi[:, 0], need[j], t0[gs], t1[gs])
+                                  for j, (c_lo, c_hi) in enumerate(boxes)], axis=1)  # (ns, nd)
         else:
             near_disk = np.ones((len(rows), 1), dtype=bool)
         q = gs[:, None] * _STRIDE + np.arange(_STRIDE)[None, :]       # (ns, _STRIDE) pieces
