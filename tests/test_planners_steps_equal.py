@@ -58,3 +58,29 @@ def test_runs_are_the_same_with_the_compiled_kernels_off(planner, scenario, monk
         result = planners.get(planner).run(load_scenario(scenario), seed=0)
         runs.append([(r.outcome, r.states.tobytes()) for r in result.robots])
     assert runs[0] == runs[1]
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered in cast")
+@pytest.mark.parametrize("name", ["fastep-s2", "tractor-trailer-1"])
+def test_step_fitness_is_row_by_row(name):
+    """The planners evaluate the fitness of the feasible candidates only: a row's value does not
+    depend on the other rows (straight-line and geodesic distance, circles, edges, robots)."""
+    from hybridnav.planners.step.stepfit import Surroundings, step_fitness
+
+    scenario = load_scenario(name)
+    world = scenario.world
+    xmin, xmax, ymin, ymax = world.workspace
+    rng = np.random.default_rng(3)
+    robots = rng.uniform(xmin, xmax, (2, 2))
+    env = Surroundings.at(world, 0.0, robots, (robots, np.array([0.5, 0.7])))
+    gd = GoalDistance(scenario, inflate=scenario.robots[0].radius)
+    goal = np.array(scenario.robots[0].goal, float)
+    X = np.column_stack([rng.uniform(xmin - 1, xmax + 1, 400), rng.uniform(ymin - 1, ymax + 1, 400)])
+    X[::37] = np.nan
+    X[5] = goal
+    X[6] = robots[0]
+    for dist in (None, gd):
+        full = step_fitness(X, goal, env, 0.18, 0.18, 0.18, 0.01, goal_distance=dist)
+        for sel in (np.arange(0), np.array([5]), np.flatnonzero(rng.random(400) < 0.3)):
+            part = step_fitness(X[sel], goal, env, 0.18, 0.18, 0.18, 0.01, goal_distance=dist)
+            assert part.tobytes() == full[sel].tobytes()
