@@ -105,6 +105,20 @@ class _Sweep:
         # everything frozen during the plan: static obstacles, then the other robots' disks
         self.f_lo, self.f_hi, self.f_pad = env.frozen_boxes
 
+    @classmethod
+    def of(cls, model, env, margin: float) -> _Sweep:
+        """The one for ``model`` and ``margin`` in ``env`` (kept in ``env``: a plan checks its
+        candidates many times in the same surroundings; nothing here changes after
+        :meth:`__init__`)."""
+        cache = env.__dict__.setdefault("_sweeps", {})
+        key = (id(model), float(margin))
+        found = cache.get(key)
+        if found is None or found.model is not model:
+            if len(cache) >= 8:
+                cache.pop(next(iter(cache)))
+            found = cache[key] = cls(model, env, margin)
+        return found
+
     # ---- which stretches and pieces need the exact test ------------------------------------
 
     def _near_each(self, lo: FloatArray, hi: FloatArray, reach, t0, t1):
@@ -361,12 +375,12 @@ def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float
     bad = np.zeros(n, dtype=bool)
     last = np.full(n, steps)
     end = np.empty((n, 2))
-    check = _Sweep(model, env, margin)
+    check = _Sweep.of(model, env, margin)
     d0 = np.hypot(x0[0] - P[:, 0], x0[1] - P[:, 1])
     last[d0 <= reach] = 0
     end[:] = x0[:2]                         # (also where the distance is NaN: never integrated)
     active = np.flatnonzero(d0 > reach)
-    cur = np.broadcast_to(x0, (len(active), model.nx))
+    cur = np.repeat(x0[None], len(active), axis=0)
     block, sub = roll_block(model, len(active))
     k = 0
     while k < steps and len(active):
