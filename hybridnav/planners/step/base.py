@@ -229,7 +229,6 @@ class StepPlanner(Planner):
             upper = np.maximum(upper, lower + 1e-9)
 
             def f(X: np.ndarray) -> np.ndarray:
-                val = step_fitness(X, goal, env, *weights, goal_distance=goal_distance[i])
                 is_goal = (X[:, 0] == goal[0]) & (X[:, 1] == goal[1])
                 ok = is_goal | (np.hypot(X[:, 0] - pos[0], X[:, 1] - pos[1]) > reach[i])
                 if world.obstacles:
@@ -241,7 +240,13 @@ class StepPlanner(Planner):
                 if len(sel):
                     ok[sel] = feasible_steps(plan_models[i], x0, X[sel], env, steps=steps,
                                              reach=reach[i], margin=m_i, end_margin=margin[i])
-                return np.where(ok, val, np.inf)
+                # the fitness of the feasible candidates only (row by row: the same values)
+                val = np.full(len(X), np.inf)
+                sel = np.flatnonzero(ok)
+                if len(sel):
+                    val[sel] = step_fitness(X[sel], goal, env, *weights,
+                                            goal_distance=goal_distance[i])
+                return val
 
             init = np.clip(goal, lower, upper)[None] if v["goal_candidate"] else None
             res = self.optimize(f, lower, upper, rng, init, memories[i])

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +38,8 @@ from hybridnav.world import World, point_segment_distance
 __all__ = ["GoalDistance", "Surroundings", "feasible_steps", "step_fitness"]
 
 FloatArray = NDArray[np.float64]
+#: the 2 x 2 cells round a point, (column, row) offsets from the lower left one
+_CORNERS = np.array([[0, 0], [0, 1], [1, 0], [1, 1]])
 
 
 @dataclass(frozen=True)
@@ -77,6 +80,16 @@ class Surroundings:
         centres, _ = world.circles(t)
         return cls(world, float(t), centres, world.edges(), np.asarray(robots, float).reshape(-1, 2),
                    robot_discs, world.static(), world.moving())
+
+    @cached_property
+    def frozen_boxes(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Boxes ``lo, hi`` (K, 2) and pads (K,) of what stands still while a step is planned:
+        the static obstacles (:meth:`World.boxes`), then the other robots' disks (the centre
+        and the radius). Computed once for the many checks of one plan."""
+        lo, hi, pad = self.static.boxes()
+        oc = np.asarray(self.robot_discs[0], dtype=float).reshape(-1, 2)
+        return (np.concatenate([lo, oc]), np.concatenate([hi, oc]),
+                np.concatenate([pad, np.asarray(self.robot_discs[1], dtype=float).reshape(-1)]))
 
 
 def step_fitness(P: FloatArray, goal: FloatArray, env: Surroundings, a: float, b: float, c: float,
@@ -245,14 +258,12 @@ class GoalDistance:
         goal = np.asarray(goal, float).reshape(2)
         # the 2 x 2 cell centres around each point
         base = np.floor((P - np.asarray(g.origin)) / g.resolution - 0.5).astype(int)
-        best = np.full(len(P), np.inf)
-        for dc in (0, 1):
-            for dr in (0, 1):
-                cells = base + np.array([dc, dr])
-                inside = g.in_bounds(cells)
-                val = np.full(len(P), np.inf)
-                val[inside] = field[g.cell_index(cells[inside])]
-                c = g.to_world(cells)
-                best = np.minimum(best, val + np.hypot(P[:, 0] - c[:, 0], P[:, 1] - c[:, 1]))
+        cells = (base[None] + _CORNERS[:, None]).reshape(-1, 2)         # (4 N, 2), corner-major
+        inside = g.in_bounds(cells)
+        val = np.full(len(cells), np.inf)
+        val[inside] = field[g.cell_index(cells[inside])]
+        c = g.to_world(cells)
+        P4 = np.tile(P, (4, 1))
+        best = (val + np.hypot(P4[:, 0] - c[:, 0], P4[:, 1] - c[:, 1])).reshape(4, -1).min(axis=0)
         straight = np.hypot(P[:, 0] - goal[0], P[:, 1] - goal[1])
         return np.where(straight < radius, straight, best)

@@ -40,6 +40,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from hybridnav.native.boxes import boxes_near as compiled_boxes_near
+from hybridnav.native.boxes import near_any as compiled_near_any
+from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
 __all__ = ["roll_block", "sweep"]
@@ -100,11 +103,21 @@ class _Sweep:
         scale = max(abs(v) for v in world.workspace) + (self.extent or 0.0) + self.margin
         self.slack = 1e-9 * (1.0 + scale)
         # everything frozen during the plan: static obstacles, then the other robots' disks
-        lo, hi, pad = env.static.boxes()
-        oc = np.asarray(self.other_c, dtype=float).reshape(-1, 2)
-        self.f_lo = np.concatenate([lo, oc])
-        self.f_hi = np.concatenate([hi, oc])
-        self.f_pad = np.concatenate([pad, np.asarray(self.other_r, dtype=float).reshape(-1)])
+        self.f_lo, self.f_hi, self.f_pad = env.frozen_boxes
+
+    @classmethod
+    def of(cls, model, env, margin: float) -> _Sweep:
+        """The one for ``model`` and ``margin`` in ``env`` (kept in ``env``: a plan checks its
+        candidates many times in the same surroundings; nothing here changes after
+        :meth:`__init__`)."""
+        cache = env.__dict__.setdefault("_sweeps", {})
+        key = (id(model), float(margin))
+        found = cache.get(key)
+        if found is None or found.model is not model:
+            if len(cache) >= 8:
+                cache.pop(next(iter(cache)))
+            found = cache[key] = cls(model, env, margin)
+        return found
 
     # ---- which stretches and pieces need the exact test ------------------------------------
 
@@ -130,8 +143,15 @@ class _Sweep:
         for many boxes, the static obstacles and the border by the world's
         :meth:`~World.clear_map` (a few operations per box), the others box by box."""
         if lo[..., 0].size * self.n_static < _MAP_FROM:
-            border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
-            return border | frozen.any(axis=-1) | moving.any(axis=-1)
+            near = compiled_near_any(lo, hi, np.asarray(reach) + self.slack, self.world.workspace,
+                                     self.f_lo, self.f_hi, self.f_pad)
+            if near is None:
+                border, frozen, moving = self._near_each(lo, hi, reach, t0, t1)
+                return border | frozen.any(axis=-1) | moving.any(axis=-1)
+            if self.movers:
+                m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
+                near |= _boxes_near(lo, hi, m_lo, m_hi, m_pad, reach + self.slack).any(axis=-1)
+            return near
         near = ~self.static_world.clear_map(reach).free(lo, hi)
         thr = reach + self.slack
         if len(self.other_r):
@@ -193,9 +213,10 @@ class _Sweep:
             C = full.reshape((-1,) + full.shape[2:])[idx]
         need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
         if len(need) > 1:
-            c_lo, c_hi = C.min(axis=1), C.max(axis=1)                 # (ns, nd, 2)
-            near_disk = np.stack([self._near(c_lo[:, j], c_hi[:, j], need[j], t0[gs], t1[gs])
-                                  for j in range(len(need))], axis=1)  # (ns, nd)
+            # each disk's box along the stretch: its one stretch of (ns, 9) samples
+            boxes = [_stretch_boxes(C[:, :, j:j + 1], 1) for j in range(len(need))]
+            near_disk = np.stack([self._near(c_lo[:, 0], c_hi[:, 0], need[j], t0[gs], t1[gs])
+                                  for j, (c_lo, c_hi) in enumerate(boxes)], axis=1)  # (ns, nd)
         else:
             near_disk = np.ones((len(rows), 1), dtype=bool)
         q = gs[:, None] * _STRIDE + np.arange(_STRIDE)[None, :]       # (ns, _STRIDE) pieces
@@ -251,7 +272,11 @@ class _Sweep:
 
 def _stretch_boxes(pts: FloatArray, nst: int) -> tuple[FloatArray, FloatArray]:
     """Boxes ``lo, hi`` (na, nst, 2) of the points ``pts`` (na, samples, m, 2) of each stretch:
-    samples ``g * _STRIDE`` to ``(g + 1) * _STRIDE`` (the last stretch may be short)."""
+    samples ``g * _STRIDE`` to ``(g + 1) * _STRIDE`` (the last stretch may be short). Compiled
+    (:mod:`hybridnav.native.boxes`) where it is: the same minima and maxima."""
+    boxes = compiled_stretch_boxes(pts, nst, _STRIDE)
+    if boxes is not None:
+        return boxes
     na, n1, m, _ = pts.shape
     T = np.moveaxis(pts, 1, 0)                                  # (samples, na, m, 2)
     pad = nst * _STRIDE + 1 - n1
@@ -270,7 +295,11 @@ def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArr
     """Whether each obstacle box ``[o_lo, o_hi]`` (shape (K, 2) or (..., K, 2)), padded by
     ``o_pad``, is closer than ``thr`` to each box ``[lo, hi]`` (shape (..., 2)): (..., K).
     (The Euclidean distance between two boxes is a lower bound of the distance between their
-    points; a box with a NaN corner is near everything.)"""
+    points; a box with a NaN corner is near everything.) For one threshold and (K, 2) obstacle
+    boxes, the compiled test (:mod:`hybridnav.native.boxes`: the same operations) where it is."""
+    near = compiled_boxes_near(lo, hi, o_lo, o_hi, o_pad, thr)
+    if near is not None:
+        return near
     reach = np.asarray(thr)[..., None] + o_pad
     gx = np.maximum(np.maximum(o_lo[..., 0] - hi[..., 0, None], lo[..., 0, None] - o_hi[..., 0]),
                     0.0)
@@ -346,12 +375,12 @@ def sweep(model, x0: FloatArray, P: FloatArray, env, *, steps: int, reach: float
     bad = np.zeros(n, dtype=bool)
     last = np.full(n, steps)
     end = np.empty((n, 2))
-    check = _Sweep(model, env, margin)
+    check = _Sweep.of(model, env, margin)
     d0 = np.hypot(x0[0] - P[:, 0], x0[1] - P[:, 1])
     last[d0 <= reach] = 0
     end[:] = x0[:2]                         # (also where the distance is NaN: never integrated)
     active = np.flatnonzero(d0 > reach)
-    cur = np.broadcast_to(x0, (len(active), model.nx))
+    cur = np.repeat(x0[None], len(active), axis=0)
     block, sub = roll_block(model, len(active))
     k = 0
     while k < steps and len(active):

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hybridnav.native.attract import moves as compiled_moves
 from hybridnav.planners.swarm._core import (
     BoundsLike,
     Objective,
@@ -48,25 +49,47 @@ def _attraction_moves(run: Run, X: NDArray[np.float64], F: NDArray[np.float64], 
     one move after the other, ``j`` visited from the brightest down (Yang's ``fa_mincon`` order),
     each move ``x_i <- x_i + beta(r_ij) (x_j - x_i) + alpha_t eps`` using ``x_j`` and ``F`` from the
     start of the generation and the current ``x_i``. A firefly with no brighter one (the brightest,
-    and any tied with it) makes one random move ``x_i + alpha_t eps``. The loop over ``j`` runs
-    ``n`` times per generation, each step vectorized over all ``i``; the result is the same as
-    Yang's double loop.
+    and any tied with it, and any with a NaN value) makes one random move ``x_i + alpha_t eps``.
+    The result is the same as Yang's double loop.
+
+    The random steps are drawn as that loop draws them -- for each ``j`` one row per mover, the
+    movers in index order, then one row per firefly that did not move, in index order -- but in
+    one call. The loop over ``j`` works on the swarm sorted by brightness, where the movers of
+    ``j`` are a contiguous run (every firefly strictly dimmer than ``j``; NaN values sort last and
+    never move), so each attraction is a handful of operations on a slice -- or one call of the
+    compiled loop (:mod:`hybridnav.native.attract`, with NumPy's exp), where it applies.
     """
     n, d = X.shape
     inv_diag2 = 1.0 / float(run.span @ run.span)
-    Y = X.copy()
+    order = np.argsort(F, kind="stable")
+    Fs = F[order]
+    m = n - int(np.count_nonzero(np.isnan(Fs)))                 # NaNs sort last
+    first = np.searchsorted(Fs[:m], Fs[:m], side="right")       # movers of the p-th: first[p]:m
+    J = int(np.count_nonzero(first < m))                        # the js that have movers
+    first = first[:J]
+    total = int(np.sum(m - first))
     moved = np.zeros(n, dtype=bool)
-    for j in np.argsort(F, kind="stable"):
-        movers = F[j] < F
-        k = int(np.count_nonzero(movers))
-        if k == 0:  # j is as dim as the dimmest: the remaining js are no brighter
-            break
-        diff = X[j] - Y[movers]
-        beta = _beta(np.einsum("ij,ij->i", diff, diff) * inv_diag2, beta0, gamma, beta_min)
-        Y[movers] += beta[:, None] * diff + alpha_t * (run.rng.random((k, d)) - 0.5) * run.span
-        moved |= movers
-    still = ~moved
-    Y[still] += alpha_t * (run.rng.random((int(np.count_nonzero(still)), d)) - 0.5) * run.span
+    if J:
+        moved[order[first[0]:m]] = True
+    E = alpha_t * (run.rng.random((total + n - int(np.count_nonzero(moved)), d)) - 0.5) * run.span
+    Y = X.copy()
+    if J:
+        Xs = X[order]
+        Ys = Xs.copy()
+        if not compiled_moves(Xs, Ys, E, order, first, m, inv_diag2, gamma, beta0, beta_min):
+            # row of E of each (j, mover): j's block, then the mover's rank in index order
+            movers = Fs[:J, None] < F[None, :]                  # (J, n), index order
+            rank = np.cumsum(movers, axis=1) - 1
+            off = np.concatenate([[0], np.cumsum(m - first)[:-1]])
+            Es = E[np.clip(off[:, None] + rank[:, order], 0, max(total - 1, 0))]  # (J, n, d)
+            for p, s in enumerate(first.tolist()):
+                V = Ys[s:m]
+                diff = Xs[p] - V
+                beta = _beta(np.einsum("ij,ij->i", diff, diff) * inv_diag2, beta0, gamma,
+                             beta_min)
+                V += beta[:, None] * diff + Es[p, s:m]
+        Y[order] = Ys
+    Y[~moved] += E[total:]
     return np.clip(Y, run.lower, run.upper)
 
 
