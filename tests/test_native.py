@@ -301,3 +301,20 @@ def test_a_truncated_library_in_the_cache_is_built_again(monkeypatch, tmp_path):
     monkeypatch.setattr(native, "_LOADED", {})
     assert native.build("probe", code).f() == 7
     assert so.read_bytes() == whole                          # built again, not loaded
+
+
+def test_processes_sharing_the_cache_build_a_library_once(tmp_path):
+    """Two processes asking for the same new library at once: one builds it, the other waits
+    for it and loads it (no half-written pair, no second build)."""
+    import subprocess
+    import sys
+
+    code = ("import time, hybridnav.native as n; "
+            "lib = n.build('race', 'int f(void) { return 5; }'); print(lib.f())")
+    env = {**os.environ, "HYBRIDNAV_CACHE_DIR": str(tmp_path)}
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(3)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [o.strip() for o, _ in outs] == ["5", "5", "5"]
+    assert not any("does not match" in e for _, e in outs)
+    assert len(list(tmp_path.glob("native/race-*.so"))) == 1

@@ -12,6 +12,7 @@ the cache (which would crash the process that loads it) is built again instead o
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import logging
@@ -117,10 +118,36 @@ def _intact(target: Path) -> bool:
         return False
 
 
+@contextlib.contextmanager
+def _locked(folder: Path, key: str):
+    """Hold an exclusive lock on ``key`` across processes sharing the cache (two workers that
+    build or check the same library at once would otherwise see each other's half-written
+    pair of files and rebuild it); without ``fcntl`` or a writable folder, no lock."""
+    try:
+        import fcntl
+
+        folder.mkdir(parents=True, exist_ok=True)
+        fh = open(folder / f".{key}.lock", "a+")
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        yield
+    finally:
+        fh.close()                                  # releases the lock
+
+
 def _build(key: str, code: str, options: tuple[str, ...] = (),
            suffix: str = ".so") -> Path | None:
-    compiler = os.environ.get("CC", "gcc")
     folder = cache_dir()
+    with _locked(folder, key):
+        return _build_locked(key, code, options, suffix, folder)
+
+
+def _build_locked(key: str, code: str, options: tuple[str, ...], suffix: str,
+                  folder: Path) -> Path | None:
+    compiler = os.environ.get("CC", "gcc")
     target = folder / f"{key}{suffix}"
     if target.exists() and not _intact(target):
         # a truncated or foreign file would crash the process inside dlopen: build it again
