@@ -185,6 +185,11 @@ def _kwargs_calls():
         "effc-5rule").to_casadi(dtheta=0.1, alpha=0.5, bogus=1.0)
     calls["hybridnav.tuner.core.learn"] = lambda: learn(
         fuzzy.builtin("effc-2rule"), DataCost([[0.1, 0.5]], [0.5]), max_rules=2, bogus=1.0)
+    from hybridnav.tuner import NavigationCost
+    from hybridnav.tuner.falsify import falsify_systems
+
+    calls["hybridnav.tuner.falsify.falsify_systems"] = lambda: falsify_systems(
+        NavigationCost([load_scenario("effc-train-1")]), {"apf": "apf"}, budget=30, bogus=1.0)
     return calls
 
 

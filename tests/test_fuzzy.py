@@ -286,7 +286,8 @@ def test_duplicate_json_key_and_unreadable_file(tmp_path):
 # ------------------------------------------------------------------------------------ built-ins
 
 def test_builtins_are_the_papers_tables():
-    assert fuzzy.builtin_names() == ["effc-2rule", "effc-5rule", "effc-tuned", "steer-7rule"]
+    assert fuzzy.builtin_names() == ["effc-2rule", "effc-5rule", "effc-safe", "effc-tuned",
+                                     "steer-7rule"]
     five, two = fuzzy.builtin("effc-5rule"), fuzzy.load("effc-2rule")
     for fs in (five, two):
         assert fs.input_names == ("dtheta", "alpha")

@@ -9,6 +9,7 @@ EFFC paper's TurtleBot3: heading change at most ``max_turn`` per control cycle).
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from abc import abstractmethod
@@ -73,24 +74,22 @@ class FieldPlanner(Planner):
     def scale_for(self, scenario) -> float:
         """The length scale of this run: ``scale`` when set, else the scenario's robots' median
         radius over the EFFC paper's 0.1 m (1 on the paper's worlds: its defaults unchanged)."""
-        given = getattr(self, "_declared", self.values)["scale"]
-        if given > 0:
-            return float(given)
+        if self.values["scale"] > 0:
+            return float(self.values["scale"])
         radii = [float(r.radius) for r in scenario.robots]
         return float(np.median(radii)) / REFERENCE_RADIUS if radii else 1.0
 
-    def _scaled(self, scenario) -> None:
-        """Set the run's values: defaults of :attr:`scaled` parameters times ``scale ** p``
-        (values the user or the profile set stay as they are); ``scale`` records the factor."""
-        if not hasattr(self, "_declared"):
-            self._declared = dict(self.values)
+    def scaled_values(self, scenario) -> dict[str, Any]:
+        """The values a run on ``scenario`` uses: defaults of :attr:`scaled` parameters times
+        ``scale ** p`` (values the user or the profile set stay as they are); ``scale`` holds
+        the factor."""
         s = self.scale_for(scenario)
-        values = dict(self._declared)
+        values = dict(self.values)
         for key, power in self.scaled.items():
             if key not in self.given:
-                values[key] = self._declared[key] * s ** power
+                values[key] = self.values[key] * s ** power
         values["scale"] = s
-        self.values = values
+        return values
 
     def prepare(self, scenario, rng: np.random.Generator) -> Any:
         """Work done once per run before the loop (a harmonic field, tuned gains, ...)."""
@@ -138,7 +137,13 @@ class FieldPlanner(Planner):
 
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
-        self._scaled(scenario)
+        # the run works on a copy holding the scenario's values: the planner itself is not
+        # changed by a run (one instance runs scenarios of any scale alike)
+        run = copy.copy(self)
+        run.values = self.scaled_values(scenario)
+        return run._run(scenario, seed)
+
+    def _run(self, scenario, seed: int | None) -> Result:
         rng = np.random.default_rng(seed)
         tic = time.perf_counter()
         state = self.prepare(scenario, rng)
