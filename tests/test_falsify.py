@@ -39,7 +39,7 @@ def test_finds_reproducible_failures_that_replay_with_the_planner(job):
         r = w.robots[0]
         assert solvable(w, 0.05) and math.dist(r.start, r.goal) >= gen.min_distance
         assert np.all(w.world.clearance(np.array([r.start, r.goal])) >= 0.25 - 1e-9)
-        ref = planners.get("effc", fis=fis).run(w).robots[0]
+        ref = planners.get("effc", fis=fis, **dict(job["planner"])).run(w).robots[0]
         assert ref.outcome == outcome != "reached"
         assert ref.min_clearance == pytest.approx(clear, abs=1e-9)
 
@@ -61,6 +61,7 @@ def test_vectors_breaking_the_rules_are_rejected():
 
 def test_apf_is_searched_like_a_fuzzy_system_and_its_finds_replay_with_the_apf_planner(job):
     from hybridnav.tuner.falsify import falsify_systems, rates
+    from hybridnav.tuner.heldout import baseline
 
     cost = job.cost("train")
     got = falsify_systems(cost, {"start": job.start_system(), "apf": "apf"}, budget=90,
@@ -70,7 +71,7 @@ def test_apf_is_searched_like_a_fuzzy_system_and_its_finds_replay_with_the_apf_p
     a = got["apf"]
     assert a.evaluations == 90 and 0 < a.valid and a.costs == again.costs
     for w, outcome, clear in zip(a.worlds, a.outcomes, a.clearances):
-        ref = planners.get("apf", **dict(job["planner"])).run(w).robots[0]
+        ref = planners.get("apf", **baseline(dict(job["planner"]))).run(w).robots[0]
         assert ref.outcome == outcome != "reached"
         assert ref.min_clearance == pytest.approx(clear, abs=1e-9)
     # the start searched alone with the same seed is the same search
@@ -139,4 +140,20 @@ def test_a_search_with_structures_is_reproducible_and_replays(job):
     assert a.costs == b.costs and a.valid > 0
     for w, outcome in zip(a.worlds, a.outcomes):
         assert solvable(w, 0.05)
-        assert planners.get("effc", fis=fis).run(w).robots[0].outcome == outcome
+        p = planners.get("effc", fis=fis, **dict(job["planner"]))
+        assert p.run(w).robots[0].outcome == outcome
+
+
+def test_finds_with_segments_are_told_apart():
+    from hybridnav.tuner.falsify import _same
+
+    gen = WorldGenerator(resolution=0.05)
+    x = np.array([0.8, 0.8, 4.2, 4.2, 0.0, 4.2, 0.8, 0.2, 1.0, 0.5, 0.0, 1.0, 0.6])
+    a = world_from_vector(x, gen, "a", {"cups": 1})
+    y = x.copy()
+    y[11] = 1.3                                         # a wider cup
+    b = world_from_vector(y, gen, "b", {"cups": 1})
+    assert _same(a, a) and not _same(a, b)
+    z = x.copy()
+    z[8] = 0.0                                          # no cup at all
+    assert not _same(a, world_from_vector(z, gen, "c", {"cups": 1}))

@@ -184,7 +184,8 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
         Its planner, planner settings and reward define the search's cost.
     system : FuzzySystem or "apf"
         The controller searched: a fuzzy system run by the cost's planner, or the plain
-        ``apf`` planner with the cost's planner settings.
+        ``apf`` planner with the cost's planner settings (:func:`hybridnav.tuner.heldout.baseline`:
+        without the safety filter).
     budget : int
         Candidate worlds to try in all (the swarm's ``max_evals``).
     population : int
@@ -216,9 +217,10 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
             raise HybridnavError(f"falsify: system: expected a FuzzySystem or 'apf', got "
                                  f"{system!r}")
         from hybridnav.planners.field.apf import apf_lockstep
+        from hybridnav.tuner.heldout import baseline
 
         def simulate(on):
-            return apf_lockstep(on.packed, dict(on.planner_params))
+            return apf_lockstep(on.packed, baseline(dict(on.planner_params)))
     else:
         family = SystemFamily(system)
         tables = family.tables_of([system])
@@ -304,7 +306,14 @@ def _same(a, b, tol: float = 0.05) -> bool:
     ra, rb = a.robots[0], b.robots[0]
     if math.dist(ra.start, rb.start) > tol or math.dist(ra.goal, rb.goal) > tol:
         return False
-    ca = sorted((o.center, o.radius) for o in a.world.obstacles)
-    cb = sorted((o.center, o.radius) for o in b.world.obstacles)
-    return len(ca) == len(cb) and all(math.dist(p, q) <= tol and abs(r - s) <= tol
-                                      for (p, r), (q, s) in zip(ca, cb))
+    ca, cb = sorted(map(_numbers, a.world.obstacles)), sorted(map(_numbers, b.world.obstacles))
+    return len(ca) == len(cb) and all(
+        p[0] == q[0] and len(p) == len(q) and max(abs(u - v) for u, v in zip(p[1:], q[1:])) <= tol
+        for p, q in zip(ca, cb))
+
+
+def _numbers(o) -> tuple:
+    """An obstacle of a search world as (kind, numbers...): circles and segments."""
+    if hasattr(o, "center"):
+        return (0, *o.center, o.radius)
+    return (1, *o.a, *o.b)

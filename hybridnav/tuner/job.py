@@ -33,6 +33,11 @@ __all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "quick"]
 _POS = {"lo": 0.0}                  # a non-negative number
 _UNIT = {"lo": 0.0, "hi": 1.0}       # a fraction
 
+#: The generated worlds with structures that trap reactive controllers in the built-in sets:
+#: one of each class at most, besides up to three circles
+TRAPS: dict[str, Any] = {"cups": [0, 1], "corridors": [0, 1], "gaps": [0, 1], "walls": [0, 1],
+                         "circles": [0, 3], "name": "trap"}
+
 #: Every key of a job file, declared once: default, what it does, type and bounds. The built-in
 #: job (:data:`DEFAULT_JOB`) is their defaults; ``validate_job`` checks a file against them.
 SCHEMA: dict[str, dict[str, Param]] = {
@@ -106,11 +111,13 @@ SCHEMA: dict[str, dict[str, Param]] = {
                                   "fraction of the range (0: not enforced)", **_UNIT),
     },
     "scenarios": {
-        "train": Param(["effc-train-1", "effc-train-2", {"generate": 30, "seed": 1}],
+        "train": Param(["effc-train-1", "effc-train-2", {"generate": 30, "seed": 1},
+                        {"generate": 8, "seed": 11, **TRAPS}],
                        "the training worlds: names, files or generated sets"),
-        "validation": Param([{"generate": 24, "seed": 2}], "the worlds that choose the "
-                                                           "returned system"),
-        "test": Param(["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3}],
+        "validation": Param([{"generate": 24, "seed": 2}, {"generate": 6, "seed": 12, **TRAPS}],
+                            "the worlds that choose the returned system"),
+        "test": Param(["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3},
+                       {"generate": 8, "seed": 13, **TRAPS}],
                       "the worlds only reported"),
         "heldout": Param([], "the old name of test"),
     },

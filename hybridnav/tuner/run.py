@@ -177,12 +177,14 @@ def _paths(job: Job, result: TuningResult, out: Path) -> list[str]:
         h = result.heldout
         failed = set(h[(h.set == "test") & (h.system == "tuned")
                        & (h.outcome != "reached")].scenario)
-    shown = [("train", s) for s in job.scenarios("train") if not s.name.startswith("gen-")]
-    shown += [("test", s) for s in test if not s.name.startswith("gen-")]
-    shown += [("test: tuned fails", s) for s in test
-              if s.name.startswith("gen-") and s.name in failed]
+    def generated(s) -> bool:
+        return "(hybridnav.worldgen)" in (s.description or "")
+
+    shown = [("train", s) for s in job.scenarios("train") if not generated(s)]
+    shown += [("test", s) for s in test if not generated(s)]
+    shown += [("test: tuned fails", s) for s in test if generated(s) and s.name in failed]
     shown += [("test", s) for s in test
-              if s.name.startswith("gen-") and s.name not in failed][:max(0, 4 - len(failed))]
+              if generated(s) and s.name not in failed][:max(0, 4 - len(failed))]
     if not shown:
         return []
     fig = Figure(figsize=(12.5, 4.0 * len(shown)), layout="constrained")
@@ -552,8 +554,11 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
             for r in falsified["rows"]:
                 lines.append(f"| `{r['world']}` | {r['tuned']} | {_fmt(r['tuned_clearance'])} "
                              f"| {r['start']} | {r['apf']} |")
+            margin = job["planner"].get("safety_margin", 0.0)
             lines += ["", f"Replay one: `hybridnav run <world> --planner "
-                          f"{job['cost']['planner']} --fis fis.json --out DIR`."]
+                          f"{job['cost']['planner']} --fis fis.json"
+                          + (f" --set safety_margin={margin:g}" if margin else "")
+                          + " --out DIR`."]
         else:
             lines += ["", "No failure found within the budget."]
     lines += sil or []

@@ -110,8 +110,8 @@ PLANNER: dict[str, Param] = {
                       lo=0.0, lo_open=True, hi=math.pi),
     "stuck_window": Param(10.0, "seconds without progress that count as stuck", **_POS),
     "stuck_radius": Param(2.0, "the no-progress disk, in goal radii", **_POS),
-    "safety_margin": Param(0.0, "room (m, beyond the robot radius) the escape-circle safety "
-                                "filter keeps (0: off; hybridnav.planners.field.safety)", **_POS),
+    "safety_margin": Param(0.05, "room (m, beyond the robot radius) the escape-circle safety "
+                                 "filter keeps (0: off; hybridnav.planners.field.safety)", **_POS),
 }
 
 
@@ -262,7 +262,10 @@ class NavigationCost(Cost):
     def describe(self) -> str:
         what = (f"the {self.reward['kind']} reward" if self.objectives_measured == ("reward",)
                 else "the objectives " + ", ".join(self.objective_names))
-        return f"{what} of the {self.planner} planner on {len(self.scenarios)} worlds"
+        margin = self.planner_params.get("safety_margin", 0.0)
+        return (f"{what} of the {self.planner} planner on {len(self.scenarios)} worlds"
+                + (f", with its escape-circle safety filter at safety_margin = {margin:g} (deploy "
+                   "it with that setting)" if margin else ""))
 
     def with_scenarios(self, scenarios: Sequence, name: str) -> NavigationCost:
         """The same cost on other worlds."""
@@ -432,6 +435,7 @@ class NavigationCost(Cost):
             COLUMNS,
             _apf_rows,
             _lockstep_rows,
+            baseline,
             planner_rows,
             uniform,
         )
@@ -450,7 +454,7 @@ class NavigationCost(Cost):
         if apf and labels:                 # one lockstep batch: what the planner does, run by run
             from hybridnav.planners.field.apf import apf_lockstep
 
-            res = apf_lockstep(self.packed, dict(self.planner_params))
+            res = apf_lockstep(self.packed, baseline(dict(self.planner_params)))
             rows += _lockstep_rows(role, self.scenarios, ["apf"], res)
         elif apf:
             backend = backend or SerialBackend()
