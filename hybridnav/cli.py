@@ -190,14 +190,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     rows = verify(system, compiled, [load_scenario(n) for n in names], seed=args.seed)
     print(f"{args.c_file} (compiled) against {args.fis} (Python), planner effc, seed {args.seed}:")
     print(f"  {'scenario':<16} {'robot':<8} {'outcome':<14} {'samples':>7} {'max |dx|':>10} "
-          f"{'max |dw|':>10}")
+          f"{'max |dw|':>10} {'same inputs':>11}")
     ok = True
     for r in rows:
         good = r["same_outcome"] and r["max_state_diff"] <= args.tolerance \
-            and r["max_w_diff"] <= args.tolerance
+            and r["max_w_diff"] <= args.tolerance and r["same_inputs_w_diff"] <= args.tolerance
         ok &= good
         print(f"  {r['scenario']:<16} {r['robot']:<8} {r['outcome']:<14} {r['samples']:>7} "
-              f"{r['max_state_diff']:>10.2e} {r['max_w_diff']:>10.2e}{'' if good else '  DIFFERS'}")
+              f"{r['max_state_diff']:>10.2e} {r['max_w_diff']:>10.2e} "
+              f"{r['same_inputs_w_diff']:>11.2e}{'' if good else '  DIFFERS'}")
     print(f"{'verified' if ok else 'NOT verified'}: every trajectory and w signal "
           f"{'within' if ok else 'must be within'} {args.tolerance:g}")
     return 0 if ok else 1
@@ -361,7 +362,8 @@ def _clear_tuning_outputs(out) -> None:
 
     for name in ("checkpoint.json", "evaluations.jsonl", "result.json", "report.md",
                  "pareto.csv", "front.png", "paths.png", "coverage.png", "surface.png",
-                 "falsified.csv", "falsification.csv", "validation.csv", "heldout.csv", "heldout_summary.csv"):
+                 "falsified.csv", "falsification.csv", "deployment.json", "effc_safety.c",
+                 "effc_safety.h", "validation.csv", "heldout.csv", "heldout_summary.csv"):
         (out / name).unlink(missing_ok=True)
     for name in ("learning", "front", "falsified"):
         if (out / name).is_dir():

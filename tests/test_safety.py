@@ -134,3 +134,49 @@ def test_apf_and_the_planners_take_the_margin_and_scale_it():
     cm = planners.get("effc", safety_margin=0.02).run(load_scenario("fastep-s1"))
     assert cm.params["safety_margin"] == 0.02             # set by the user: not scaled
     assert planners.get("effc").run(load_scenario("fastep-s1")).params["safety_margin"] == 0.0
+
+
+def test_the_exported_c_filter_is_the_python_filter(tmp_path):
+    """The deployment's C filter, compiled and called with a clearance callback, makes the same
+    decisions and commands as escape_filter on random states near obstacles."""
+    import ctypes
+    import shutil
+    import subprocess
+
+    from hybridnav.planners.field.deploy import write_deployment
+
+    if shutil.which("gcc") is None:
+        pytest.skip("no C compiler")
+    settings = {"speed": SPEED, "max_turn": TURN, "stuck_window": 10.0, "stuck_radius": 2.0,
+                "safety_margin": MARGIN}
+    files = write_deployment(tmp_path, "effc", "effc", settings, dt=DT, radius=R)
+    assert files == ["deployment.json", "effc_safety.h", "effc_safety.c"]
+    so = tmp_path / "libsafety.so"
+    subprocess.run(["gcc", "-std=c99", "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-Wall",
+                    "-Werror", "-o", str(so), str(tmp_path / "effc_safety.c"), "-lm"],
+                   check=True)
+    lib = ctypes.CDLL(str(so))
+    CB = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p)
+    world = _world()
+    clear = _clearance(world)
+    cb = CB(lambda qx, qy, ctx: float(clear(np.array([[qx, qy]]), None)[0]))
+    fn = lib.effc_safety_filter
+    fn.argtypes = [ctypes.c_double] * 3 + [ctypes.POINTER(ctypes.c_double)] * 2 + [CB,
+                                                                                  ctypes.c_void_p]
+    rng = np.random.default_rng(1)
+    X = np.column_stack([rng.uniform(0, 2, 400), rng.uniform(0, 2, 400),
+                         rng.uniform(-np.pi, np.pi, 400)])
+    V = rng.normal(size=(400, 2))
+    want, changed = escape_filter(X, V, speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN,
+                                  radius=np.full(400, R), clearance=clear)
+    assert changed.sum() > 50
+    for i in range(400):
+        vx, vy = ctypes.c_double(V[i, 0]), ctypes.c_double(V[i, 1])
+        got = fn(X[i, 0], X[i, 1], X[i, 2], ctypes.byref(vx), ctypes.byref(vy), cb, None)
+        assert bool(got) == changed[i]
+        np.testing.assert_allclose([vx.value, vy.value], want[i], rtol=0, atol=1e-12)
+    import json
+
+    info = json.loads((tmp_path / "deployment.json").read_text())
+    assert info["safety_margin"] == MARGIN and info["safety_filter"] == "effc_safety.c"
+    assert "--set safety_margin=0.02" in info["note"]

@@ -412,7 +412,8 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
     assert main(["tune", str(job_file), "--out", str(tmp_path / "o"), "--force"]) == 0
     for name in ("fis.json", "start.json", "logbook.csv", "evaluations.csv", "validation.csv",
                  "heldout.csv", "heldout_summary.csv", "convergence.png", "mfs.png",
-                 "surface.png", "coverage.png", "paths.png", "report.md", "checkpoint.json"):
+                 "surface.png", "coverage.png", "paths.png", "report.md", "checkpoint.json",
+                 "deployment.json", "effc_safety.c", "effc_safety.h"):
         assert (tmp_path / "o" / name).exists(), name
     tuned = fuzzy.load(str(tmp_path / "o" / "fis.json"))
     assert tuned.input_names == ("dtheta", "alpha")
@@ -433,7 +434,7 @@ def test_tune_cli_quick_writes_every_output(tmp_path):
     # the start's row comes from the same lockstep code as tuning; check one against the planner
     row = held[(held.set == "test") & (held.system == "start")
                & (held.scenario == "effc-env-b")].iloc[0]
-    ref = planners.get("effc", fis="effc-5rule").run(
+    ref = planners.get("effc", fis="effc-5rule", safety_margin=0.05).run(
         __import__("hybridnav.world", fromlist=["x"]).load_scenario("effc-env-b")).robots[0]
     assert row.outcome == ref.outcome and row.path_length == pytest.approx(ref.path_length)
     import pandas as pd

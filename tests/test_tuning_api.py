@@ -484,7 +484,7 @@ def test_fuzzy_steer_lockstep_is_the_planner_and_tunes_on_the_same_worlds(tmp_pa
     cost = NavigationCost(worlds, planner="fuzzy-steer", name="fresh")
     table = cost.judge({"start": start}, "fresh", apf=False)
     for w in worlds:
-        r = planners.get("fuzzy-steer", fis=start).run(w).robots[0]
+        r = planners.get("fuzzy-steer", fis=start, **cost.planner_params).run(w).robots[0]
         row = table[table.scenario == w.name].iloc[0]
         assert row.outcome == r.outcome
         assert row.path_length == pytest.approx(r.path_length, rel=1e-9)

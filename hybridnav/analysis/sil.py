@@ -37,7 +37,11 @@ def verify(system, compiled: CompiledFIS, scenarios: Sequence[Any], *,
     list of dict
         Per scenario and robot: ``scenario``, ``robot``, ``outcome`` (Python's), ``same_outcome``,
         ``samples``, ``max_state_diff`` and ``max_w_diff`` (``inf`` when the runs have different
-        lengths).
+        lengths: a closed loop with a discontinuity — a graze that is a collision in one run, the
+        safety filter's decision at its margin — can part on rounding), and
+        ``same_inputs_w_diff``: the compiled evaluator's ``w`` against the Python one's on the
+        inputs of the Python run, sample by sample (the export's own exactness, whatever the
+        loop does).
     """
     from hybridnav.planners.field.effc import EFFC
 
@@ -53,7 +57,14 @@ def verify(system, compiled: CompiledFIS, scenarios: Sequence[Any], *,
             wb = b.extras.get(f"signals_{rb.name}", {}).get("w", np.zeros(0))
             dw = float(np.max(np.abs(wa - wb))) if wa.shape == wb.shape and wa.size else \
                 (0.0 if wa.shape == wb.shape else float("inf"))
+            sig = a.extras.get(f"signals_{ra.name}", {})
+            inputs = {k: np.asarray(sig[k]) for k in system.input_names if k in sig}
+            if len(inputs) == len(system.input_names) and len(wa):
+                wc = np.asarray(compiled.evaluate(**inputs), dtype=float)
+                di = float(np.max(np.abs(wc - wa)))
+            else:
+                di = float("nan")
             rows.append({"scenario": scen.name, "robot": ra.name, "outcome": ra.outcome,
                          "same_outcome": ra.outcome == rb.outcome, "samples": len(ra.t),
-                         "max_state_diff": ds, "max_w_diff": dw})
+                         "max_state_diff": ds, "max_w_diff": dw, "same_inputs_w_diff": di})
     return rows

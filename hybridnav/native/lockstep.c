@@ -451,14 +451,6 @@ static void hn_check(const hn_stack *s, const hn_run *r, hn_work *w, int64_t n, 
     if (code) { r->status[n] = code; r->t_end[n] = t; }
 }
 
-/* np.remainder(a, b): the sign of b */
-static double hn_remainder(double a, double b)
-{
-    double m = fmod(a, b);
-    if (m != 0.0 && ((b < 0) != (m < 0))) m += b;
-    return m;
-}
-
 /* clearance of (qx, qy) in world e at time t: nearest obstacle or the border */
 static double hn_clear_at(const hn_stack *s, hn_work *w, int64_t e, double qx, double qy,
                           double t)
@@ -470,59 +462,13 @@ static double hn_clear_at(const hn_stack *s, hn_work *w, int64_t e, double qx, d
     return b < c || isnan(b) ? b : c;      /* np.minimum */
 }
 
-#define HN_CANDIDATES 9
+/* the escape filter's view of one robot's world (escape.c, prepended to this file) */
+typedef struct { const hn_stack *s; hn_work *w; int64_t e; double t; } hn_clear_ctx;
 
-/* the escape-circle safety filter of one robot (hybridnav/planners/field/safety.py, the same
- * operations): V becomes a safe command when the wanted heading change ends unsafe */
-static void hn_escape(const hn_stack *s, const hn_run *r, hn_work *w, int64_t n, double t,
-                      double *V)
+static double hn_clear_cb(double qx, double qy, void *ctx)
 {
-    const double *x = r->X + (size_t)n * r->nx;
-    int64_t e = r->env[n];
-    double mt = r->max_turn, step = r->speed * r->dt, rho = r->speed * r->dt / mt;
-    double theta = x[2];
-    double want = hn_remainder(atan2(V[1], V[0]) - theta + M_PI, 2 * M_PI) - M_PI;
-    want = want < -mt ? -mt : (want > mt ? mt : want);
-    double d[HN_CANDIDATES + 1], circle[HN_CANDIDATES + 1];
-    int ok[HN_CANDIDATES + 1];
-    d[0] = want;
-    double dl = (mt - -mt) / (HN_CANDIDATES - 1);
-    for (int i = 0; i < HN_CANDIDATES; ++i) d[1 + i] = i * dl + -mt;
-    d[HN_CANDIDATES] = mt;
-    double need = r->foot_radius + r->safety;
-    for (int i = 0; i <= HN_CANDIDATES; ++i) {
-        double th1 = theta + d[i], x1, y1;
-        if (fabs(d[i]) < 1e-12) {
-            x1 = x[0] + step * cos(theta);
-            y1 = x[1] + step * sin(theta);
-        } else {
-            double R = step / d[i];
-            x1 = x[0] + R * (sin(th1) - sin(theta));
-            y1 = x[1] + R * (cos(theta) - cos(th1));
-        }
-        double nx_ = -sin(th1), ny_ = cos(th1);
-        double c0 = hn_clear_at(s, w, e, x1, y1, t);
-        double cl = hn_clear_at(s, w, e, x1 + rho * nx_, y1 + rho * ny_, t);
-        double cr = hn_clear_at(s, w, e, x1 - rho * nx_, y1 - rho * ny_, t);
-        circle[i] = hn_maximum(cl, cr) - rho;
-        ok[i] = c0 >= need && circle[i] >= need;
-        if (i == 0 && ok[0]) return;              /* the wanted change ends safe */
-    }
-    int best = -1;
-    double bs = -INFINITY;
-    for (int i = 0; i <= HN_CANDIDATES; ++i)
-        if (ok[i] && (best < 0 || -fabs(d[i] - want) > bs)) { bs = -fabs(d[i] - want); best = i; }
-    if (best < 0) {                               /* none safe: the most room */
-        bs = -INFINITY;
-        best = 0;
-        for (int i = 0; i <= HN_CANDIDATES; ++i) {
-            double v = isnan(circle[i]) ? -INFINITY : circle[i];
-            if (v > bs) { bs = v; best = i; }
-        }
-    }
-    double pick = theta + d[best];
-    V[0] = r->speed * cos(pick);
-    V[1] = r->speed * sin(pick);
+    hn_clear_ctx *c = (hn_clear_ctx *)ctx;
+    return hn_clear_at(c->s, c->w, c->e, qx, qy, c->t);
 }
 
 int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
@@ -624,15 +570,14 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
             V[2 * n + 1] = vy;
         }
         if (r->safety > 0) {
-            double rho = r->speed * r->dt / r->max_turn, step = r->speed * r->dt;
+            hn_escape_params ep = {r->speed, r->dt, r->max_turn, r->safety, r->foot_radius};
             for (int64_t n = 0; n < N; ++n) {
                 if (r->status[n] != RUNNING) continue;
                 const double *x = r->X + (size_t)n * nx;
                 double b = hn_border(s, r->env[n], x[0], x[1]), c = w.clear[n];
-                double here = b < c || isnan(b) ? b : c;
-                if (here - r->foot_radius >= r->safety + 2 * rho + 2 * step + 1e-12) continue;
-                if (!isfinite(V[2 * n]) || !isfinite(V[2 * n + 1])) continue;
-                hn_escape(s, r, &w, n, t, V + 2 * n);
+                hn_clear_ctx cc = {s, &w, r->env[n], t};
+                hn_escape_filter(&ep, x[0], x[1], x[2], V + 2 * n, V + 2 * n + 1, hn_clear_cb,
+                                 &cc, b < c || isnan(b) ? b : c);
             }
         }
         double tn = (k + 1) * r->dt;

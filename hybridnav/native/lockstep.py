@@ -85,7 +85,7 @@ def _library(model=None) -> ctypes.CDLL | None:
         return None
     key = (native.cache_dir(), None if model is None else model._key())
     if key not in _LIBS:
-        code = native.source("lockstep.c")
+        code = native.source("escape.c") + "\n" + native.source("lockstep.c")
         if model is None:
             lib = native.build("family", "#define HN_NO_MODEL 1\n" + code)
         else:

@@ -159,6 +159,13 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         files += _paths(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
+    if nav:                                   # the settings (and filter) it was judged with
+        from hybridnav.planners.field.deploy import write_deployment
+
+        first = job.scenarios("train")[0]
+        files += write_deployment(out, C_BASENAME if effc else "fis", job["cost"]["planner"],
+                                  dict(job["planner"]), dt=first.dt,
+                                  radius=float(first.robots[0].radius))
     sil = _sil_lines(job, result.system, out) if effc and f"{C_BASENAME}.c" in files else []
     atomic_write_text(out / "report.md", _report(job, result, summary, unc, files, falsified,
                                                  sil))
@@ -377,18 +384,27 @@ def _sil_lines(job: Job, system, out: Path) -> list[str]:
         return head + [f"Not checked: {exc}"]
     worlds = job.scenarios("train")[:1] + job.scenarios("test")[:2]
     rows = verify(system, compiled, worlds, **job["planner"])
+    exact = max(r["same_inputs_w_diff"] for r in rows)
     worst = max(max(r["max_state_diff"], r["max_w_diff"]) for r in rows)
     same = all(r["same_outcome"] for r in rows)
-    lines = head + [f"`{C_BASENAME}.c`, compiled with the system C compiler and called through "
-                    "ctypes, drove the same EFFC closed loop as the Python evaluator: "
-                    f"{'the same outcomes, ' if same else 'DIFFERENT OUTCOMES, '}largest "
-                    f"difference of states and w {worst:.2e} "
-                    f"({'within' if worst <= 1e-9 and same else 'NOT within'} 1e-9). Check "
-                    f"again: `hybridnav verify fis.json {C_BASENAME}.c`.", "",
-                    "| world | outcome | samples | max abs state diff | max abs w diff |",
-                    "|---|---|---|---|---|"]
+    parted = [r["scenario"] for r in rows if not r["max_state_diff"] <= 1e-9]
+    margin = job["planner"].get("safety_margin", 0.0)
+    lines = head + [
+        f"`{C_BASENAME}.c`, compiled with the system C compiler and called through ctypes, "
+        f"gives the Python evaluator's w on the same inputs to {exact:.1e} "
+        f"({'within' if exact <= 1e-9 else 'NOT within'} 1e-9) along the runs below, and drove "
+        "the same EFFC closed loop"
+        + (f" (with the safety filter at {margin:g} m)" if margin else "") + ": "
+        + ("the same outcomes" if same else "DIFFERENT OUTCOMES")
+        + (f", states and w within {worst:.2e}." if not parted else
+           f"; on {', '.join(parted)} the two loops parted where the loop is discontinuous "
+           "(the filter's decision at its margin, or a graze), so their samples are not "
+           "compared there.")
+        + f" Check again: `hybridnav verify fis.json {C_BASENAME}.c`.", "",
+        "| world | outcome | samples | max abs state diff | max abs w diff | w diff, same inputs |",
+        "|---|---|---|---|---|---|"]
     lines += [f"| {r['scenario']} | {r['outcome']} | {r['samples']} | {r['max_state_diff']:.2e} "
-              f"| {r['max_w_diff']:.2e} |" for r in rows]
+              f"| {r['max_w_diff']:.2e} | {r['same_inputs_w_diff']:.2e} |" for r in rows]
     return lines
 
 
@@ -411,6 +427,14 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         lines += [f"Worlds: {n['train']} for training, {n['validation']} for validation "
                   f"(choosing the returned system), {n['test']} for the final test (used only "
                   "for this report).", "", _reward_text(job)]
+        margin = job["planner"].get("safety_margin", 0.0)
+        if margin:
+            lines += ["", f"Safety filter: the escape-circle filter kept {margin:g} m beyond the "
+                          "robot radius in every run of the fuzzy systems here (tuning, "
+                          "validation, test, falsification); `apf` ran without it, as a user "
+                          "runs it. The tuned controller is the fuzzy system *with* that filter: "
+                          f"`deployment.json` holds the settings, `{C_BASENAME}_safety.c` / "
+                          f"`{C_BASENAME}_safety.h` the filter in C."]
     lines.append("")
     # the verdict first: what a user deploys
     for which in ("test", "validation"):

@@ -202,7 +202,8 @@ class EFFC(FieldPlanner):
         if "clearance" in self.fis.input_names:
             inputs["clearance"] = effc_clearance(clear, radius)
         w = self.fis.evaluate(**inputs)
-        self.trace(sim, idx, w=w, dtheta=dtheta, alpha=np.minimum(alpha, 1e3))
+        # (alpha and clearance capped for the plots: the system clips them to its ranges)
+        self.trace(sim, idx, w=w, **{k: np.minimum(v, 1e3) for k, v in inputs.items()})
         return effc_force(w, f_att, f_rep)
 
     def describe(self):
