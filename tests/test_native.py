@@ -207,7 +207,11 @@ def test_without_a_compiler_every_caller_falls_back(monkeypatch, tmp_path, caplo
     monkeypatch.setenv("HYBRIDNAV_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     monkeypatch.setattr(native, "_LOADED", {})
+    monkeypatch.setattr(native, "_KERNELS", {})
     assert native.build("probe", "int f(void) { return 1; }") is None
+    from hybridnav.native import attract, boxes
+
+    assert attract._library() is None and boxes._library() is None
     assert kernel.family_evaluate(*_one_member(), {"dtheta": [0.1], "alpha": [0.2]}) is None
     fam, tables, member = _one_member()
     out = fam.evaluate(tables, member, {"dtheta": [0.1], "alpha": [0.2]})    # NumPy

@@ -23,6 +23,7 @@ import tempfile
 import threading
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +78,28 @@ def build(name: str, code: str, libs: tuple[str, ...] = ()) -> ctypes.CDLL | Non
                 log.info("cannot load %s: %s", target, exc)
         _LOADED[key] = lib
         return lib
+
+
+_KERNELS: dict[str, ctypes.CDLL | None] = {}
+
+
+def kernel(name: str, signatures: dict[str, tuple[list, Any]]) -> ctypes.CDLL | None:
+    """The shipped C source ``<name>.c`` built and loaded once per process, its functions typed
+    by ``signatures`` (symbol -> (argtypes, restype)); ``None`` where kernels are switched off or
+    unavailable, or the library lacks one of the symbols."""
+    if not enabled():
+        return None
+    if name not in _KERNELS:
+        lib = build(name, source(f"{name}.c"))
+        try:
+            for symbol, (argtypes, restype) in signatures.items():
+                if lib is not None:
+                    fn = getattr(lib, symbol)
+                    fn.argtypes, fn.restype = argtypes, restype
+        except AttributeError:             # a library without the kernel's functions
+            lib = None
+        _KERNELS[name] = lib
+    return _KERNELS[name]
 
 
 def build_file(name: str, code: str, options: tuple[str, ...] = (),

@@ -28,23 +28,10 @@ class _Attract(Structure):
                 ("neg_gamma", c_double), ("scale", c_double), ("beta_min", c_double)]
 
 
-_LIB: list = []                            # [the library or None], once loaded
-
-
 def _library() -> ctypes.CDLL | None:
     """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
-    if not native.enabled():
-        return None
-    if not _LIB:
-        lib = native.build("attract", native.source("attract.c"))
-        try:
-            if lib is not None:
-                lib.hn_attract_step.argtypes = [POINTER(_Attract), c_int64, c_int64]
-                lib.hn_attract_step.restype = c_int64
-        except AttributeError:             # a library without the kernel's function
-            lib = None
-        _LIB.append(lib)
-    return _LIB[0]
+    return native.kernel("attract", {"hn_attract_step": ([POINTER(_Attract), c_int64, c_int64],
+                                                         c_int64)})
 
 
 def moves(Xs: np.ndarray, Ys: np.ndarray, E: np.ndarray, order: np.ndarray, first: np.ndarray,

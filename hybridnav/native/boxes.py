@@ -20,50 +20,42 @@ from hybridnav import native
 
 __all__ = ["boxes_near", "near_any", "stretch_boxes"]
 
-_LIB: list = []                            # [the library or None], once loaded
-
-
 def _library() -> ctypes.CDLL | None:
     """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
-    if not native.enabled():
-        return None
-    if not _LIB:
-        lib = native.build("boxes", native.source("boxes.c"))
-        try:
-            if lib is not None:
-                lib.hn_boxes_near.argtypes = [c_int64, c_int64, c_void_p, c_void_p, c_void_p,
-                                              c_void_p, c_void_p, c_double, c_void_p]
-                lib.hn_boxes_near.restype = None
-                lib.hn_stretch_boxes.argtypes = [c_int64] * 5 + [c_void_p] + [c_int64] * 3 + [
-                    c_void_p, c_void_p]
-                lib.hn_stretch_boxes.restype = None
-                lib.hn_near_any.argtypes = [c_int64, c_void_p, c_void_p] + [c_double] * 5 + [
-                    c_int64, c_void_p, c_void_p, c_void_p, c_void_p]
-                lib.hn_near_any.restype = None
-        except AttributeError:             # a library without the kernel's function
-            lib = None
-        _LIB.append(lib)
-    return _LIB[0]
+    return native.kernel("boxes", {
+        "hn_boxes_near": ([c_int64, c_int64, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p,
+                           c_double, c_void_p], None),
+        "hn_stretch_boxes": ([c_int64] * 5 + [c_void_p] + [c_int64] * 3 + [c_void_p, c_void_p],
+                             None),
+        "hn_near_any": ([c_int64, c_void_p, c_void_p] + [c_double] * 5 + [
+            c_int64, c_void_p, c_void_p, c_void_p, c_void_p], None)})
 
 
-def boxes_near(lo, hi, o_lo, o_hi, o_pad, thr) -> np.ndarray | None:
-    """Boxes ``lo, hi`` (..., 2) against obstacle boxes ``o_lo, o_hi`` (K, 2) padded by ``o_pad``
-    (K,) and a scalar ``thr``: near, (..., K); ``None`` for other shapes or without the kernel."""
+def _operands(lo, hi, o_lo, o_hi, o_pad, thr):
+    """``(lib, lo, hi, o_lo, o_hi, o_pad)`` as contiguous float64 for the box kernels, or ``None``
+    (shapes the kernels do not take, or no kernel)."""
     if getattr(thr, "ndim", 0) or getattr(o_lo, "ndim", 0) != 2:
         return None
     lib = _library()
     if lib is None:
         return None
-    lo = np.ascontiguousarray(lo, dtype=np.float64)
-    hi = np.ascontiguousarray(hi, dtype=np.float64)
-    o_lo = np.ascontiguousarray(o_lo, dtype=np.float64)
-    o_hi = np.ascontiguousarray(o_hi, dtype=np.float64)
-    o_pad = np.ascontiguousarray(o_pad, dtype=np.float64)
+    lo, hi, o_lo, o_hi, o_pad = (np.ascontiguousarray(a, dtype=np.float64)
+                                 for a in (lo, hi, o_lo, o_hi, o_pad))
     K = o_lo.shape[0]
     if (lo.shape[-1:] != (2,) or hi.shape != lo.shape or o_lo.shape != (K, 2)
             or o_hi.shape != (K, 2) or o_pad.shape != (K,)):
         return None
-    M = lo.size // 2
+    return lib, lo, hi, o_lo, o_hi, o_pad
+
+
+def boxes_near(lo, hi, o_lo, o_hi, o_pad, thr) -> np.ndarray | None:
+    """Boxes ``lo, hi`` (..., 2) against obstacle boxes ``o_lo, o_hi`` (K, 2) padded by ``o_pad``
+    (K,) and a scalar ``thr``: near, (..., K); ``None`` for other shapes or without the kernel."""
+    args = _operands(lo, hi, o_lo, o_hi, o_pad, thr)
+    if args is None:
+        return None
+    lib, lo, hi, o_lo, o_hi, o_pad = args
+    K, M = o_lo.shape[0], lo.size // 2
     out = np.empty((K, M), dtype=bool)              # obstacle by obstacle: a view transposed
     if M and K:
         lib.hn_boxes_near(M, K, lo.ctypes.data, hi.ctypes.data, o_lo.ctypes.data,
@@ -96,20 +88,11 @@ def near_any(lo, hi, thr, workspace, o_lo, o_hi, o_pad) -> np.ndarray | None:
     """Whether each box ``lo, hi`` (..., 2) comes within the scalar ``thr`` of the border of
     ``workspace`` (xmin, xmax, ymin, ymax) or of one of the obstacle boxes (K, 2) padded by
     ``o_pad``: (...); ``None`` where :func:`boxes_near` would be."""
-    if getattr(thr, "ndim", 0) or getattr(o_lo, "ndim", 0) != 2:
+    args = _operands(lo, hi, o_lo, o_hi, o_pad, thr)
+    if args is None:
         return None
-    lib = _library()
-    if lib is None:
-        return None
-    lo = np.ascontiguousarray(lo, dtype=np.float64)
-    hi = np.ascontiguousarray(hi, dtype=np.float64)
-    o_lo = np.ascontiguousarray(o_lo, dtype=np.float64)
-    o_hi = np.ascontiguousarray(o_hi, dtype=np.float64)
-    o_pad = np.ascontiguousarray(o_pad, dtype=np.float64)
+    lib, lo, hi, o_lo, o_hi, o_pad = args
     K = o_lo.shape[0]
-    if (lo.shape[-1:] != (2,) or hi.shape != lo.shape or o_hi.shape != (K, 2)
-            or o_pad.shape != (K,)):
-        return None
     out = np.empty(lo.shape[:-1], dtype=bool)
     if out.size:
         xmin, xmax, ymin, ymax = (float(v) for v in workspace)
