@@ -180,3 +180,14 @@ def test_the_exported_c_filter_is_the_python_filter(tmp_path):
     info = json.loads((tmp_path / "deployment.json").read_text())
     assert info["safety_margin"] == MARGIN and info["safety_filter"] == "effc_safety.c"
     assert "--set safety_margin=0.02" in info["note"]
+
+
+def test_every_export_of_the_tuned_system_names_its_safety_filter(tmp_path):
+    from hybridnav.fuzzy.export import export
+
+    fs = fuzzy.builtin("effc-tuned")
+    for fmt, target in (("c", "effc"), ("fll", "x.fll"), ("fis", "x.fis"), ("fcl", "x.fcl")):
+        export(fs, fmt, tmp_path / target)
+        files = [tmp_path / "effc.h", tmp_path / "effc.c"] if fmt == "c" else [tmp_path / target]
+        text = " ".join(" ".join(f.read_text().split()) for f in files)
+        assert "safety_margin = 0.05" in text, fmt

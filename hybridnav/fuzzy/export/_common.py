@@ -120,6 +120,16 @@ def comment_text(text: str) -> str:
     return _COMMENT_SAFE.sub("_", " ".join(text.split()))
 
 
+def description_lines(text: str | None, width: int = 92) -> list[str]:
+    """A system's description as comment lines safe in every format (:func:`comment_text`),
+    wrapped, prefixed ``Description:`` (none for an empty description): what the system is and
+    how it was tuned — e.g. the safety filter it must be deployed with — travels with it."""
+    import textwrap
+
+    text = comment_text(text or "")
+    return textwrap.wrap(f"Description: {text}", width) if text.strip() else []
+
+
 # ------------------------------------------------------------------------------ rule normal forms
 
 def normalize_antecedent(a: Antecedent) -> Antecedent:

@@ -39,6 +39,7 @@ from hybridnav.fuzzy.export._common import (
     _FUZZYLITE_WORDS,
     check_names,
     comment_text,
+    description_lines,
     fnum,
     normalize,
     sampled_polyline,
@@ -240,6 +241,7 @@ def to_fcl(system: FuzzySystem, *, sampled: bool = False) -> str:
     if not sampled:
         lines.append("// Triangles and trapezoids are exact.")
     lines.append("// When no rule fires the output is DEFAULT.")
+    lines += [f"// {line}" for line in description_lines(system.description)]
     lines += ["", f"FUNCTION_BLOCK {_ident(system.name)}", "", "VAR_INPUT"]
     lines += [f"  {v.name} : REAL;" for v in system.inputs]
     lines += ["END_VAR", "", "VAR_OUTPUT", f"  {o.name} : REAL;", "END_VAR", ""]
