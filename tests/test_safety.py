@@ -191,3 +191,71 @@ def test_every_export_of_the_tuned_system_names_its_safety_filter(tmp_path):
         files = [tmp_path / "effc.h", tmp_path / "effc.c"] if fmt == "c" else [tmp_path / target]
         text = " ".join(" ".join(f.read_text().split()) for f in files)
         assert "safety_margin = 0.05" in text, fmt
+
+
+def _attraction_only():
+    """A blend-weight system that always says 'go to the goal' (w near 0)."""
+    spec = {"format": "hybridnav-fis/1", "name": "attract",
+            "inputs": [{"name": n, "range": r, "points": 101, "terms": [{"name": "any", "mf": "trapmf",
+                                                          "params": [r[0] - 1, r[0], r[1], r[1] + 1]}]}
+                       for n, r in (("dtheta", [0.0, 1.6]), ("alpha", [0.0, 2.0]))],
+            "output": {"name": "w", "range": [0.0, 1.0], "points": 101, "terms": [
+                {"name": "low", "mf": "trimf", "params": [0.0, 0.0, 0.05]}],
+                "defuzz": "centroid", "default": 0.0},
+            "rules": [{"if": ["dtheta", "any"], "then": "low"}]}
+    return fuzzy.loads(__import__("json").dumps(spec), "attract.json")
+
+
+def test_each_robot_keeps_the_margin_of_its_own_footprint():
+    from hybridnav.world import scenario_from_dict
+
+    def world(robots):
+        return scenario_from_dict({
+            "name": "pair", "units": "m", "dt": 0.1, "max_time": 60.0,
+            "workspace": {"xmin": 0, "xmax": 4, "ymin": 0, "ymax": 4},
+            "obstacles": [{"type": "circle", "center": [2.0, 2.0], "radius": 0.4}],
+            "robots": robots})
+    big = {"name": "big", "model": "unicycle", "start": [0.6, 2.0], "goal": [3.5, 2.0],
+           "radius": 0.3, "goal_radius": 0.1, "initial": {"theta": 0.0}}
+    small = {"name": "small", "model": "unicycle", "start": [0.3, 0.3], "goal": [0.3, 0.8],
+             "radius": 0.1, "goal_radius": 0.1, "initial": {"theta": 1.5}}
+    fis = _attraction_only()
+    plain = planners.get("effc", fis=fis, scale=1).run(world([big])).robots[0]
+    assert plain.outcome == "collided"                         # it drives at the circle
+    for robots in ([big], [small, big]):                       # the small robot listed first
+        res = planners.get("effc", fis=fis, scale=1, safety_margin=0.1).run(world(robots))
+        r = {x.name: x for x in res.robots}["big"]
+        assert r.outcome != "collided" and r.min_clearance >= 0.1 - 1e-6
+
+
+def test_point_robots_keep_the_declared_defaults():
+    from hybridnav.world import load_scenario, scenario_from_dict, scenario_to_dict
+
+    d = scenario_to_dict(load_scenario("effc-train-1"))
+    d["robots"][0]["radius"] = 0.0
+    res = planners.get("apf").run(scenario_from_dict(d))
+    assert res.params["scale"] == 1.0 and res.params["speed"] == SPEED
+
+
+def test_the_replay_command_carries_the_judged_settings(tmp_path):
+    import json
+    import shlex
+
+    from hybridnav.planners.field.deploy import run_command, write_deployment
+    from hybridnav.world import load_scenario
+
+    settings = {"speed": 0.2, "max_turn": TURN, "stuck_window": 10.0, "stuck_radius": 2.0,
+                "safety_margin": 0.05}
+    cmd = run_command("effc", settings, fis="tuned.json", world="w.toml")
+    assert cmd == ("hybridnav run w.toml --planner effc --fis tuned.json "
+                   "--set safety_margin=0.05 --set speed=0.2")
+    write_deployment(tmp_path, "effc", "effc", settings, dt=DT, radius=R)
+    assert cmd.replace("tuned.json", "fis.json").replace("w.toml", "WORLD") in json.loads(
+        (tmp_path / "deployment.json").read_text())["note"]
+    # the command's settings are the planner's: the same run as the settings passed directly
+    args = shlex.split(cmd)
+    given = dict(a.split("=") for a in args[args.index("--set") + 1::2])
+    scen = load_scenario("effc-env-b")
+    a = planners.get("effc", **{k: float(v) for k, v in given.items()}).run(scen).robots[0]
+    b = planners.get("effc", **settings).run(scen).robots[0]
+    assert a.outcome == b.outcome and a.path_length == b.path_length

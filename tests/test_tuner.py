@@ -640,3 +640,35 @@ def test_backends_report_each_finished_task_and_keep_the_order():
         with make_backend(workers=workers) as backend:
             out = backend.map(abs, [(-a,) for (a,) in args], on_done=seen.append)
         assert out == list(range(7)) and sorted(seen) == list(range(7))
+
+
+def test_the_verdict_does_not_read_better_than_missing_or_hidden_data():
+    import pandas as pd
+
+    from hybridnav.tuner.heldout import summarize, verdict
+
+    t = _three([("reached", "reached", "reached")] * 4)
+    # no apf at all: never "ready"
+    no_apf = t[t.system != "apf"]
+    v = verdict(summarize(no_apf), "test", 0.1, table=no_apf)
+    assert not v["better"] and "no apf run to compare with" in v["headline"]
+    # a graze on a world only the tuned system reached is a safety failure against apf
+    g = pd.concat([t, pd.DataFrame([{"set": "test", "scenario": "w9", "system": s,
+                                     "outcome": o, "path_length": 5.0, "time": 1.0,
+                                     "min_clearance": c}
+                                    for s, o, c in (("start", "stuck", 0.3),
+                                                    ("tuned", "reached", 0.01),
+                                                    ("apf", "stuck", 0.3))])])
+    v = verdict(summarize(g), "test", 0.1, table=g)
+    assert not v["safe"] and "(0.010 m on a world not every system reached)" in v["headline"]
+    # a falsification with no valid world, or without the comparators' rows, is no pass
+    def fals(rows):
+        return pd.DataFrame([{"system": s, "tried": 50, "valid": n, "failures": 0,
+                              "collisions": 0, "failures_rate": 0.0, "collisions_rate": 0.0}
+                             for s, n in rows])
+    v = verdict(summarize(t), "test", 0.1, fals([("tuned", 0), ("start", 9), ("apf", 9)]), t)
+    assert not v["safe"] and not v["better"]
+    v = verdict(summarize(t), "test", 0.1, fals([("tuned", 30)]), t)
+    assert not v["better"] and any("no rows for apf" in c for c, ok in v["checks"] if not ok)
+    v = verdict(summarize(t), "test", 0.1, fals([("tuned", 30), ("start", 9), ("apf", 9)]), t)
+    assert v["safe"]

@@ -378,6 +378,8 @@ def test_a_data_job_file_tunes_from_the_command_line(tmp_path):
     ('[settings]\nfree = []\nrule_switches = false\n', "settings", "nothing is free"),
     ('[free]\nmf = ["dtheta"]\n[settings]\nfree = ["alpha"]\n', "settings",
      "expected either [settings] or its old name [free]"),
+    ('[falsify]\nbudget = 5\npopulation = 30\n', "falsify.budget",
+     "expected 0 (off) or at least falsify.population (30 worlds"),
     ('[system]\nstart = "tipper.fis"\n', "system.start",
      "the effc planner provides the fuzzy inputs dtheta, alpha (and optionally clearance); "
      "'tipper' has service, food"),

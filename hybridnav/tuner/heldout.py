@@ -232,23 +232,26 @@ def verdict(summary: pd.DataFrame, which: str, robot_radius: float,
             "clearance")
     if falsified is not None and len(falsified):
         f = falsified.set_index("system")
-        if "tuned" in f.index:
-            ft = f.loc["tuned"]
-            for o in others:
-                if o not in f.index:
-                    continue
-                fo = f.loc[o]
-                name = "apf" if o == "apf" else "its start"
-                ok = bool(ft.collisions == 0 or ft.collisions_rate <= fo.collisions_rate)
-                add(f"an adversarial search ({int(ft.tried)} worlds each, the same seed) makes "
-                    f"it collide in {_count(int(ft.collisions), int(ft.valid))} valid worlds; "
-                    f"{name} in {_count(int(fo.collisions), int(fo.valid))}", ok, o,
-                    "collisions under falsification")
+        ft = f.loc["tuned"] if "tuned" in f.index else None
+        for o in others:
+            name = "apf" if o == "apf" else "its start"
+            if ft is None or o not in f.index:         # no evidence is not a pass
+                add(f"the falsification search has no rows for {'the tuned system' if ft is None else name}"
+                    ": collision rates not compared", False, o, "collisions under falsification")
+                continue
+            fo = f.loc[o]
+            # a search with no valid world found nothing: no evidence either way
+            ok = bool(ft.valid > 0 and fo.valid > 0 and (
+                ft.collisions == 0 or ft.collisions_rate <= fo.collisions_rate))
+            add(f"an adversarial search ({int(ft.tried)} worlds each, the same seed) makes "
+                f"it collide in {_count(int(ft.collisions), int(ft.valid))} valid worlds; "
+                f"{name} in {_count(int(fo.collisions), int(fo.valid))}", ok, o,
+                "collisions under falsification")
     if t.reached:                    # (to a micrometre: the filter keeps r / 2 to rounding)
+        lowest = float(t.min_clearance_reached)
         add(f"keeps at least half the robot radius ({robot_radius / 2:g} m) from obstacles on "
-            f"every world it reaches (smallest {t.min_clearance_reached:.3f} m)",
-            bool(t.min_clearance_reached >= robot_radius / 2 - 1e-6), others[-1],
-            "clearance margin")
+            f"every world it reaches (smallest {lowest:.3f} m)",
+            bool(lowest >= robot_radius / 2 - 1e-6), others[0], "clearance margin")
     safety = len(checks)
     for o in others:
         name = "apf" if o == "apf" else "its start"
@@ -263,16 +266,25 @@ def verdict(summary: pd.DataFrame, which: str, robot_radius: float,
     safe = not unsafe_apf if "apf" in others else not [
         k for k in kind["start"] if k not in ("success", "length")]
     better_start = not kind.get("start")
-    ready = safe and better_start and "success" not in kind.get("apf", [])
+    # ready only against the baseline: without apf there is nothing to call it ready against
+    ready = "apf" in others and safe and better_start and "success" not in kind.get("apf", [])
     def clear(o: str) -> str:
         c = float(s.loc[o, "common_min_clearance"])
-        return f", smallest clearance {c:.3f} m" if math.isfinite(c) else ""
+        own = float(s.loc[o, "min_clearance_reached"])
+        text = f", smallest clearance {c:.3f} m" if math.isfinite(c) else ""
+        if math.isfinite(own) and not own >= c:        # closer on a world the others missed
+            text += f" ({own:.3f} m on a world not every system reached)"
+        return text
 
     figures = "; ".join(f"{o} reaches {int(s.loc[o, 'reached'])}, collides {crash[o]}{clear(o)}"
                         for o in ["tuned", *others])
     if common == 0:
         figures += " (no world every system reached: no clearance compared)"
-    if ready:
+    if "apf" not in others:
+        end = ("no apf run to compare with: NOT judged ready to deploy"
+               + ("" if better_start else " (and NOT better than its start: "
+                  + ", ".join(dict.fromkeys(kind["start"])) + ")"))
+    elif ready:
         end = ("no safety figure worse than apf's and better than its start on every figure: "
                "ready to deploy on worlds like these")
     elif not safe:

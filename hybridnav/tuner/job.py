@@ -353,6 +353,8 @@ def quick(job: Job) -> Job:
             opt["elite"] = min(opt.get("elite", 2), 11)
             opt["tournament"] = min(opt.get("tournament", 3), 12)
     d["falsify"]["budget"] = min(d["falsify"]["budget"], 60)
+    if d["falsify"]["budget"]:            # the swarm's first iteration must fit the budget
+        d["falsify"]["population"] = min(d["falsify"]["population"], d["falsify"]["budget"])
     d["name"] = f"{d['name']}-quick"
     return Job(d, job.source, job.base)
 
@@ -434,6 +436,11 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
         system = job.start_system()
     except HybridnavError as exc:
         raise fail("system.start", str(exc)) from None
+    fz = data["falsify"]
+    if fz["budget"] and fz["budget"] < fz["population"]:
+        raise fail("falsify.budget", f"expected 0 (off) or at least falsify.population "
+                                     f"({fz['population']} worlds: the search's first iteration), "
+                                     f"got {fz['budget']}")
     if data["cost"]["kind"] == "navigation":     # the planner's inputs first: the clearest error
         from hybridnav import planners
 

@@ -578,11 +578,11 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
             for r in falsified["rows"]:
                 lines.append(f"| `{r['world']}` | {r['tuned']} | {_fmt(r['tuned_clearance'])} "
                              f"| {r['start']} | {r['apf']} |")
-            margin = job["planner"].get("safety_margin", 0.0)
-            lines += ["", f"Replay one: `hybridnav run <world> --planner "
-                          f"{job['cost']['planner']} --fis fis.json"
-                          + (f" --set safety_margin={margin:g}" if margin else "")
-                          + " --out DIR`."]
+            from hybridnav.planners.field.deploy import run_command
+
+            lines += ["", "Replay one: `" + run_command(job["cost"]["planner"],
+                                                       dict(job["planner"]), world="<world>",
+                                                       out="DIR") + "`."]
         else:
             lines += ["", "No failure found within the budget."]
     lines += sil or []

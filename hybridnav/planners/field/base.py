@@ -10,6 +10,7 @@ EFFC paper's TurtleBot3: heading change at most ``max_turn`` per control cycle).
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import time
 from abc import abstractmethod
@@ -22,6 +23,8 @@ from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.results import Result
 
 __all__ = ["FieldPlanner"]
+
+log = logging.getLogger(__name__)
 
 COMMON = {
     "speed": Param(0.1, "robot speed along the field (units/s; unicycles: constant speed)",
@@ -51,6 +54,18 @@ class FieldPlanner(Planner):
     #: powers of length (APF's repulsive gain: 4), scaled by ``scale ** exponent`` unless set
     scaled: ClassVar[dict[str, int]] = {"speed": 1, "safety_margin": 1}
 
+    def _warn_unfiltered(self, scenario, models) -> None:
+        """A safety margin the filter cannot apply (robots without the constant-speed heading
+        controller) is said, not silently ignored."""
+        if self.values["safety_margin"] > 0:
+            names = [r.name for r, m in zip(scenario.robots, models)
+                     if getattr(m, "options", {}).get("controller") != "heading"]
+            if names:
+                log.warning("%s: safety_margin %g applies to heading-controlled unicycles only; "
+                            "robots %s run without the filter (other robots are not obstacles "
+                            "to it either)", scenario.name, self.values["safety_margin"],
+                            ", ".join(names))
+
     def _filter(self, sim: Simulation, V: np.ndarray, groups) -> None:
         """The escape-circle safety filter on the heading-controlled robots' commands (in place;
         the world's obstacles and border, at the current time)."""
@@ -66,10 +81,11 @@ class FieldPlanner(Planner):
             if not len(act) or getattr(model, "options", {}).get("controller") != "heading":
                 continue
             X = np.array([sim.X[i] for i in act])
+            # each robot's own radius: a group shares a model, not a footprint
             V[act], _ = escape_filter(
                 X, V[act], speed=self.values["speed"], dt=sim.scenario.dt,
                 max_turn=self.values["max_turn"], margin=self.values["safety_margin"],
-                radius=np.full(len(act), model.radius), clearance=clearance)
+                radius=np.array([sim.models[i].radius for i in act]), clearance=clearance)
 
     def scale_for(self, scenario) -> float:
         """The length scale of this run: ``scale`` when set, else the scenario's robots' median
@@ -77,7 +93,8 @@ class FieldPlanner(Planner):
         if self.values["scale"] > 0:
             return float(self.values["scale"])
         radii = [float(r.radius) for r in scenario.robots]
-        return float(np.median(radii)) / REFERENCE_RADIUS if radii else 1.0
+        s = float(np.median(radii)) / REFERENCE_RADIUS if radii else 1.0
+        return s if math.isfinite(s) and s > 0 else 1.0    # point robots: the defaults as written
 
     def scaled_values(self, scenario) -> dict[str, Any]:
         """The values a run on ``scenario`` uses: defaults of :attr:`scaled` parameters times
@@ -149,6 +166,7 @@ class FieldPlanner(Planner):
         state = self.prepare(scenario, rng)
         prep = time.perf_counter() - tic
         models = [scenario.model(r, **self.model_overrides(r)) for r in scenario.robots]
+        self._warn_unfiltered(scenario, models)
         speed = self.values["speed"]
         last = np.zeros((len(models), 2))       # the last non-zero command of each robot
         groups = model_groups(models)

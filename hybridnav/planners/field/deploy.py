@@ -21,7 +21,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-__all__ = ["safety_c", "write_deployment"]
+__all__ = ["run_command", "safety_c", "write_deployment"]
 
 
 def _lit(x: float) -> str:
@@ -87,6 +87,23 @@ int {name}_safety_filter(double x, double y, double theta, double *vx, double *v
     return header, source
 
 
+def run_command(planner: str, settings: dict[str, Any], *, fis: str = "fis.json",
+                world: str = "WORLD", out: str | None = None) -> str:
+    """The ``hybridnav run`` command that runs ``fis`` with ``settings``: every setting that
+    differs from the planner's declared default as ``--set key=value``."""
+    from hybridnav import planners
+
+    cls = planners.PLANNERS[planner]
+    declared, scaled = cls.parameters, getattr(cls, "scaled", {})
+    # a length the job set is given even at its default value: the command line would scale
+    # a default to the world (FieldPlanner.scale_for), the job's run did not
+    sets = [f"--set {k}={v:g}" if isinstance(v, float) else f"--set {k}={v}"
+            for k, v in sorted(settings.items())
+            if k in declared and k != "fis" and (v != declared[k].default or k in scaled)]
+    return " ".join([f"hybridnav run {world} --planner {planner} --fis {fis}", *sets]
+                    + ([f"--out {out}"] if out else []))
+
+
 def write_deployment(out: Path, name: str, planner: str, settings: dict[str, Any], *,
                      dt: float, radius: float, fis: str = "fis.json") -> list[str]:
     """Write ``deployment.json`` (and the safety filter's C pair when ``safety_margin > 0``)
@@ -98,9 +115,8 @@ def write_deployment(out: Path, name: str, planner: str, settings: dict[str, Any
     info = {"planner": planner, "fis": fis, "dt": dt, "robot_radius": radius,
             **{k: settings[k] for k in sorted(settings)},
             "safety_filter": (f"{name}_safety.c" if margin > 0 else None),
-            "note": ("run the controller with these planner settings: `hybridnav run WORLD "
-                     f"--planner {planner} --fis {fis}"
-                     + (f" --set safety_margin={margin:g}" if margin else "") + "`"
+            "note": ("run the controller with these planner settings: `"
+                     + run_command(planner, settings, fis=fis) + "`"
                      + ("; on the robot, call the safety filter after the fuzzy controller "
                         "each cycle (it was tuned and judged with it)" if margin else ""))}
     atomic_write_text(out / "deployment.json", json.dumps(info, indent=2) + "\n")
