@@ -259,3 +259,20 @@ def test_the_replay_command_carries_the_judged_settings(tmp_path):
     a = planners.get("effc", **{k: float(v) for k, v in given.items()}).run(scen).robots[0]
     b = planners.get("effc", **settings).run(scen).robots[0]
     assert a.outcome == b.outcome and a.path_length == b.path_length
+
+
+def test_bad_filter_arguments_are_refused_by_name():
+    from hybridnav import HybridnavError
+    from hybridnav.planners.field.deploy import safety_c
+
+    X, V = np.zeros((1, 3)), np.ones((1, 2))
+    with pytest.raises(HybridnavError, match="expected a positive speed, dt and max_turn"):
+        escape_filter(X, V, speed=SPEED, dt=DT, max_turn=0.0, margin=MARGIN, radius=[R],
+                      clearance=_clearance(_world()))
+    with pytest.raises(HybridnavError, match=r"expected states \(n, >= 3\)"):
+        escape_filter(np.zeros((1, 2)), V, speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN,
+                      radius=[R], clearance=_clearance(_world()))
+    with pytest.raises(HybridnavError, match="name: expected a C identifier, got 'effc-tuned'"):
+        safety_c("effc-tuned", speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN, radius=R)
+    with pytest.raises(HybridnavError, match="margin: expected a finite positive number"):
+        safety_c("effc", speed=SPEED, dt=DT, max_turn=TURN, margin=float("nan"), radius=R)

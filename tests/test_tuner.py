@@ -672,3 +672,19 @@ def test_the_verdict_does_not_read_better_than_missing_or_hidden_data():
     assert not v["better"] and any("no rows for apf" in c for c, ok in v["checks"] if not ok)
     v = verdict(summarize(t), "test", 0.1, fals([("tuned", 30), ("start", 9), ("apf", 9)]), t)
     assert v["safe"]
+
+
+def test_an_empty_table_or_an_unknown_clearance_is_no_verdict_to_act_on():
+    import math
+
+    import pandas as pd
+
+    from hybridnav.tuner.heldout import COLUMNS, summarize, verdict
+
+    v = verdict(summarize(pd.DataFrame(columns=COLUMNS)), "test", 0.1)
+    assert v["checks"] == [] and not v["better"]
+    t = _three([("reached", "reached", "reached")] * 3)
+    t.loc[(t.system == "tuned") & (t.scenario == "w1"), "min_clearance"] = math.nan
+    s = summarize(t).set_index("system")
+    assert math.isnan(s.loc["tuned", "min_clearance_reached"])
+    assert not verdict(summarize(t), "test", 0.1, table=t)["safe"]

@@ -148,9 +148,11 @@ def summarize(table: pd.DataFrame) -> pd.DataFrame:
                 "common_worlds": len(common),
                 "common_length": float(c.path_length.mean()) if len(c) else math.nan,
                 "common_clearance": float(c.min_clearance.mean()) if len(c) else math.nan,
-                "min_clearance_reached": float(mine.min_clearance.min()) if len(mine)
-                else math.nan,
-                "common_min_clearance": float(c.min_clearance.min()) if len(c) else math.nan,
+                # NaN on a reached world (an unknown clearance) makes the smallest unknown
+                "min_clearance_reached": float(mine.min_clearance.min(skipna=False))
+                if len(mine) else math.nan,
+                "common_min_clearance": float(c.min_clearance.min(skipna=False))
+                if len(c) else math.nan,
             })
     return pd.DataFrame(out)
 
@@ -199,6 +201,9 @@ def verdict(summary: pd.DataFrame, which: str, robot_radius: float,
         deploy — safe, reaches at least as many worlds as apf, and better than its start;
         ``headline``: the conclusion in words, naming the figures.
     """
+    if "set" not in summary or "system" not in summary:       # an empty summary
+        return {"checks": [], "better": False, "safe": False, "better_than_start": False,
+                "headline": ""}
     s = summary[summary.set == which].set_index("system")
     if not {"start", "tuned"} <= set(s.index):
         return {"checks": [], "better": False, "safe": False, "better_than_start": False,

@@ -32,8 +32,20 @@ def safety_c(name: str, *, speed: float, dt: float, max_turn: float, margin: flo
              radius: float) -> tuple[str, str]:
     """``(header, source)`` of the safety filter with these settings, entry point
     ``<name>_safety_filter``."""
-    from hybridnav import native
+    import math
+    import re
 
+    from hybridnav import native
+    from hybridnav.errors import HybridnavError
+
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+        raise HybridnavError(f"safety filter export: name: expected a C identifier, got {name!r}")
+    values = {"speed": speed, "dt": dt, "max_turn": max_turn, "margin": margin, "radius": radius}
+    for key, v in values.items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and (v > 0 or key == "radius"
+                                                                      and v >= 0)):
+            raise HybridnavError(f"safety filter export: {key}: expected a finite positive "
+                                 f"number, got {v!r}")
     guard = f"{name.upper()}_SAFETY_H"
     header = f"""\
 /* {name}_safety.h -- the escape-circle safety filter the controller '{name}' was tuned and judged

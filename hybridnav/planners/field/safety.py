@@ -82,9 +82,17 @@ def escape_filter(X: np.ndarray, V: np.ndarray, *, speed: float, dt: float, max_
     (V, changed)
         The safe commands (length ``speed``; unchanged rows as given) and which rows changed.
     """
+    from hybridnav.errors import HybridnavError
+
+    if not (max_turn > 0 and speed > 0 and dt > 0):
+        raise HybridnavError(f"escape_filter: expected a positive speed, dt and max_turn, got "
+                             f"{speed!r}, {dt!r}, {max_turn!r}")
     X = np.asarray(X, dtype=float)
     V = np.array(V, dtype=float, copy=True)
     n = len(X)
+    if X.ndim != 2 or X.shape[1] < 3 or V.shape != (n, 2):
+        raise HybridnavError(f"escape_filter: expected states (n, >= 3) and commands (n, 2), got "
+                             f"{X.shape} and {V.shape}")
     changed = np.zeros(n, dtype=bool)
     if n == 0 or margin <= 0:
         return V, changed
