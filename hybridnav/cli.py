@@ -368,6 +368,9 @@ def _clear_tuning_outputs(out) -> None:
     for name in ("learning", "front", "falsified"):
         if (out / name).is_dir():
             shutil.rmtree(out / name)
+    for folder in out.glob("robust-*"):           # the robust rounds' checkpoints
+        if folder.is_dir():
+            shutil.rmtree(folder)
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:

@@ -688,3 +688,40 @@ def test_an_empty_table_or_an_unknown_clearance_is_no_verdict_to_act_on():
     s = summarize(t).set_index("system")
     assert math.isnan(s.loc["tuned", "min_clearance_reached"])
     assert not verdict(summarize(t), "test", 0.1, table=t)["safe"]
+
+
+def test_falsification_in_the_training_loop_adds_finds_to_training_only(tmp_path):
+    """A round adds the worst finds (every failure here) to the training worlds and tunes on;
+    validation and test stay the job's; a rerun resumes to the same system."""
+    import pandas as pd
+
+    from hybridnav.cli import main
+
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(SMALL + "\n[robust]\nrounds = 2\nbudget = 40\ncap = 2\nfailures = "
+                        '"all"\n')
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
+    res = json.loads((tmp_path / "o" / "result.json").read_text())
+    rows = res["robust"]
+    assert 1 <= len(rows) <= 2 and all(r["searched"] == 40 for r in rows)
+    assert all(r["added"] <= 2 for r in rows) and rows[0]["added"] > 0
+    held = pd.read_csv(tmp_path / "o" / "heldout.csv")
+    assert not held.scenario.str.startswith("robust-").any()       # validation/test untouched
+    assert (tmp_path / "o" / "robust-1" / "checkpoint.json").exists()
+    report = (tmp_path / "o" / "report.md").read_text()
+    assert "## Falsification in the training loop" in report
+    first = json.loads((tmp_path / "o" / "fis.json").read_text())
+    assert main(["tune", str(job_file), "--out", str(tmp_path / "o"), "--resume"]) == 0
+    assert json.loads((tmp_path / "o" / "fis.json").read_text()) == first
+
+
+def test_robust_rounds_are_refused_where_they_cannot_apply(tmp_path):
+    from hybridnav.tuner.job import load_job
+
+    p = tmp_path / "job.toml"
+    p.write_text('[robust]\nrounds = 1\n[validation]\nkfold = 3\n')
+    with pytest.raises(HybridnavError, match=r"job.toml: robust.rounds: expected 0 with rule "
+                                             r"learning, k-fold"):
+        load_job(p)
+    p.write_text('[validation]\nkfold = 3\n')               # the default quietly does not apply
+    assert load_job(p)["robust"]["rounds"] == 0

@@ -149,6 +149,16 @@ SCHEMA: dict[str, dict[str, Param]] = {
         "corridors": Param(1, "corridors the search may place", lo=0, hi=10),
         "gaps": Param(1, "narrow gaps the search may place", lo=0, hi=10),
     },
+    "robust": {
+        "rounds": Param(1, "falsification rounds after tuning whose finds join the training "
+                           "worlds before tuning continues (0: off; stops early when a search "
+                           "finds nothing to add)", lo=0, hi=10),
+        "budget": Param(300, "candidate worlds each round's search tries", lo=2, hi=100_000),
+        "cap": Param(8, "worlds added per round at most", lo=1, hi=100),
+        "failures": Param("collisions", "which finds join training: collisions (touching an "
+                                        "obstacle or leaving the workspace) or all (also stuck "
+                                        "and timeout)", choices=("collisions", "all")),
+    },
     "planner": PLANNER,
     "backend": {
         "workers": Param(1, "local worker processes", lo=1),
@@ -353,6 +363,7 @@ def quick(job: Job) -> Job:
             opt["elite"] = min(opt.get("elite", 2), 11)
             opt["tournament"] = min(opt.get("tournament", 3), 12)
     d["falsify"]["budget"] = min(d["falsify"]["budget"], 60)
+    d["robust"]["budget"] = min(d["robust"]["budget"], 60)
     if d["falsify"]["budget"]:            # the swarm's first iteration must fit the budget
         d["falsify"]["population"] = min(d["falsify"]["population"], d["falsify"]["budget"])
     d["name"] = f"{d['name']}-quick"
@@ -436,6 +447,16 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
         system = job.start_system()
     except HybridnavError as exc:
         raise fail("system.start", str(exc)) from None
+    if data["robust"]["rounds"] and (data["learning"]["max_rules"]
+                                     or data["validation"]["kfold"] >= 2
+                                     or data["cost"]["kind"] != "navigation"):
+        given = raw.get("robust") if isinstance(raw.get("robust"), dict) else {}
+        if given.get("rounds"):
+            raise fail("robust.rounds", "expected 0 with rule learning, k-fold or a cost that is "
+                                        "not navigation (falsification adds worlds to a "
+                                        "navigation job's training set), got "
+                                        f"{data['robust']['rounds']}")
+        data["robust"]["rounds"] = 0                # the default does not apply to such a job
     fz = data["falsify"]
     if fz["budget"] and fz["budget"] < fz["population"]:
         raise fail("falsify.budget", f"expected 0 (off) or at least falsify.population "

@@ -106,6 +106,8 @@ class TuningResult:
     config_hash: str = ""
     heldout: pd.DataFrame | None = None
     verdicts: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: falsification in the training loop (hybridnav.tuner.robust): one row per round
+    robust: list[dict[str, Any]] = field(default_factory=list)
     files: list[str] = field(default_factory=list)
     learning: TuningResult | None = None
     validation_cost: Any = None
@@ -133,6 +135,7 @@ class TuningResult:
             "start_is_candidate": self.start_is_candidate, "patience": self.patience,
             "front_size": len(self.members), "evaluations": self.evaluations,
             "wall_time": self.wall_time, "config_hash": self.config_hash,
+            "robust": list(self.robust),
             "verdicts": {k: {"better": v["better"], "headline": v.get("headline", ""),
                              "checks": [{"check": c, "passed": ok} for c, ok in v["checks"]]}
                          for k, v in self.verdicts.items()},

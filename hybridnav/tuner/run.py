@@ -86,9 +86,15 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
                            backend=backend, checkpoint=out, progress=progress, resume=resume,
                            stop_after=stop_after, **kw)
         else:
+            robust = job["robust"]["rounds"] > 0
             result = tune(job.start_system(), job.cost("train"), backend=backend,
                           checkpoint=out, progress=progress, resume=resume,
                           stop_after=stop_after, **kw)
+            if robust and result.finished:     # falsification in the training loop
+                from hybridnav.tuner.robust import robust_rounds
+
+                result = robust_rounds(job, result, backend, out, kw, progress, resume,
+                                       stop_after)
         if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
         result.files = write_outputs(job, result, out, backend=backend)
@@ -504,6 +510,20 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
                           f"{float(np.std(scores)):.4f}); each is the best of the candidates "
                           "scored on that fold, so it reads better than an independent "
                           "estimate would."]
+    if result.robust:
+        cfg = job["robust"]
+        added = sum(r["added"] for r in result.robust)
+        lines += ["", "## Falsification in the training loop", "",
+                  f"Up to {cfg['rounds']} round(s): a search of {cfg['budget']} candidate worlds "
+                  f"for the tuned system's {'collisions' if cfg['failures'] == 'collisions' else 'failures'}"
+                  f"; at most {cfg['cap']} of the worst joined the training worlds and tuning "
+                  "continued from the tuned system (validation and test untouched). "
+                  + (f"{added} world(s) added in all." if added else
+                     "The search found nothing to add: the first tuning stands."), "",
+                  "| round | searched | valid | failures | collisions | added |",
+                  "|---|---|---|---|---|---|"]
+        lines += [f"| {r['round']} | {r['searched']} | {r['valid']} | {r['failures']} | "
+                  f"{r['collisions']} | {r['added']} |" for r in result.robust]
     lr = result.learning
     if not result.start_is_candidate and lr is None:
         lines += ["", "The start breaks the settings' constraints (e.g. min_overlap): the search "
