@@ -157,3 +157,16 @@ def test_finds_with_segments_are_told_apart():
     z = x.copy()
     z[8] = 0.0                                          # no cup at all
     assert not _same(a, world_from_vector(z, gen, "c", {"cups": 1}))
+
+
+def test_search_sizes_are_checked_by_name(job):
+    from hybridnav.errors import HybridnavError
+
+    cost = job.cost("train")
+    with pytest.raises(HybridnavError, match=r"falsify: budget: expected at least the population "
+                                             r"\(30 worlds"):
+        falsify(cost, "apf", budget=10, population=30)
+    with pytest.raises(HybridnavError, match="falsify: keep"):
+        falsify(cost, "apf", budget=30, keep=-1)
+    r = falsify(cost, "apf", budget=30, population=30, keep=0, seed=1)
+    assert r.worlds == [] and r.evaluations == 30

@@ -698,12 +698,12 @@ def test_falsification_in_the_training_loop_adds_finds_to_training_only(tmp_path
     from hybridnav.cli import main
 
     job_file = tmp_path / "job.toml"
-    job_file.write_text(SMALL + "\n[robust]\nrounds = 2\nbudget = 40\ncap = 2\nfailures = "
+    job_file.write_text(SMALL + "\n[robust]\nrounds = 2\nbudget = 20\ncap = 2\nfailures = "
                         '"all"\n')
     assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
     res = json.loads((tmp_path / "o" / "result.json").read_text())
     rows = res["robust"]
-    assert 1 <= len(rows) <= 2 and all(r["searched"] == 40 for r in rows)
+    assert 1 <= len(rows) <= 2 and all(r["searched"] == 20 for r in rows)
     assert all(r["added"] <= 2 for r in rows) and rows[0]["added"] > 0
     held = pd.read_csv(tmp_path / "o" / "heldout.csv")
     assert not held.scenario.str.startswith("robust-").any()       # validation/test untouched

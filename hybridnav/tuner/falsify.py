@@ -210,6 +210,16 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
     from hybridnav.fuzzy.family import SystemFamily
     from hybridnav.planners.swarm import minimize
 
+    from hybridnav.params import check_value
+
+    keep = check_value("falsify: ", "keep", keep, int, 0)
+    budget = check_value("falsify: ", "budget", budget, int, 1)
+    population = check_value("falsify: ", "population", population, int, 2)
+    if budget < population:
+        from hybridnav.errors import HybridnavError
+
+        raise HybridnavError(f"falsify: budget: expected at least the population ({population} "
+                             f"worlds: the search's first iteration), got {budget}")
     if isinstance(system, str):
         if system != "apf":
             from hybridnav.errors import HybridnavError
@@ -262,7 +272,7 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
     res = FalsifyResult(evaluations=count["evals"], valid=count["valid"],
                         failures=count["fail"], collisions=count["crash"])
     kept: list = []
-    for c, w, o, cl in seen:
+    for c, w, o, cl in (seen if keep else []):
         if any(_same(w, k) for k in kept):
             continue
         kept.append(w)
