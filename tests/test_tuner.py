@@ -725,3 +725,20 @@ def test_robust_rounds_are_refused_where_they_cannot_apply(tmp_path):
         load_job(p)
     p.write_text('[validation]\nkfold = 3\n')               # the default quietly does not apply
     assert load_job(p)["robust"]["rounds"] == 0
+
+
+def test_multi_robot_test_worlds_count_every_robot_of_every_system():
+    from hybridnav.tuner import NavigationCost
+    from hybridnav.world import scenario_from_dict
+
+    two = scenario_from_dict({
+        "name": "two", "units": "m", "dt": 0.1, "max_time": 40.0,
+        "workspace": {"xmin": 0, "xmax": 4, "ymin": 0, "ymax": 4},
+        "obstacles": [{"type": "circle", "center": [2.0, 2.0], "radius": 0.3}],
+        "robots": [{"name": n, "model": "unicycle", "start": s, "goal": g, "radius": 0.1,
+                    "goal_radius": 0.1} for n, s, g in (("a", [0.5, 0.5], [3.5, 3.5]),
+                                                       ("b", [0.5, 3.5], [3.5, 0.5]))]})
+    cost = NavigationCost([two], name="test", strict=False)
+    t = cost.judge({"start": fuzzy.builtin("effc-5rule"), "tuned": fuzzy.builtin("effc-tuned")},
+                   "test")
+    assert t.groupby("system").size().to_dict() == {"apf": 2, "start": 2, "tuned": 2}

@@ -63,15 +63,17 @@ def baseline(params: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in params.items() if k != "safety_margin"}
 
 
-def _apf_rows(scenario_json: str, params: dict[str, Any]) -> dict[str, Any]:
-    """One ``apf`` run (in whatever process gets the task)."""
+def _apf_rows(scenario_json: str, params: dict[str, Any]) -> list[dict[str, Any]]:
+    """One ``apf`` run (in whatever process gets the task): a row per robot, as the fuzzy
+    systems' runs have (:func:`planner_rows`), so that multi-robot worlds count alike."""
     from hybridnav import planners
     from hybridnav.world import scenario_from_dict
 
     s = scenario_from_dict(json.loads(scenario_json))
-    r = planners.get("apf", **baseline(params)).run(s).robots[0]
-    return {"outcome": r.outcome, "path_length": r.path_length, "time": r.time_to_goal,
-            "min_clearance": r.min_clearance}
+    return [{"outcome": r.outcome, "path_length": r.path_length,
+             "time": math.nan if r.time_to_goal is None else r.time_to_goal,
+             "min_clearance": r.min_clearance}
+            for r in planners.get("apf", **baseline(params)).run(s).robots]
 
 
 def run_systems(systems: dict[str, Any], scenarios, *, speed: float = 0.1,

@@ -270,7 +270,8 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
                          "tuned_clearance": res.clearances[i], "tuned_cost": res.costs[i],
                          "start": str(sim.outcome[i, 0]),
                          "start_clearance": float(sim.min_clearance[i, 0]),
-                         "apf": apf[i]["outcome"], "apf_clearance": apf[i]["min_clearance"]})
+                         "apf": apf[i][0]["outcome"],
+                         "apf_clearance": apf[i][0]["min_clearance"]})
         atomic_write_text(out / "falsified.csv", pd.DataFrame(rows).to_csv(index=False))
         files.append("falsified.csv")
     return {"result": res, "rows": rows, "files": files, "config": cfg, "rates": table}

@@ -460,9 +460,8 @@ class NavigationCost(Cost):
             backend = backend or SerialBackend()
             args = [(json.dumps(scenario_to_dict(s)), dict(self.planner_params))
                     for s in self.scenarios]
-            for s, r in zip(self.scenarios, backend.map(_apf_rows, args)):
-                rows.append({"set": role, "scenario": s.name, "system": "apf", **r,
-                             "time": math.nan if r["time"] is None else r["time"]})
+            for s, runs in zip(self.scenarios, backend.map(_apf_rows, args)):
+                rows += [{"set": role, "scenario": s.name, "system": "apf", **r} for r in runs]
         table = pd.DataFrame(rows, columns=COLUMNS)
         order = {n: i for i, n in enumerate(s.name for s in self.scenarios)}
         return table.sort_values(["scenario"], key=lambda c: c.map(order), kind="stable") \
