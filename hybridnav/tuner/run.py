@@ -202,12 +202,15 @@ def _paths(job: Job, result: TuningResult, out: Path) -> list[str]:
         return []
     fig = Figure(figsize=(12.5, 4.0 * len(shown)), layout="constrained")
     axes = fig.subplots(len(shown), 3, squeeze=False)
-    runs = (("start", job["cost"]["planner"], {"fis": result.start}),
-            ("tuned", job["cost"]["planner"], {"fis": result.system}),
-            ("apf", "apf", {}))
+    from hybridnav.tuner.heldout import baseline
+
+    settings = dict(job["planner"])
+    runs = (("start", job["cost"]["planner"], {"fis": result.start, **settings}),
+            ("tuned", job["cost"]["planner"], {"fis": result.system, **settings}),
+            ("apf", "apf", baseline(settings)))          # plain apf, as judged
     for row, (kind, s) in enumerate(shown):
-        for col, (label, planner, extra) in enumerate(runs):
-            res = planners.get(planner, **extra, **job["planner"]).run(s)
+        for col, (label, planner, params) in enumerate(runs):
+            res = planners.get(planner, **params).run(s)
             plot_result(s, res, ax=axes[row, col])
             outcome = res.robots[0].outcome if res.robots else "-"
             axes[row, col].set_title(f"{s.name} ({kind}): {label}, {outcome}", fontsize=9)
