@@ -227,15 +227,23 @@ def _family_struct(family, tables, keep: _Keep) -> _Family | None:
     return f
 
 
-def family_evaluate(family, tables, member: np.ndarray, inputs) -> np.ndarray | None:
-    """:meth:`SystemFamily.evaluate` compiled, or ``None`` where the kernel does not apply."""
-    lib = _library()
+def _loaded(family, tables, model=None):
+    """``(lib, keep, family struct)`` for a kernel call, or ``None`` (no kernel, or tables it
+    cannot read safely)."""
+    lib = _library(model)
     if lib is None:
         return None
     keep = _Keep()
     f = _family_struct(family, tables, keep)
-    if f is None:
+    return None if f is None else (lib, keep, f)
+
+
+def family_evaluate(family, tables, member: np.ndarray, inputs) -> np.ndarray | None:
+    """:meth:`SystemFamily.evaluate` compiled, or ``None`` where the kernel does not apply."""
+    ready = _loaded(family, tables)
+    if ready is None:
         return None
+    lib, keep, f = ready
     B = len(member)
     member = np.ascontiguousarray(member, dtype=np.int64)
     if B and (member.min() < 0 or member.max() >= tables.size):
@@ -296,13 +304,10 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
         if (noise.ndim != 4 or noise.shape[:2] != (3, batch.E) or noise.shape[2] < batch.M
                 or noise.shape[3] < 1):
             return None
-    lib = _library(model)
-    if lib is None:
+    ready = _loaded(family, tables, model)
+    if ready is None:
         return None
-    keep = _Keep()
-    f = _family_struct(family, tables, keep)
-    if f is None:
-        return None
+    lib, keep, f = ready
     s = _stack_struct(batch.stack, keep)
     N = batch.N
     X = np.ascontiguousarray(batch.X, dtype=np.float64)
