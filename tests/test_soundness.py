@@ -471,3 +471,17 @@ def test_a_region_of_attraction_around_tiny_limit_cycles_is_not_certified():
     r = estimate_roa(s, cs.sumsqr(x), equilibrium=[0, 0, 0],
                      region={"a": (-1, 1), "b": (-1, 1), "c": (-1, 1)}, confirm=50)
     assert r.status != "proved" and np.isfinite(r.level)
+
+
+def test_a_kink_whose_slopes_differ_by_less_than_1e_7_is_not_linearized():
+    """A small-slope corner that decides stability: x1 > 0 grows (eigenvalue +1.24 on that
+    branch) though the left branch's linearization would read stable; it must be refused."""
+    import casadi as cs
+
+    from hybridnav.analysis import as_system, linearize
+
+    x = cs.SX.sym("x", 2)
+    f = cs.vertcat(-x[0] + cs.if_else(x[1] > 0, 5e-8 * x[1], -1e-7 * x[1]),
+                   1e8 * x[0] - x[1])
+    with pytest.raises(HybridnavError, match="not differentiable"):
+        linearize(as_system((x, f)), [0.0, 0.0])
