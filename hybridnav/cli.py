@@ -309,8 +309,6 @@ def _cmd_fis(args: argparse.Namespace) -> int:
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from tqdm import tqdm
 
     from hybridnav.tuner.job import load_job, quick
@@ -320,12 +318,6 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     if args.quick:
         job = quick(job)
     job = job.with_backend(workers=args.workers, dask=args.dask)
-    out = Path(args.out)
-    if not args.resume and not args.force and (out / "checkpoint.json").exists():
-        raise HybridnavError(f"{out}: holds a tuning run (checkpoint.json); --resume continues it, "
-                             "--force starts over and overwrites it, or choose another --out")
-    if args.force:
-        _clear_tuning_outputs(out)
     total = (job.optimizer().generations + 1) * max(1, job["validation"]["kfold"]) \
         * (2 if job["learning"]["max_rules"] else 1)
     bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
@@ -340,7 +332,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         bar.update(1)
 
     try:
-        result = run_job(job, args.out, resume=args.resume, progress=progress)
+        result = run_job(job, args.out, resume=args.resume, force=args.force,
+                         progress=progress)
     finally:
         bar.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
@@ -353,24 +346,6 @@ def _cmd_tune(args: argparse.Namespace) -> int:
             print(f"{which}: {v['headline']} (see report.md)")
     print(f"wrote {args.out}/: {', '.join(result.files)}")
     return 0
-
-
-def _clear_tuning_outputs(out) -> None:
-    """--force: the previous run's checkpoints and outputs go, so none is left beside the new
-    run's (a stale front/, falsified/ or stage-1 checkpoint would mislead)."""
-    import shutil
-
-    for name in ("checkpoint.json", "evaluations.jsonl", "result.json", "report.md",
-                 "pareto.csv", "front.png", "paths.png", "coverage.png", "surface.png",
-                 "falsified.csv", "falsification.csv", "deployment.json", "effc_safety.c",
-                 "effc_safety.h", "validation.csv", "heldout.csv", "heldout_summary.csv"):
-        (out / name).unlink(missing_ok=True)
-    for name in ("learning", "front", "falsified"):
-        if (out / name).is_dir():
-            shutil.rmtree(out / name)
-    for folder in out.glob("robust-*"):           # the robust rounds' checkpoints
-        if folder.is_dir():
-            shutil.rmtree(folder)
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
@@ -584,7 +559,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                            "LocalCluster)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.json")
     p.add_argument("--force", action="store_true", help="start over in a DIR that holds a "
-                                                        "tuning run (overwriting it)")
+                                                        "tuning run (its outputs are removed)")
     p.set_defaults(func=_cmd_tune)
 
     p = add_command("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "

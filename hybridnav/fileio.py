@@ -7,7 +7,9 @@ import contextlib
 import json
 import math
 import os
+import socket
 import tempfile
+import time
 import tomllib
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,8 +19,9 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["MAX_FILE_BYTES", "atomic_path", "atomic_write_bytes", "atomic_write_text",
-           "decode_text", "dumps_json", "json_ready", "parse_toml", "read_text_file"]
+__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "atomic_path", "atomic_write_bytes", "atomic_write_text",
+           "clean_temporaries", "decode_text", "dumps_json", "json_ready", "locked_folder",
+           "parse_toml", "read_text_file"]
 
 
 @contextlib.contextmanager
@@ -30,18 +33,159 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     ``path`` is left as it was.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
-                               dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
+                                   dir=path.parent)
+    except OSError as exc:
+        raise _cannot_write(path, exc) from None
     os.close(fd)
     os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes 0600 files; give the usual permissions
     try:
         yield Path(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, HybridnavError):
+            raise _cannot_write(path, exc) from None
         raise
+
+
+def _cannot_write(path: Path, exc: OSError) -> HybridnavError:
+    """A write failure (full disk, read-only folder, ...) named by the file hybridnav was writing,
+    not by its temporary file."""
+    return HybridnavError(f"{path}: cannot write ({exc.strerror or exc}); nothing was replaced")
+
+
+#: Temporary files :func:`atomic_path` leaves behind when a process is killed mid-write.
+TEMPORARY_GLOB = ".*.tmp*"
+
+
+def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files a killed writer left in ``folder`` (and its sub-folders).
+
+    Only names :func:`atomic_path` makes (``.NAME.XXXX.tmpSUFFIX``) are removed; call it only
+    while holding the folder's lock (:func:`locked_folder`), so no live writer owns them.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+    """
+    gone = []
+    for tmp in Path(folder).rglob(TEMPORARY_GLOB):
+        if tmp.is_file() and ".tmp" in tmp.name:
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+                gone.append(tmp)
+    return gone
+
+
+#: The lock file a job keeps in the folder it writes (see :func:`locked_folder`).
+LOCK_NAME = ".hybridnav.lock"
+
+
+@contextlib.contextmanager
+def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
+    """Hold ``folder`` for one job: a second job writing the same folder is refused.
+
+    The lock is a file :data:`LOCK_NAME` created exclusively in ``folder`` (which is made when
+    missing), holding the owner's pid, host, command and start time; it is removed when the block
+    ends, however it ends. A lock whose owner is a process of this host that no longer exists
+    (a job that was killed) is stale: it is taken over. A lock of another host cannot be checked
+    and is respected.
+
+    Parameters
+    ----------
+    folder : str or path-like
+    command : str
+        What holds the lock, for the other job's message (e.g. ``"tune job.toml"``).
+
+    Yields
+    ------
+    Path
+        The folder.
+
+    Raises
+    ------
+    HybridnavError
+        The folder cannot be made or written (read-only, full disk), or another live job holds it
+        (its pid, host, command and start time named).
+    """
+    folder = Path(folder)
+    lock = folder / LOCK_NAME
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise HybridnavError(f"{folder}: cannot make the output folder "
+                             f"({exc.strerror or exc})") from None
+    owner = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
+             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    for _ in range(3):
+        try:
+            fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            held = _lock_owner(lock)
+            if held is None or _stale(held):
+                with contextlib.suppress(FileNotFoundError):
+                    lock.unlink()
+                continue
+            raise HybridnavError(
+                f"{folder}: another hybridnav job is writing this folder (pid {held.get('pid')} on "
+                f"{held.get('host')}, {str(held.get('command'))[:200]!r}, since "
+                f"{held.get('started')}); wait for it to end, choose another output folder, or "
+                f"remove {lock} if that job is gone") from None
+        except OSError as exc:
+            raise HybridnavError(f"{folder}: cannot write in the output folder "
+                                 f"({exc.strerror or exc})") from None
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(json.dumps(owner) + "\n")
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                lock.unlink()
+            raise HybridnavError(f"{lock}: cannot write the lock file "
+                                 f"({exc.strerror or exc})") from None
+        break
+    else:
+        raise HybridnavError(f"{lock}: could not take the folder's lock (it keeps reappearing)")
+    try:
+        yield folder
+    finally:
+        if _lock_owner(lock) == owner:
+            with contextlib.suppress(OSError):
+                lock.unlink()
+
+
+def _lock_owner(lock: Path) -> dict[str, Any] | None:
+    """The lock's owner, or None when the file is gone or is not a lock we wrote."""
+    try:
+        data = json.loads(lock.read_text(encoding="utf-8")[:4096])
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        return {"pid": None, "host": None, "command": "unreadable lock file", "started": None}
+    if not isinstance(data, dict):
+        return {"pid": None, "host": None, "command": "unreadable lock file", "started": None}
+    return data
+
+
+def _stale(owner: dict[str, Any]) -> bool:
+    """True when the lock's owner is a process of this host that no longer runs."""
+    pid = owner.get("pid")
+    if owner.get("host") != socket.gethostname() or isinstance(pid, bool) \
+            or not isinstance(pid, int) or pid <= 0:
+        return False
+    if pid == os.getpid():
+        return False                         # this process's own (nested) lock: not stale
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:                  # alive, another user's
+        return False
+    return False
 
 
 def _umask() -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fnmatch
 import json
 import os
 import signal
@@ -13,12 +14,14 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, fuzzy, planners
+from hybridnav.fileio import LOCK_NAME, locked_folder
 from hybridnav.fuzzy.family import SystemFamily
 from hybridnav.tuner.backends import DaskBackend, ProcessBackend, SerialBackend
 from hybridnav.tuner import tune as tune_objects
 from hybridnav.tuner.costs.base import Candidates, Context, evaluate_chunk
 from hybridnav.tuner.genome import GenomeSpace
 from hybridnav.tuner.job import load_job, validate_job
+from hybridnav.tuner.run import OUTPUT_FILES, OUTPUT_FOLDERS
 
 SMALL = """
 name = "small"
@@ -382,13 +385,21 @@ def test_sigkill_and_resume_from_the_command_line(tmp_path):
         if ckpt.exists() and json.loads(ckpt.read_text())["optimizer"]["generation"] >= 2:
             break
         time.sleep(0.05)
+    # a second job into the folder while the first writes it is refused (the folder is locked)
+    second = subprocess.run(cmd + [str(out), "--force"], capture_output=True, text=True,
+                            timeout=300)
+    assert second.returncode == 2 and "another hybridnav job is writing this folder (pid " \
+        f"{proc.pid} on" in second.stderr, second.stderr
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    assert (out / LOCK_NAME).exists()           # the killed job's lock: stale, taken over below
     gen = json.loads(ckpt.read_text())["optimizer"]["generation"]
     assert 2 <= gen <= 5
+    (out / ".paths.png.x1y2.tmp.png").write_bytes(b"half a png")   # a killed writer's leftover
     done = subprocess.run(cmd + [str(out), "--resume"], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr
+    assert not (out / ".paths.png.x1y2.tmp.png").exists() and not (out / LOCK_NAME).exists()
     a = json.loads((out / "fis.json").read_text())
     b = json.loads((tmp_path / "ref" / "fis.json").read_text())
     b["name"] = a["name"]
@@ -399,17 +410,40 @@ def test_sigkill_and_resume_from_the_command_line(tmp_path):
     pd.testing.assert_frame_equal(la, lb)
 
 
-def test_tune_cli_quick_writes_every_output(tmp_path):
+def test_tune_cli_quick_writes_every_output(tmp_path, capsys):
     from hybridnav.cli import main
 
     job_file = tmp_path / "job.toml"
     job_file.write_text(SMALL)
     import pandas as pd
 
-    assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 0
+    o = tmp_path / "o"
+    assert main(["tune", str(job_file), "--out", str(o)]) == 0
     # a second run into the same folder neither overwrites it nor starts silently
-    assert main(["tune", str(job_file), "--out", str(tmp_path / "o")]) == 2
-    assert main(["tune", str(job_file), "--out", str(tmp_path / "o"), "--force"]) == 0
+    capsys.readouterr()
+    assert main(["tune", str(job_file), "--out", str(o)]) == 2
+    assert "holds a tuning run (checkpoint.json); --resume continues it" in capsys.readouterr().err
+    # nor while another job writes it (here: this process holds the folder's lock)
+    with locked_folder(o, "tune other.toml"):
+        assert main(["tune", str(job_file), "--out", str(o), "--force"]) == 2
+        err = capsys.readouterr().err
+        assert f"{o}: another hybridnav job is writing this folder (pid {os.getpid()}" in err
+        assert "'tune other.toml'" in err
+    assert not (o / LOCK_NAME).exists()
+    # --force leaves no file of the old run: not an old falsified world, not a temporary file
+    old = [o / "falsified" / "falsified-9999.toml", o / ".fis.json.abc.tmp.json",
+           o / "robust-7" / "checkpoint.json"]
+    for f in old:
+        f.parent.mkdir(exist_ok=True)
+        f.write_text("old run")
+    (o / "notes.txt").write_text("the user's own file stays")
+    assert main(["tune", str(job_file), "--out", str(o), "--force"]) == 0
+    assert not any(f.exists() for f in old) and not (o / "robust-7").exists()
+    assert (o / "notes.txt").exists()
+    # everything a run writes is declared (what --force removes)
+    for entry in o.iterdir():
+        assert entry.name == "notes.txt" or entry.name in OUTPUT_FILES or any(
+            entry.is_dir() and fnmatch.fnmatch(entry.name, g) for g in OUTPUT_FOLDERS), entry
     for name in ("fis.json", "start.json", "logbook.csv", "evaluations.csv", "validation.csv",
                  "heldout.csv", "heldout_summary.csv", "convergence.png", "mfs.png",
                  "surface.png", "coverage.png", "paths.png", "report.md", "checkpoint.json",

@@ -27,7 +27,7 @@ from matplotlib.figure import Figure
 
 from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_write_text
+from hybridnav.fileio import atomic_write_text, clean_temporaries, locked_folder
 from hybridnav.plotting import plot_result, save_figure
 from hybridnav.tuner.core import tune
 from hybridnav.tuner.costs import NavigationCost
@@ -37,13 +37,50 @@ from hybridnav.tuner.result import TuningResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run_job", "write_outputs"]
+__all__ = ["OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job", "write_outputs"]
 
 #: File name stem of the C export a tuning job writes (effc.h, effc.c; functions effc_*)
 C_BASENAME = "effc"
 
 
-def run_job(job: Job, out: str | Path, *, resume: bool = False,
+#: What a tuning run writes in its folder: files, and folders with everything in them
+#: (``front/`` of a multi-objective run, ``learning/`` of a two-stage run, ``falsified/``, the
+#: robust rounds' ``robust-<r>/``). ``--force`` removes exactly these; a test checks that a run
+#: writes nothing else.
+OUTPUT_FILES = ("checkpoint.json", "evaluations.jsonl", "evaluations.csv", "logbook.csv",
+                "result.json", "start.json", "report.md", "fis.json", "fis.fll", "fis.fis",
+                "fis.fcl", f"{C_BASENAME}.c", f"{C_BASENAME}.h", f"{C_BASENAME}_safety.c",
+                f"{C_BASENAME}_safety.h", "deployment.json", "pareto.csv", "validation.csv",
+                "heldout.csv", "heldout_summary.csv", "falsified.csv", "falsification.csv",
+                "convergence.png", "coverage.png", "front.png", "mfs.png", "paths.png",
+                "surface.png")
+OUTPUT_FOLDERS = ("falsified", "front", "learning", "robust-*")
+
+
+def clear_outputs(out: str | Path) -> list[Path]:
+    """Remove every output of a previous tuning run from ``out`` (:data:`OUTPUT_FILES`,
+    :data:`OUTPUT_FOLDERS` and temporary files), leaving other files alone.
+
+    Returns
+    -------
+    list of Path
+        What was removed.
+    """
+    import shutil
+
+    out = Path(out)
+    gone = [out / n for n in OUTPUT_FILES if (out / n).is_file()]
+    for path in gone:
+        path.unlink()
+    for pattern in OUTPUT_FOLDERS:
+        for folder in sorted(out.glob(pattern)):
+            if folder.is_dir() and not folder.is_symlink():
+                shutil.rmtree(folder)
+                gone.append(folder)
+    return gone + clean_temporaries(out)
+
+
+def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = False,
             progress: Callable[[dict[str, Any]], None] | None = None,
             dask_client: Any = None, stop_after: int | None = None) -> TuningResult:
     """Run ``job`` on its backend and write every output into ``out``.
@@ -59,15 +96,44 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False,
     out : str or Path
         The output folder (checkpoints, systems, tables, plots, ``report.md``).
     resume : bool
-        Continue from the checkpoint in ``out`` (refused when the job changed).
+        Continue from the checkpoint in ``out`` (refused when the job changed); temporary files
+        a killed run left behind are removed first.
+    force : bool
+        Start over in a folder that holds a run: every output of the old run is removed first
+        (:func:`clear_outputs`).
     progress : callable, optional
         ``progress(row)`` after each generation with its logbook row.
     dask_client : distributed.Client, optional
         Run on this client instead of the job's backend settings.
     stop_after : int, optional
         Stop after this many generations, before writing outputs (tests of interruption).
+
+    Raises
+    ------
+    HybridnavError
+        ``out`` holds a run and neither ``resume`` nor ``force`` is given; another job is
+        writing ``out`` (the folder is locked while a job runs: :func:`hybridnav.fileio.\
+locked_folder`); ``out`` cannot be written.
     """
-    out = Path(out)
+    if resume and force:
+        raise HybridnavError(f"{out}: expected --resume or --force, not both")
+    with locked_folder(out, f"tune {job.name}"):
+        out = Path(out)
+        if resume:
+            clean_temporaries(out)
+        elif (out / "checkpoint.json").exists() or (out / "result.json").exists():
+            if not force:
+                held = "checkpoint.json" if (out / "checkpoint.json").exists() else "result.json"
+                raise HybridnavError(
+                    f"{out}: holds a tuning run ({held}); --resume continues it, --force starts "
+                    "over and removes its outputs, or choose another --out")
+        if force:
+            clear_outputs(out)
+        return _run_job(job, out, resume, progress, dask_client, stop_after)
+
+
+def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
+             stop_after: int | None) -> TuningResult:
     be = job["backend"]
     with make_backend(be["workers"], dask_client or be["dask"]) as backend:
         kw = job.tune_kwargs()
