@@ -10,6 +10,8 @@ rebuilt and the unfinished tasks resubmitted; Dask reschedules a dead worker's t
 from __future__ import annotations
 
 import logging
+import os
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -17,10 +19,32 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import Param, short_repr
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Backend", "DaskBackend", "ProcessBackend", "SerialBackend", "make_backend"]
+__all__ = ["DASK_ADDRESS", "NO_WORKERS_TIMEOUT", "Backend", "DaskBackend", "ProcessBackend",
+           "SerialBackend", "cores", "make_backend"]
+
+#: What ``--dask`` / ``[backend] dask`` takes: empty (no Dask), ``local`` (a new LocalCluster on
+#: this machine) or a scheduler address ``[protocol://]host:port``.
+DASK_ADDRESS = Param("", "a Dask scheduler address or 'local'",
+                     pattern=r"|local|((tcp|tls|ucx|ws|wss|inproc)://)?"
+                             r"([A-Za-z0-9_.\-]+|\[[0-9A-Fa-f:.]+\]):[0-9]{1,5}",
+                     expected="'local' or a scheduler address such as tcp://host:8786")
+
+#: Seconds a Dask run waits with no worker connected before it fails (its checkpoint keeps the
+#: finished generations; ``--resume`` continues). The environment variable
+#: ``HYBRIDNAV_DASK_NO_WORKERS_TIMEOUT`` overrides it.
+NO_WORKERS_TIMEOUT = 300.0
+
+
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity; at least 1)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
 
 
 class Backend(ABC):
@@ -57,18 +81,38 @@ class SerialBackend(Backend):
 
 
 class ProcessBackend(Backend):
-    """A local process pool; chunks of a dead worker run again on a fresh pool."""
+    """A local process pool; chunks of a dead worker run again on a fresh pool.
+
+    The pool has at most ``workers`` processes, no more than the cores this process may use
+    (:func:`cores`) and no more than the tasks of the largest ``map`` so far: a job of one chunk
+    starts one process, whatever ``workers`` says.
+    """
 
     name = "processes"
 
     def __init__(self, workers: int, retries: int = 3) -> None:
         self.workers = workers
         self.retries = retries
-        self._pool = ProcessPoolExecutor(max_workers=workers)
+        self.limit = min(workers, cores())
+        if self.limit < workers:
+            log.info("%d worker processes asked for, %d used: the cores of this machine",
+                     workers, self.limit)
+        self.size = 0                      # processes of the current pool (made on demand)
+        self._pool: ProcessPoolExecutor | None = None
+
+    def _ensure(self, tasks: int) -> ProcessPoolExecutor:
+        want = max(1, min(self.limit, tasks))
+        if self._pool is None or want > self.size:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
+            self._pool = ProcessPoolExecutor(max_workers=want)
+            self.size = want
+        return self._pool
 
     def map(self, fn, args, on_done=None):
         results: list[Any] = [None] * len(args)
         todo = list(range(len(args)))
+        self._ensure(len(args))
         for attempt in range(self.retries + 1):
             futures = {self._pool.submit(fn, *args[i]): i for i in todo}
             lost = []
@@ -87,13 +131,14 @@ class ProcessBackend(Backend):
             log.warning("a worker process died; re-running %d chunk(s) (attempt %d)",
                         len(lost), attempt + 1)
             self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = ProcessPoolExecutor(max_workers=self.workers)
+            self._pool = ProcessPoolExecutor(max_workers=self.size)
             todo = lost
         raise HybridnavError(f"backend: worker processes kept dying; {len(todo)} chunk(s) could "
                              "not be evaluated")
 
     def close(self):
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 class DaskBackend(Backend):
@@ -101,18 +146,25 @@ class DaskBackend(Backend):
 
     name = "dask"
 
-    def __init__(self, address: str | Any = "", workers: int = 2) -> None:
+    def __init__(self, address: str | Any = "", workers: int = 2,
+                 no_workers_timeout: float | None = None) -> None:
         from distributed import Client, LocalCluster
 
+        if no_workers_timeout is None:
+            env = os.environ.get("HYBRIDNAV_DASK_NO_WORKERS_TIMEOUT")
+            no_workers_timeout = NO_WORKERS_TIMEOUT if env is None else Param(
+                1.0, lo=0).check("HYBRIDNAV_DASK_NO_WORKERS_TIMEOUT", env, parse=True)
+        self.no_workers_timeout = float(no_workers_timeout)
         self._own: list[Any] = []
         if isinstance(address, Client):
             self.client = address
         elif address:
+            address = DASK_ADDRESS.check("--dask", address)
             try:
                 self.client = Client(address, timeout=30)
-            except OSError as exc:
-                raise HybridnavError(f"--dask {address}: cannot reach the scheduler ({exc})") \
-                    from None
+            except (OSError, ValueError, TypeError) as exc:
+                raise HybridnavError(f"--dask {short_repr(address)}: cannot reach the scheduler "
+                                     f"({short_repr(str(exc), 200)})") from None
             self._own.append(self.client)
         else:
             # no dashboard, and the scheduler's HTTP endpoint on a free local port: the default
@@ -125,13 +177,35 @@ class DaskBackend(Backend):
             self._own += [self.client, cluster]
 
     def map(self, fn, args, on_done=None):
-        futures = [self.client.submit(fn, *a, pure=False, retries=3) for a in args]
-        if on_done is not None:
-            from distributed import as_completed as dask_completed
+        from distributed import wait
 
-            index = {f.key: i for i, f in enumerate(futures)}
-            for fut in dask_completed(futures):
-                on_done(index[fut.key])
+        futures = [self.client.submit(fn, *a, pure=False, retries=3) for a in args]
+        index = {f.key: i for i, f in enumerate(futures)}
+        pending = set(futures)
+        alone_since = None                 # when the scheduler was last seen without workers
+        while pending:
+            try:
+                done = wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED").done
+            except TimeoutError:
+                done = set()
+            for fut in sorted(done, key=lambda f: index[f.key]):
+                pending.discard(fut)
+                if on_done is not None and fut.status == "finished":
+                    on_done(index[fut.key])
+            if done or not pending:
+                alone_since = None
+                continue
+            if self.client.scheduler_info().get("workers"):
+                alone_since = None
+            elif alone_since is None:
+                alone_since = time.monotonic()
+            elif time.monotonic() - alone_since > self.no_workers_timeout:
+                self.client.cancel(list(pending))
+                raise HybridnavError(
+                    f"backend: the Dask scheduler has had no worker for "
+                    f"{self.no_workers_timeout:g} s; {len(pending)} of {len(futures)} task(s) "
+                    "unfinished (the checkpoint keeps the finished generations: start workers "
+                    "and --resume)")
         return self.client.gather(futures)
 
     def close(self):
@@ -150,6 +224,8 @@ def make_backend(workers: int = 1, dask: str | Any = "") -> Backend:
         A scheduler address, ``"local"`` (a new local cluster) or a client; empty: none.
     """
     if dask:
+        if isinstance(dask, str):
+            dask = DASK_ADDRESS.check("--dask", dask)
         return DaskBackend("" if dask == "local" else dask, workers=max(workers, 1))
     if workers > 1:
         return ProcessBackend(workers)

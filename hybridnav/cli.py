@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hybridnav import HybridnavError, __version__
-from hybridnav.params import describe_params, short_repr
+from hybridnav.params import check_seed, describe_params, short_repr
 
 __all__ = ["main"]
 
@@ -421,9 +421,59 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the one error style: ``hybridnav: error: ...``, exit status 2."""
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        self.print_usage(sys.stderr)
+        self.exit(2, f"hybridnav: error: {message} (see '{self.prog} --help')\n")
+
+
+def _typed(name: str, convert, check):
+    """An argparse ``type``: ``convert`` the text, then ``check`` it (a HybridnavError becomes
+    argparse's message naming the option)."""
+    def parse(text: str):
+        try:
+            value = convert(text)
+        except (ValueError, OverflowError):
+            raise argparse.ArgumentTypeError(f"expected {name}, got {short_repr(text)}") from None
+        try:
+            return check(value)
+        except HybridnavError:
+            raise argparse.ArgumentTypeError(f"expected {name}, got {short_repr(text)}") from None
+    parse.__name__ = name
+    return parse
+
+
+def _at_least(lo: int, hi: int | None = None):
+    def check(v: int) -> int:
+        if v < lo or (hi is not None and v > hi):
+            raise HybridnavError("out of range")
+        return v
+    return check
+
+
+def _finite_nonneg(v: float) -> float:
+    import math
+
+    if not (math.isfinite(v) and v >= 0):
+        raise HybridnavError("out of range")
+    return v
+
+
+#: ``--seed``: what numpy's SeedSequence takes
+_SEED = _typed("a non-negative integer below 2**128", int,
+               lambda v: check_seed(v, optional=False))
+#: ``--workers``: processes on this machine (a job is also bounded by its chunks)
+_WORKERS = _typed("an integer in [1, 256]", int, _at_least(1, 256))
+_COUNT = _typed("an integer in [1, 100000]", int, _at_least(1, 100000))
+_TIME = _typed("a finite time >= 0 (seconds)", float, _finite_nonneg)
+_TOLERANCE = _typed("a finite number >= 0", float, _finite_nonneg)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hybridnav",
         description="Hybrid mobile-robot navigation: kinematic models, planners, analysis, "
                     "fuzzy tuning.",
@@ -434,7 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     # -v also after the command (hybridnav tune -v): every command takes it
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
                         help="log more (repeat for debug output)")
 
@@ -448,7 +498,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
     p.add_argument("-o", "--out", "--output", dest="output", required=True, metavar="FILE.png",
                    help="picture to write")
-    p.add_argument("--time", type=float, default=0.0, metavar="T",
+    p.add_argument("--time", type=_TIME, default=0.0, metavar="T",
                    help="draw moving obstacles at time T (seconds, default 0)")
     p.set_defaults(func=_cmd_show)
 
@@ -462,7 +512,7 @@ def build_parser() -> argparse.ArgumentParser:
                                       "one per model)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for analysis.json, "
                                                               "report.md and plots")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the sampling (default 0)")
     p.set_defaults(func=_cmd_analyze)
 
     p = add_command("planners", help="list the planners and their parameters with defaults")
@@ -471,7 +521,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = add_command("run", help="run a planner on a scenario and write the result files")
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
     p.add_argument("--planner", required=True, help="planner name (see 'hybridnav planners')")
-    p.add_argument("--seed", type=int, default=0, help="seed of the planner's randomness")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the planner's randomness")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="set a planner parameter (repeatable)")
     p.add_argument("--fis", metavar="FILE.json", help="effc: the fuzzy system (a built-in name or "
@@ -487,8 +537,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("c_file", metavar="C_FILE", help="the exported .c file (its .h beside it)")
     p.add_argument("--scenarios", default="effc-train-1,effc-train-2,effc-env-a,effc-env-b",
                    help="comma-separated scenarios (default: the EFFC paper's four)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--tolerance", type=float, default=1e-9,
+    p.add_argument("--seed", type=_SEED, default=0)
+    p.add_argument("--tolerance", type=_TOLERANCE, default=1e-9,
                    help="largest allowed difference of states and w (default 1e-9)")
     p.set_defaults(func=_cmd_verify)
 
@@ -506,13 +556,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="comma-separated planners: NAME, NAME@LABEL or NAME@LABEL:key=value"
                         "[:key=value...] (a labelled variant; its parameters win over --set)")
     p.add_argument("--scenarios", required=True, help="comma-separated scenario names or paths")
-    p.add_argument("--runs", type=int, default=10, help="runs per combination (default 10)")
-    p.add_argument("--seed", type=int, default=0, help="seed from which every run's seed derives")
+    p.add_argument("--runs", type=_COUNT, default=10, help="runs per combination (default 10)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed from which every run's seed derives")
     p.add_argument("--set", action="append", metavar="LABEL.KEY=VALUE",
                    help="set a parameter of the planner with that label or plain name "
                         "(repeatable)")
     backend = p.add_mutually_exclusive_group()
-    backend.add_argument("--workers", type=int, default=1, help="local worker processes")
+    backend.add_argument("--workers", type=_WORKERS, default=1, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
                    help="folder for the tables and plots")
@@ -522,12 +572,12 @@ def build_parser() -> argparse.ArgumentParser:
                                       "the paper's numbers and claims beside ours")
     p.add_argument("name", nargs="?", help="protocol (see --list)")
     p.add_argument("--list", action="store_true", help="list the protocols")
-    p.add_argument("--runs", type=int, default=None,
+    p.add_argument("--runs", type=_COUNT, default=None,
                    help="runs per planner and scenario (default: the paper's number)")
     p.add_argument("--scenarios", help="comma-separated: only these of the protocol's scenarios")
-    p.add_argument("--seed", type=int, default=0, help="seed from which every run's seed derives")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed from which every run's seed derives")
     backend = p.add_mutually_exclusive_group()
-    backend.add_argument("--workers", type=int, default=1, help="local worker processes")
+    backend.add_argument("--workers", type=_WORKERS, default=1, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for the report, tables and plots")
     p.add_argument("--update-readme", action="store_true",
@@ -550,11 +600,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("job", nargs="?", help="job file (TOML); omitted: the built-in EFFC job")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for the tuned system, "
                                                               "report, plots and checkpoint")
-    p.add_argument("--seed", type=int, help="override the job's seed")
+    p.add_argument("--seed", type=_SEED, help="override the job's seed")
     p.add_argument("--quick", action="store_true", help="small smoke run (population 12, "
                                                         "3 generations)")
     backend = p.add_mutually_exclusive_group()
-    backend.add_argument("--workers", type=int, help="local worker processes")
+    backend.add_argument("--workers", type=_WORKERS, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address ('local': a "
                                                            "LocalCluster)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.json")
@@ -581,8 +631,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("generate", help="write random solvable EFFC-scale worlds as scenario "
                                         "TOML files")
-    p.add_argument("--count", type=int, default=10, help="number of worlds (default 10)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the set (default 0)")
+    p.add_argument("--count", type=_COUNT, default=10, help="number of worlds (default 10)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the set (default 0)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="generator setting, e.g. circles=[2,6], radius=[0.2,0.4], "
                         "layout=random (repeatable; see the README)")

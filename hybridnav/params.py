@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass
 from typing import Any
@@ -28,8 +29,8 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["Param", "check_int", "check_range", "check_real", "check_value", "describe_params",
-           "short_repr"]
+__all__ = ["Param", "check_int", "check_range", "check_real", "check_seed", "check_value",
+           "describe_params", "short_repr"]
 
 _KIND_WORDS = {str: "a string", list: "a list", dict: "a table", tuple: "a sequence"}
 
@@ -56,6 +57,10 @@ class Param:
         for any integer); give it when that is not it (e.g. ``float`` with ``default=None``).
     allow_inf : bool
         A real setting that may be ``inf`` (e.g. "no limit").
+    pattern : str, optional
+        A text setting's regular expression (the whole value must match).
+    expected : str, optional
+        What a valid value is, in words, for the messages (default: from the other fields).
     """
 
     default: Any
@@ -68,6 +73,8 @@ class Param:
     choices: tuple | None = None
     kind: type | None = None
     allow_inf: bool = False
+    pattern: str | None = None
+    expected: str | None = None
 
     def __post_init__(self) -> None:
         if self.kind is None:                 # the type of the default
@@ -84,6 +91,8 @@ class Param:
     def describe(self) -> str:
         """What a valid value is, in the words every message uses."""
         kind = self.kind
+        if self.expected is not None:
+            return self.expected
         if self.choices is not None:
             return "one of " + ", ".join(map(str, self.choices))
         if kind is bool:
@@ -165,7 +174,8 @@ class Param:
         elif kind is not object and not isinstance(value, kind):
             raise fail()
         if (kind in (int, float) and not self._in_bounds(value)) or (
-                self.choices is not None and value not in self.choices):
+                self.choices is not None and value not in self.choices) or (
+                self.pattern is not None and not re.fullmatch(self.pattern, str(value))):
             raise fail()
         return value
 
@@ -266,6 +276,27 @@ def check_int(name: str, value: Any, minimum: int = 1) -> int:
         The smallest allowed value.
     """
     return Param(0, lo=minimum).check(name, value)
+
+
+def check_seed(value: Any, key: str = "seed", *, optional: bool = True) -> int | None:
+    """A seed as NumPy's ``SeedSequence`` takes it: an integer in ``[0, 2**128)`` (or None when
+    ``optional``); anything else is a :class:`HybridnavError` naming ``key``.
+
+    Parameters
+    ----------
+    value : any
+    key : str
+        The key the message names (``"seed"``, ``"--seed"``).
+    optional : bool
+        Whether None (fresh entropy) is allowed.
+    """
+    if value is None and optional:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
+            or not 0 <= int(value) < 2**128:
+        raise HybridnavError(f"{key}: expected a non-negative integer below 2**128"
+                             f"{' or None' if optional else ''}, got {short_repr(value)}")
+    return int(value)
 
 
 def check_real(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,

@@ -51,6 +51,7 @@ import numpy as np
 
 from hybridnav.models import LbCS
 from hybridnav.models.compile import _Buffered
+from hybridnav.params import check_seed
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.results import Result
@@ -108,6 +109,7 @@ class LbCSPlanner(Planner):
 
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
+        seed = check_seed(seed)
         v = self.values
         from hybridnav.models import MODELS
 

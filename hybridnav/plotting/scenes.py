@@ -16,7 +16,9 @@ from matplotlib.patches import FancyArrowPatch
 from matplotlib.patches import Polygon as PolygonPatch
 from matplotlib.patches import Rectangle as RectanglePatch
 
+from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_path
+from hybridnav.params import short_repr
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
 __all__ = ["draw_scenario", "plot_result", "save_figure", "save_scenario_png"]
@@ -132,6 +134,12 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 120,
         As for :meth:`matplotlib.figure.Figure.savefig`.
     """
     path = Path(path)
+    formats = FigureCanvasAgg(Figure()).get_supported_filetypes()
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in formats:
+        raise HybridnavError(f"{path}: expected a picture file name ending in one of "
+                             f"{', '.join('.' + f for f in sorted(formats))}, got "
+                             f"{'.' + suffix if suffix else 'no suffix'}")
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, bbox_inches=bbox_inches)
     return path
@@ -147,7 +155,7 @@ def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float
         Destination; the image is written to a temporary file in the same directory and then
         moved into place with :func:`os.replace`.
     t : float
-        Time for moving obstacles.
+        Time for moving obstacles, in ``[0, scenario.max_time]``.
     dpi : int
 
     Returns
@@ -156,6 +164,10 @@ def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float
         The written path.
     """
     path = Path(path)
+    if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= t <= scenario.max_time:
+        raise HybridnavError(f"t: expected a time in [0, {scenario.max_time:g}] s (the "
+                             f"scenario's max_time), got {short_repr(t)}")
     fig = Figure(figsize=(6.4, 6.4), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-
 from hybridnav import models
+from hybridnav.backends import DASK_ADDRESS
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import parse_toml, read_text_file
 from hybridnav.params import Param, check_value
@@ -161,8 +161,9 @@ SCHEMA: dict[str, dict[str, Param]] = {
     },
     "planner": PLANNER,
     "backend": {
-        "workers": Param(1, "local worker processes", lo=1),
-        "dask": Param("", "a Dask scheduler address or 'local'"),
+        "workers": Param(1, "local worker processes (at most the cores and the chunks)",
+                         lo=1, hi=256),
+        "dask": DASK_ADDRESS,
         "chunk": Param(50, "individuals per unit of parallel work", lo=1),
     },
 }
@@ -244,7 +245,7 @@ class Job:
         if workers is not None:
             d["backend"]["workers"] = int(workers)
         if dask is not None:
-            d["backend"]["dask"] = dask
+            d["backend"]["dask"] = DASK_ADDRESS.check("--dask", dask)
         return Job(d, self.source, self.base)
 
     # ---- the tuning objects ------------------------------------------------------------

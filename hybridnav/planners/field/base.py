@@ -18,6 +18,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybridnav.params import check_seed
 from hybridnav.planners.base import Param, Planner
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.results import Result
@@ -154,6 +155,7 @@ class FieldPlanner(Planner):
 
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
+        seed = check_seed(seed)
         # the run works on a copy holding the scenario's values: the planner itself is not
         # changed by a run (one instance runs scenarios of any scale alike)
         run = copy.copy(self)

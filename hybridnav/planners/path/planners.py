@@ -99,6 +99,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from hybridnav.params import check_seed
 from hybridnav.planners.base import Param, Planner, searches_table
 from hybridnav.planners.path.geometry import (
     PlannedPath,
@@ -233,6 +234,7 @@ class PathPlanner(Planner):
         Result
             Per robot, ``planned_length``, ``planning_time`` and ``waypoints`` in ``metrics``.
         """
+        seed = check_seed(seed)
         ctx, world, plans = self._plan_all(scenario, seed)
         sim_scenario = scenario
         if scenario.grid is not None and scenario.grid.map is not None:

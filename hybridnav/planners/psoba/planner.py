@@ -127,6 +127,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import check_seed
 from hybridnav.planners.base import Param, Planner, searches_table
 from hybridnav.planners.path.geometry import obstacle_world
 from hybridnav.planners.psoba.fitness import disk_candidates, psoba_fitness
@@ -270,6 +271,7 @@ class PSOBAPlanner(Planner):
             Per robot, the metrics listed in the module docstring.
         """
         self.check_scenario(scenario)
+        seed = check_seed(seed)
         v = self.values
         world = scenario.world
         if scenario.grid is not None and scenario.grid.map is not None:

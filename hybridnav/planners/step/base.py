@@ -59,6 +59,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav import models as model_registry
+from hybridnav.params import check_seed
 from hybridnav.planners.base import Param, Planner, searches_table
 from hybridnav.planners.simulate import Simulation, simulate
 from hybridnav.planners.step.stepfit import (
@@ -123,6 +124,7 @@ class StepPlanner(Planner):
 
     def run(self, scenario, seed: int | None = None) -> Result:
         self.check_scenario(scenario)
+        seed = check_seed(seed)
         v = self.values
         rng = np.random.default_rng(seed)
         robots = scenario.robots

@@ -1,0 +1,204 @@
+"""Command-line values and run folders on hostile input (issue 27): every bad value ends in
+``hybridnav: error:`` naming the option or key and what was expected (exit 2), never a traceback;
+backends bounded by the work and the cores; a Dask run without workers fails instead of waiting
+forever."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import pytest
+
+from hybridnav import HybridnavError, planners
+from hybridnav.backends import DASK_ADDRESS, ProcessBackend, cores, make_backend
+from hybridnav.cli import main
+from hybridnav.fileio import LOCK_NAME, atomic_write_text, clean_temporaries, locked_folder
+from hybridnav.params import check_seed
+from hybridnav.world import load_scenario
+
+
+def _pid(_):
+    return os.getpid()
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "fastep-s1", "--planner", "apf", "--seed", "-1", "-o", "X"],
+    ["compare", "--planners", "apf", "--scenarios", "fastep-s1", "--runs", "1", "--seed", "-1",
+     "-o", "X"],
+    ["tune", "--quick", "--seed", "-1", "--out", "X"],
+    ["generate", "--seed", "-1", "-o", "X"],
+    ["run", "fastep-s1", "--planner", "apf", "--seed", "1" + "0" * 50, "-o", "X"],
+])
+def test_a_negative_or_huge_seed_is_refused_by_every_command(argv, tmp_path, capsys):
+    argv = [str(tmp_path / "out") if a == "X" else a for a in argv]
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "hybridnav: error: argument --seed: expected a non-negative integer below 2**128, " \
+           "got '" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("option, value, expected", [
+    ("--workers", "0", "an integer in [1, 256]"), ("--workers", "16000", "an integer in [1, 256]"),
+    ("--runs", "-3", "an integer in [1, 100000]"), ("--runs", "1e9", "an integer in [1, 100000]"),
+])
+def test_counts_on_the_command_line_are_bounded(option, value, expected, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["compare", "--planners", "apf", "--scenarios", "fastep-s1", option, value,
+              "-o", str(tmp_path / "o")])
+    assert f"argument {option}: expected {expected}, got '{value}'" in capsys.readouterr().err
+
+
+def test_the_python_api_refuses_the_same_seeds():
+    scens = [load_scenario(n) for n in ("fastep-s1", "pso-ba-dynamic", "rfd-pso-700",
+                                         "tractor-trailer-1")]
+    checked = set()
+    for name in sorted(planners.PLANNERS):
+        planner = planners.get(name)
+        for scen in scens:
+            try:
+                planner.check_scenario(scen)
+            except HybridnavError:
+                continue
+            with pytest.raises(HybridnavError, match=r"^seed: expected a non-negative integer "
+                                                     r"below 2\*\*128 or None, got -1$"):
+                planner.run(scen, seed=-1)
+            checked.add(name)
+            break
+    assert checked == set(planners.PLANNERS)
+    for bad in (True, 1.5, "3", 2**128):
+        with pytest.raises(HybridnavError, match="^seed: expected"):
+            check_seed(bad)
+    assert check_seed(2**128 - 1) == 2**128 - 1 and check_seed(None) is None
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["show", "fastep-s1", "-o", "{tmp}/picture"],
+     "{tmp}/picture: expected a picture file name ending in one of .avif, .eps"),
+    (["show", "fastep-s1", "-o", "{tmp}/picture.txt"], "got .txt"),
+    (["show", "pso-ba-dynamic", "--time", "1e308", "-o", "{tmp}/p.png"],
+     "t: expected a time in [0, 600] s (the scenario's max_time), got 1e+308"),
+    (["show", "pso-ba-dynamic", "--time", "nan", "-o", "{tmp}/p.png"],
+     "argument --time: expected a finite time >= 0 (seconds), got 'nan'"),
+])
+def test_show_refuses_what_it_cannot_draw(argv, expected, tmp_path, capsys):
+    argv = [a.format(tmp=tmp_path) for a in argv]
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("hybridnav: error: ")
+    assert expected.format(tmp=tmp_path) in err, err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("address", ["not a url", "tcp://", "host", "tcp://h:port", "x" * 5000])
+def test_a_dask_address_is_checked_before_anything_starts(address):
+    with pytest.raises(HybridnavError, match=r"^--dask: expected 'local' or a scheduler address "
+                                             r"such as tcp://host:8786, got"):
+        make_backend(2, address)
+    assert len(str(pytest.raises(HybridnavError, make_backend, 2, address).value)) < 300
+
+
+@pytest.mark.parametrize("address", ["local", "tcp://127.0.0.1:8786", "scheduler:8786",
+                                     "tls://[::1]:8786"])
+def test_real_dask_addresses_pass_the_check(address):
+    assert DASK_ADDRESS.check("--dask", address) == address
+
+
+def test_local_workers_are_bounded_by_the_tasks_and_the_cores():
+    with ProcessBackend(16) as be:
+        assert be.limit == min(16, cores())
+        assert len(set(be.map(_pid, [(i,) for i in range(1)]))) == 1 and be.size == 1
+        pids = be.map(_pid, [(i,) for i in range(8)])
+        assert be.size == min(16, cores(), 8) and len(set(pids)) <= be.size
+        assert os.getpid() not in pids
+
+
+def test_write_failures_name_the_file_not_its_temporary(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        if os.access(ro, os.W_OK):                      # root ignores the mode bits
+            pytest.skip("running as root: a read-only folder is writable")
+        with pytest.raises(HybridnavError, match=rf"^{ro}/a.txt: cannot write \(Permission "
+                                                 r"denied\); nothing was replaced$"):
+            atomic_write_text(ro / "a.txt", "x")
+        with pytest.raises(HybridnavError, match=rf"^{ro}/run: cannot make the output folder"):
+            with locked_folder(ro / "run", "test"):
+                pass
+    finally:
+        ro.chmod(0o755)
+
+
+def test_a_full_disk_names_the_file(tmp_path, monkeypatch):
+    import hybridnav.fileio as fileio
+
+    real = fileio.os.replace
+
+    def full(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(fileio.os, "replace", full)
+    with pytest.raises(HybridnavError, match=rf"^{tmp_path}/r.json: cannot write \(No space "
+                                             r"left on device\); nothing was replaced$"):
+        atomic_write_text(tmp_path / "r.json", "{}")
+    monkeypatch.setattr(fileio.os, "replace", real)
+    assert list(tmp_path.iterdir()) == []               # the temporary file went too
+
+
+def test_a_stale_lock_is_taken_over_and_temporaries_are_cleaned(tmp_path):
+    import json
+    import socket
+    import subprocess
+    import sys
+
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    (tmp_path / LOCK_NAME).write_text(json.dumps({
+        "pid": int(gone.stdout), "host": socket.gethostname(), "command": "tune old",
+        "started": "2026-01-01T00:00:00"}))
+    (tmp_path / ".report.md.k3j.tmp.md").write_text("half")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / ".a.png.x.tmp.png").write_text("half")
+    (tmp_path / "keep.tmp").write_text("a user's file")
+    with locked_folder(tmp_path, "tune new"):
+        held = json.loads((tmp_path / LOCK_NAME).read_text())
+        assert held["pid"] == os.getpid() and held["command"] == "tune new"
+        assert sorted(p.name for p in clean_temporaries(tmp_path)) == [
+            ".a.png.x.tmp.png", ".report.md.k3j.tmp.md"]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["keep.tmp", "sub"]
+    # a lock of another host cannot be checked: it is respected
+    (tmp_path / LOCK_NAME).write_text(json.dumps({"pid": 1, "host": "elsewhere",
+                                                   "command": "tune x", "started": "t"}))
+    with pytest.raises(HybridnavError, match=r"another hybridnav job is writing this folder "
+                                             r"\(pid 1 on elsewhere, 'tune x', since t\)"):
+        with locked_folder(tmp_path, "tune new"):
+            pass
+
+
+@pytest.mark.slow
+def test_a_dask_run_whose_workers_are_all_gone_fails_after_its_timeout():
+    from distributed import Client, LocalCluster
+
+    from hybridnav.backends import DaskBackend
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        be = DaskBackend(client, no_workers_timeout=3.0)
+        assert be.map(_pid, [(0,)])                      # works while a worker is there
+        cluster.scale(0)
+        deadline = time.time() + 30
+        while client.scheduler_info()["workers"] and time.time() < deadline:
+            time.sleep(0.1)
+        t0 = time.monotonic()
+        with pytest.raises(HybridnavError, match=r"^backend: the Dask scheduler has had no worker "
+                                                 r"for 3 s; 2 of 2 task\(s\) unfinished"):
+            be.map(time.sleep, [(0.1,), (0.1,)])
+        assert 3.0 <= time.monotonic() - t0 < 20
