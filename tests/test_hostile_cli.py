@@ -202,3 +202,89 @@ def test_a_dask_run_whose_workers_are_all_gone_fails_after_its_timeout():
                                                  r"for 3 s; 2 of 2 task\(s\) unfinished"):
             be.map(time.sleep, [(0.1,), (0.1,)])
         assert 3.0 <= time.monotonic() - t0 < 20
+
+
+# ---- stored reproductions (reproduce --update-readme) ---------------------------------------
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    import shutil
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    base = tmp_path_factory.mktemp("store")
+    shutil.copytree(root / "docs" / "reproductions" / "fastep-table2", base / "fastep-table2")
+    return base
+
+
+def _damaged(store, tmp_path, mutate):
+    import shutil
+
+    d = tmp_path / "store"
+    shutil.copytree(store, d)
+    readme = tmp_path / "README.md"
+    readme.write_text("intro\n<!-- reproduce:fastep-table2 -->\nold\n"
+                      "<!-- /reproduce:fastep-table2 -->\n")
+    mutate(d / "fastep-table2", readme)
+    return d, readme
+
+
+def _columns_only(folder, readme):
+    header = (folder / "summary.csv").read_text().splitlines()[0]
+    (folder / "summary.csv").write_text(header + "\n")
+
+
+def _all_nan(folder, readme):
+    import pandas as pd
+
+    df = pd.read_csv(folder / "summary.csv")
+    for c in df.columns:
+        if c not in ("planner", "scenario", "units"):
+            df[c] = float("nan")
+    df.to_csv(folder / "summary.csv", index=False)
+
+
+def _text(folder, readme):
+    import pandas as pd
+
+    df = pd.read_csv(folder / "summary.csv")
+    df["path_length_mean"] = "long"
+    df.to_csv(folder / "summary.csv", index=False)
+
+
+@pytest.mark.parametrize("mutate, expected", [
+    (lambda f, r: r.write_bytes(r.read_bytes() + "caf\xe9".encode("latin-1")),
+     r"README.md: not UTF-8 text: byte \d+ \(0xe9\) of the README cannot be decoded"),
+    (lambda f, r: (f / "summary.csv").write_text("a,b\n1,2\n"),
+     r"fastep-table2/summary.csv: planner: missing column \(expected the columns planner, "
+     r"scenario, robots, success_rate"),
+    (_columns_only, r"fastep-table2/summary.csv: expected a row per planner and scenario, got "
+                    r"only the header"),
+    (_all_nan, r"fastep-table2/summary.csv: success_rate: expected a share in \[0, 1\], got nan "
+               r"in row 2"),
+    (_text, r"fastep-table2/summary.csv: path_length_mean: expected numbers, got 'long' in row 2"),
+    (lambda f, r: (f / "summary.csv").write_bytes(b"\x00\xff" * 8),
+     r"fastep-table2/summary.csv: not UTF-8 text"),
+    (lambda f, r: (f / "comparison.json").write_text('{"runs": ' + "9" * 5000 + "}"),
+     r"fastep-table2/comparison.json: expected the comparison.json of a reproduction "
+     r"\('Exceeds the limit"),
+])
+def test_update_readme_refuses_a_damaged_store_and_keeps_the_readme(store, tmp_path, capsys,
+                                                                   mutate, expected):
+    d, readme = _damaged(store, tmp_path, mutate)
+    before = readme.read_bytes()
+    assert main(["reproduce", "--update-readme", "--readme", str(readme), "--reports",
+                 str(d)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hybridnav: error: ") and "Traceback" not in err
+    assert __import__("re").search(expected, err), err
+    assert len(err) < 700
+    assert readme.read_bytes() == before
+
+
+def test_update_readme_renders_an_intact_store(store, tmp_path):
+    d, readme = _damaged(store, tmp_path, lambda f, r: None)
+    assert main(["reproduce", "--update-readme", "--readme", str(readme), "--reports",
+                 str(d)]) == 0
+    text = readme.read_text()
+    assert "old\n" not in text and "hybridnav reproduce fastep-table2" in text

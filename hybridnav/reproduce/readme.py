@@ -11,15 +11,17 @@ renders each block again from the stored files and compares it with README.
 
 from __future__ import annotations
 
+import io
 import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_write_text
-from hybridnav.params import Param
+from hybridnav.fileio import atomic_write_text, read_text_file
+from hybridnav.params import Param, short_repr
 from hybridnav.reproduce.protocols import PROTOCOLS
 
 __all__ = ["STORE", "blocks", "load_stored", "render", "rewrite_report", "update_readme"]
@@ -50,10 +52,15 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     folder = Path(folder)
     meta_path = folder / "comparison.json"
     try:
-        meta = json.loads(meta_path.read_text())
-    except (OSError, ValueError) as exc:
+        meta = json.loads(read_text_file(meta_path, "comparison.json"))
+    except (ValueError, RecursionError) as exc:
+        if isinstance(exc, HybridnavError):
+            raise
         raise HybridnavError(f"{meta_path}: expected the comparison.json of a reproduction "
-                             f"({exc})") from None
+                             f"({short_repr(str(exc), 200)})") from None
+    if not isinstance(meta, dict):
+        raise HybridnavError(f"{meta_path}: expected a JSON object, got "
+                             f"{type(meta).__name__}")
     name = meta.get("protocol") if isinstance(meta, dict) else None
     if name not in PROTOCOLS:
         raise HybridnavError(f"{meta_path}: protocol: expected one of "
@@ -66,12 +73,62 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
         raise HybridnavError(f"{meta_path}: scenarios: expected the protocol's "
                              f"{', '.join(rows)} (run it again), got "
                              f"{', '.join(map(str, meta['scenarios']))}")
+    path = folder / "summary.csv"
+    text = read_text_file(path, "summary")
     try:
-        summary = pd.read_csv(folder / "summary.csv")
-    except (OSError, ValueError) as exc:
-        raise HybridnavError(f"{folder / 'summary.csv'}: expected the summary of a "
-                             f"reproduction ({exc})") from None
-    return name, summary, meta
+        summary = pd.read_csv(io.StringIO(text))
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise HybridnavError(f"{path}: expected the summary of a reproduction (a CSV table): "
+                             f"{short_repr(str(exc), 200)}") from None
+    return name, _check_summary(path, summary, PROTOCOLS[name]), meta
+
+
+#: Columns of a stored summary that hold text; every other column holds numbers (or is empty)
+_TEXT_COLUMNS = ("planner", "scenario", "units")
+
+
+def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
+    """A stored ``summary.csv`` as :func:`hybridnav.analysis.compare.summarize` writes it: the
+    key columns, numbers where numbers belong, a row for every scenario of the protocol."""
+    need = ("planner", "scenario", "robots", "success_rate")
+    for col in need:
+        if col not in summary.columns:
+            raise HybridnavError(f"{path}: {col}: missing column (expected the columns "
+                                 f"{', '.join(need)} and the metrics of a reproduction's "
+                                 "summary)")
+    if summary.empty:
+        raise HybridnavError(f"{path}: expected a row per planner and scenario, got only the "
+                             "header")
+    for col in summary.columns:
+        if col in _TEXT_COLUMNS:
+            values = summary[col]
+            if col != "units" and values.isna().any():
+                raise HybridnavError(f"{path}: {col}: expected a name in every row, got an "
+                                     f"empty cell in row {int(values.isna().argmax()) + 2}")
+            summary[col] = values.astype(str)
+            continue
+        numbers = pd.to_numeric(summary[col], errors="coerce")
+        bad = numbers.isna() & summary[col].notna()
+        if bad.any():
+            row = int(bad.argmax())
+            raise HybridnavError(f"{path}: {col}: expected numbers, got "
+                                 f"{short_repr(summary[col].iloc[row])} in row {row + 2}")
+        summary[col] = numbers.astype(float)
+    rate = summary["success_rate"]
+    if not rate.between(0.0, 1.0).all():
+        row = int((~rate.between(0.0, 1.0)).argmax())
+        raise HybridnavError(f"{path}: success_rate: expected a share in [0, 1], got "
+                             f"{short_repr(float(rate.iloc[row]))} in row {row + 2}")
+    robots = summary["robots"]
+    if not (np.isfinite(robots) & (robots >= 0) & (robots == np.round(robots))).all():
+        row = int((~(np.isfinite(robots) & (robots >= 0))).argmax())
+        raise HybridnavError(f"{path}: robots: expected a count, got "
+                             f"{short_repr(float(robots.iloc[row]))} in row {row + 2}")
+    missing = [r.scenario for r in protocol.rows if r.scenario not in set(summary["scenario"])]
+    if missing:
+        raise HybridnavError(f"{path}: scenario: expected rows for the protocol's "
+                             f"{', '.join(missing)} (run it again)")
+    return summary
 
 
 def render(folder: str | Path) -> str:
@@ -151,7 +208,7 @@ def update_readme(readme: str | Path, store: str | Path) -> list[str]:
         A block whose protocol has no stored run (naming the folder), or no block at all.
     """
     readme = Path(readme)
-    text = readme.read_text()
+    text = read_text_file(readme, "README")
     found = blocks(text, str(readme))
     if not found:
         raise HybridnavError(f"{readme}: expected <!-- reproduce:NAME --> blocks, found none")
