@@ -158,19 +158,31 @@ class WorldGenerator:
 
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
         name = f"{self.name}-{seed}-{index:03d}"
+        misses: dict[str, int] = {}            # what did not fit, per draw that failed
+        unsolvable = 0
         for attempt in range(self.max_tries):
             data = self._draw(rng, name, seed, index)
-            if data is None:
+            if isinstance(data, str):
+                misses[data] = misses.get(data, 0) + 1
                 continue
             scen = scenario_from_dict(data, source=f"generated world {name}")
             if solvable(scen, self.resolution):
                 return scen
+            unsolvable += 1
+        why = [f"{n} with no room for the {what} asked for" for what, n in
+               sorted(misses.items(), key=lambda kv: -kv[1])]
+        if unsolvable:
+            why.append(f"{unsolvable} without a free passage from start to goal")
         raise HybridnavError(
             f"world generator: no solvable world in {self.max_tries} draws for {name} (seed "
-            f"{seed}); expected settings that leave a free passage (fewer or smaller obstacles)")
+            f"{seed}): {'; '.join(why)}; expected settings that fit the {self.size:g} m "
+            "workspace and leave a free passage (fewer or smaller obstacles)")
 
     def _draw(self, rng: np.random.Generator, name: str, seed: int, index: int
-              ) -> dict | None:
+              ) -> dict | str:
+        """One candidate world's data, or what could not be placed (every obstacle asked for
+        is placed or the draw fails: a world never has fewer obstacles than its settings
+        say)."""
         L = self.size
         r = self.robot_radius
         lo, hi = r + 1e-9, L - r - 1e-9
@@ -208,7 +220,7 @@ class WorldGenerator:
 
         placed: list = []
 
-        def place(make) -> None:
+        def place(make) -> bool:
             for _ in range(50):
                 obs = make(center())
                 shape = _shape(obs)
@@ -218,7 +230,8 @@ class WorldGenerator:
                     continue
                 obstacles.append(obs)
                 placed.append(shape)
-                return
+                return True
+            return False
 
         along = goal - start
         u = along / max(float(np.hypot(*along)), 1e-12)
@@ -266,16 +279,18 @@ class WorldGenerator:
             return False
 
         # the structures first (they need the room on the line), then the loose obstacles
-        for count, make in ((self.cups, cup), (self.corridors, corridor), (self.gaps, gap),
-                            (self.walls, wall)):
+        for what, count, make in (("cups", self.cups, cup),
+                                  ("corridors", self.corridors, corridor),
+                                  ("gaps", self.gaps, gap), ("walls", self.walls, wall)):
             if count[1] == 0:            # no draw at all: worlds without these classes unchanged
                 continue
             for _ in range(int(rng.integers(count[0], count[1] + 1))):
                 if not place_group(make):
-                    return None          # a structure asked for did not fit: draw again
+                    return what          # a structure asked for did not fit: draw again
         for _ in range(int(rng.integers(self.circles[0], self.circles[1] + 1))):
-            place(lambda c: {"type": "circle", "center": [float(c[0]), float(c[1])],
-                             "radius": float(rng.uniform(*self.radius))})
+            if not place(lambda c: {"type": "circle", "center": [float(c[0]), float(c[1])],
+                                    "radius": float(rng.uniform(*self.radius))}):
+                return "circles"
         for _ in range(int(rng.integers(self.segments[0], self.segments[1] + 1))):
             def seg(c):
                 h = rng.uniform(*self.segment_length) / 2
@@ -283,13 +298,15 @@ class WorldGenerator:
                 u = h * np.array([math.cos(ang), math.sin(ang)])
                 return {"type": "segment", "a": [float(v) for v in c - u],
                         "b": [float(v) for v in c + u]}
-            place(seg)
+            if not place(seg):
+                return "segments"
         for _ in range(int(rng.integers(self.rectangles[0], self.rectangles[1] + 1))):
             def rect(c):
                 w, h = rng.uniform(*self.rectangle_size, 2) / 2
                 return {"type": "rectangle", "min": [float(c[0] - w), float(c[1] - h)],
                         "max": [float(c[0] + w), float(c[1] + h)]}
-            place(rect)
+            if not place(rect):
+                return "rectangles"
         return {
             "name": name,
             "description": f"generated world {index} of seed {seed} (hybridnav.worldgen)",

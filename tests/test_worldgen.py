@@ -252,3 +252,24 @@ def test_generate_command_takes_the_trap_classes(tmp_path):
                  "--out", str(tmp_path)]) == 0
     w = load_scenario(str(tmp_path / "gen-0-000.toml"))
     assert sum(isinstance(o, Segment) for o in w.world.obstacles) >= 3
+
+
+def test_every_world_has_the_obstacles_its_settings_ask_for():
+    # large circles often cannot be placed clear of start and goal; such a draw is redone
+    # (a world with fewer circles than asked for was written silently before)
+    from hybridnav.worldgen import WorldGenerator
+
+    for n in (4, 6):
+        g = WorldGenerator(circles=(n, n), radius=(2.0, 2.4))
+        for seed in (0, 1):
+            assert [len(w.world.obstacles) for w in g.generate(6, seed)] == [n] * 6
+
+
+def test_a_generator_that_cannot_place_what_was_asked_says_so():
+    from hybridnav.worldgen import WorldGenerator
+
+    g = WorldGenerator(circles=(200, 200), radius=(2.0, 2.4), max_tries=20)
+    with pytest.raises(HybridnavError, match=r"^world generator: no solvable world in 20 draws "
+                                             r"for gen-0-000 \(seed 0\): \d+ with no room for "
+                                             r"the circles asked for"):
+        g.world(0, 0)
