@@ -7,6 +7,7 @@ import contextlib
 import json
 import math
 import os
+import re
 import socket
 import tempfile
 import time
@@ -19,7 +20,7 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "atomic_path", "atomic_write_bytes", "atomic_write_text",
+__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "SAFE_NAME", "atomic_path", "atomic_write_bytes", "atomic_write_text",
            "clean_temporaries", "decode_text", "dumps_json", "json_ready", "locked_folder",
            "parse_toml", "read_text_file"]
 
@@ -232,6 +233,10 @@ def dumps_json(obj: Any) -> str:
     """``json.dumps`` of :func:`json_ready` (indented, strict: no NaN), with a final newline."""
     return json.dumps(json_ready(obj), indent=2, allow_nan=False) + "\n"
 
+
+#: A name that becomes part of a file name (robots' trajectory files, result extras): letters,
+#: digits, ``_``, ``-`` and ``.``, no path separator.
+SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 #: Largest input file read (scenarios, jobs, fuzzy systems, maps): 64 MiB.
 MAX_FILE_BYTES = 64 * 2**20

@@ -387,7 +387,8 @@ def test_draw_scenario_artists():
     "robot_patch, key, text",
     [
         ({"params": {"alpah1": 0.1}}, "robots[0].params.alpah1", "unknown parameter 'alpah1'"),
-        ({"params": {"alpha1": -0.0, "L": 1.0}}, "robots[0].params.L", "unknown parameter 'L'"),
+        ({"params": {"alpha1": 0.5, "L": 1.0}}, "robots[0].params.L", "unknown parameter 'L'"),
+        ({"params": {"alpha1": -0.0}}, "robots[0].params.alpha1", "expected a number in (0, 1e+06], got -0.0"),
         ({"model": "unicycle", "params": {"k_rho": 0.0}}, "robots[0].params.k_rho",
          "expected a positive number, got 0.0"),
         ({"initial": {"theta": 0.3}}, "robots[0].initial", "initial.theta: unknown state"),

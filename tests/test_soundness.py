@@ -242,9 +242,16 @@ def test_a_slowly_damped_rotation_has_no_false_counterexample(c, half):
 
 
 def test_every_reported_counterexample_is_exact():
-    """A true counterexample keeps its verdict: Vdot > 0 where the loop is unstable."""
-    pm = models.get("point_mass")
-    rep = check_lyapunov(pm, target=(45, 5), region={"x": (0, 50), "y": (0, 50)},
+    """A true counterexample keeps its verdict: Vdot > 0 where the loop is unstable (a user's
+    point mass whose gain may be negative: hybridnav's own asks for alpha1 > 0)."""
+    from hybridnav.models.point_mass import PointMass
+    from hybridnav.params import Param
+
+    class AnyGain(PointMass):
+        name = "any_gain"
+        parameters = {**PointMass.parameters, "alpha1": Param(0.1, "gain, any sign")}
+
+    rep = check_lyapunov(AnyGain(), target=(45, 5), region={"x": (0, 50), "y": (0, 50)},
                          params={"alpha1": -1e-9})
     assert rep.status == "counterexample"
     lo, hi = rep.details["counterexample_vdot_enclosure"]

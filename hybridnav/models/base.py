@@ -137,6 +137,10 @@ class Model(ABC):
     #: are its numeric parameters (the vector ``p`` in declaration order), the others (strings
     #: with choices, tuples) its options
     parameters: ClassVar[dict[str, Param]] = {}
+    #: stricter declarations of some parameters where the model drives a robot in a scenario
+    #: (``robots[i].params``): e.g. the point mass's gains, which the analysis may set to any
+    #: sign to show an unstable loop, but a robot needs positive
+    robot_parameters: ClassVar[dict[str, Param]] = {}
     #: derived from :attr:`parameters` (never written by hand; old models that set them instead
     #: of ``parameters`` still work for one version)
     defaults: ClassVar[dict[str, float]] = {}

@@ -28,9 +28,12 @@ class PointMass(Model):
     input_names = ("vx", "vy")
     parameters = {
         "alpha1": Param(0.1, "convergence gain along x (1/s); > 0 for stability "
-                        "(FAStep-Kinematic Theorem 1)"),
-        "alpha2": Param(0.1, "convergence gain along y (1/s)"),
+                        "(FAStep-Kinematic Theorem 1), required for a robot in a scenario",
+                        lo=-1e6, hi=1e6),
+        "alpha2": Param(0.1, "convergence gain along y (1/s); as alpha1", lo=-1e6, hi=1e6),
     }
+    robot_parameters = {k: Param(0.1, "a robot's convergence gain (1/s)", lo=0.0, lo_open=True,
+                                 hi=1e6) for k in ("alpha1", "alpha2")}
 
     def carrot_divisor(self) -> tuple[float, float]:
         """``x + (vx / alpha1, vy / alpha2)``: the controller then commands exactly ``velocity``."""

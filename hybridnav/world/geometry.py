@@ -152,7 +152,11 @@ def _ccw_convex(points: ArrayLike) -> FloatArray:
     area2 = float(np.sum(_cross(V, np.roll(V, -1, axis=0))))
     scale = float(np.max(np.abs(V - V.mean(axis=0)))) or 1.0
     if abs(area2) <= 1e-12 * scale * scale:
-        raise HybridnavError("expected a polygon with non-zero area (points are collinear)")
+        spread = _cross(V - V[0], np.roll(V, -1, axis=0) - V[0])
+        if np.all(np.abs(spread) <= 1e-12 * scale * scale):
+            raise HybridnavError("expected a polygon with non-zero area (points are collinear)")
+        raise HybridnavError("expected a convex polygon, got a self-intersecting outline "
+                             "(e.g. a bow tie) whose parts cancel to zero area")
     if area2 < 0:
         V = V[::-1].copy()
     cr, dt = _convex_turns(V)

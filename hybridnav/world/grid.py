@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from hybridnav.errors import HybridnavError, where
 from hybridnav.fileio import decode_text, read_text_file
 from hybridnav.limits import MAX_GRID_CELLS, grid_cells
+from hybridnav.params import short_repr
 from hybridnav.world.builtin import builtin_data_path
 from hybridnav.world.obstacles import MovingCircle, Segment
 from hybridnav.world.scenario import Scenario
@@ -404,8 +405,10 @@ def parse_movingai_map(text: str, source: str = "<string>") -> OccupancyGrid:
             break
         parts = ln.split()
         if len(parts) != 2 or parts[0] not in ("type", "height", "width"):
-            raise HybridnavError(f"{where(source, f'line {i}')}: expected a header line 'type octile', "
-                                 f"'height H', 'width W' or 'map', got {ln!r}")
+            # the line itself is not shown: a file that is not a map may hold anything
+            raise HybridnavError(f"{where(source, f'line {i}')}: expected a MovingAI map header "
+                                 "line ('type octile', 'height H', 'width W' or 'map'), got a "
+                                 f"line of {len(ln)} characters that is none of them")
         header[parts[0]] = parts[1]
     else:
         raise HybridnavError(f"{where(source, f'line {i}')}: expected a 'map' line ending the header")
@@ -435,8 +438,9 @@ def parse_movingai_map(text: str, source: str = "<string>") -> OccupancyGrid:
                                  f"got {len(row)}")
         bad = set(row) - allowed
         if bad:
-            raise HybridnavError(f"{where(source, f'line {lineno}')}: unknown terrain {''.join(sorted(bad))!r}; "
-                                 f"expected one of {''.join(sorted(allowed))!r}")
+            raise HybridnavError(f"{where(source, f'line {lineno}')}: expected terrain characters "
+                                 f"{''.join(sorted(allowed))!r}, got {len(bad)} other "
+                                 f"character(s) (first {short_repr(min(bad), 12)})")
         occ[r] = np.isin(np.frombuffer(row.encode("ascii"), dtype=np.uint8), _BLOCKED_CODES)
     return OccupancyGrid(occ, 1.0, (0.0, 0.0), source)
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from hybridnav import models
 from hybridnav.errors import HybridnavError, where
-from hybridnav.fileio import parse_toml, read_text_file
+from hybridnav.fileio import SAFE_NAME, parse_toml, read_text_file
 from hybridnav.limits import (
     MAX_COORDINATE,
     MAX_GRID_CELLS,
@@ -24,7 +24,7 @@ from hybridnav.limits import (
     MAX_VERTICES,
     grid_cells,
 )
-from hybridnav.params import Param
+from hybridnav.params import Param, short_repr
 from hybridnav.world.builtin import _builtin_dir
 from hybridnav.world.grid import build_grid
 from hybridnav.world.obstacles import (
@@ -259,7 +259,7 @@ def scenario_from_dict(data: Mapping[str, Any], source: str | os.PathLike[str] |
 def _robot_params(chk: _Check, raw: Any, key: str, model: str) -> dict[str, float]:
     """A robot's ``params`` table, each value checked against the model's declaration."""
     d = chk.table(raw, key)
-    decl = models.MODELS[model].parameters
+    decl = {**models.MODELS[model].parameters, **models.MODELS[model].robot_parameters}
     numeric = sorted(k for k, p in decl.items() if p.kind is float)
     out = {}
     for k, v in d.items():
@@ -310,6 +310,10 @@ def _parse_robots(chk: _Check, raw: Any, world: World, dt: float) -> list[Robot]
         r = chk.table(rr, key)
         chk.keys(r, key, _ROBOT_KEYS, _ROBOT_REQUIRED)
         name = chk.string(r["name"], f"{key}.name", nonempty=True)
+        if not SAFE_NAME.match(name) or name in (".", ".."):
+            raise chk.fail(f"{key}.name", "expected a name of letters, digits, '_', '-' or '.' "
+                                          f"(it names the robot's result files), got "
+                                          f"{short_repr(name)}")
         if any(o.name == name for o in robots):
             raise chk.fail(f"{key}.name", f"expected a unique robot name, {name!r} is used twice")
         model = chk.string(r["model"], f"{key}.model")
