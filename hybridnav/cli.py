@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hybridnav import HybridnavError, __version__
+from hybridnav.fileio import locked_folder
 from hybridnav.params import check_seed, describe_params, short_repr
 
 __all__ = ["main"]
@@ -107,13 +108,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                  f"do, not {args.planner}")
         settings["fis"] = args.fis
     planner = planners.get(args.planner, **settings)
-    result = planner.run(scenario, seed=args.seed)
     out = Path(args.out)
-    result.write(out)
-    save_figure(plot_result(scenario, result), out / "path.png")
-    extra = planner.diagnostics(scenario, result)     # figures drawn from the result alone
-    for name, fig in extra.items():
-        save_figure(fig, out / name)
+    with locked_folder(out, f"run {args.scenario} --planner {args.planner}"):
+        result = planner.run(scenario, seed=args.seed)
+        result.write(out)
+        save_figure(plot_result(scenario, result), out / "path.png")
+        extra = planner.diagnostics(scenario, result)     # figures drawn from the result alone
+        for name, fig in extra.items():
+            save_figure(fig, out / name)
     print(f"{scenario.name} with {planner.name} (seed {args.seed}):")
     print(f"  {'robot':<10} {'outcome':<14} {'length':>10} {'time':>9} {'clearance':>10} "
           f"{'compute':>9}")
@@ -223,14 +225,15 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     def progress(done, total):
         bar.update(done - bar.n)
 
-    try:
-        table, summary = compare(plans, scens, args.runs, seed=args.seed, params=params,
-                                 workers=args.workers, dask=args.dask, progress=progress)
-    finally:
-        bar.close()
-    files = write_comparison(args.out, table, summary, settings={
-        "planners": plans, "scenarios": scens, "runs": args.runs, "seed": args.seed,
-        "set": params, "workers": args.workers, "dask": args.dask or ""})
+    with locked_folder(args.out, f"compare --planners {args.planners}"):
+        try:
+            table, summary = compare(plans, scens, args.runs, seed=args.seed, params=params,
+                                     workers=args.workers, dask=args.dask, progress=progress)
+        finally:
+            bar.close()
+        files = write_comparison(args.out, table, summary, settings={
+            "planners": plans, "scenarios": scens, "runs": args.runs, "seed": args.seed,
+            "set": params, "workers": args.workers, "dask": args.dask or ""})
     cols = ["planner", "scenario", "success_rate", "path_length_mean", "path_length_std",
             "time_to_goal_mean", "time_to_goal_std"]
     print(summary[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))

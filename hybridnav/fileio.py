@@ -95,7 +95,7 @@ def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
     missing), holding the owner's pid, host, command and start time; it is removed when the block
     ends, however it ends. A lock whose owner is a process of this host that no longer exists
     (a job that was killed) is stale: it is taken over. A lock of another host cannot be checked
-    and is respected.
+    and is respected. A folder this call made is removed again when the job wrote nothing in it.
 
     Parameters
     ----------
@@ -116,6 +116,7 @@ def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
     """
     folder = Path(folder)
     lock = folder / LOCK_NAME
+    made = not folder.exists()
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -157,6 +158,9 @@ def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
         if _lock_owner(lock) == owner:
             with contextlib.suppress(OSError):
                 lock.unlink()
+        if made:                                 # a job that failed before writing: no trace
+            with contextlib.suppress(OSError):
+                folder.rmdir()                   # only when empty
 
 
 def _lock_owner(lock: Path) -> dict[str, Any] | None:

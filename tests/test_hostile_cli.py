@@ -288,3 +288,18 @@ def test_update_readme_renders_an_intact_store(store, tmp_path):
                  str(d)]) == 0
     text = readme.read_text()
     assert "old\n" not in text and "hybridnav reproduce fastep-table2" in text
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "fastep-s1", "--planner", "apf", "-o", "{o}"],
+    ["compare", "--planners", "apf", "--scenarios", "fastep-s1", "--runs", "1", "-o", "{o}"],
+    ["reproduce", "fastep-table2", "--runs", "1", "-o", "{o}"],
+])
+def test_run_compare_and_reproduce_refuse_a_folder_another_job_writes(argv, tmp_path, capsys):
+    o = tmp_path / "o"
+    with locked_folder(o, "tune other.toml"):
+        assert main([a.format(o=o) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert f"hybridnav: error: {o}: another hybridnav job is writing this folder (pid " \
+           f"{os.getpid()} on" in err
+    assert not o.exists()                      # made for the lock, nothing written: removed

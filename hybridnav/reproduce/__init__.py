@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from hybridnav.errors import HybridnavError
+from hybridnav.fileio import locked_folder
 from hybridnav.reproduce.protocols import PROTOCOLS, Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import PROFILES, label_for, variants
 
@@ -61,10 +62,10 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     Raises
     ------
     HybridnavError
-        An unknown protocol or a bad ``runs``.
+        An unknown protocol or a bad ``runs``; another job writing ``out`` (the folder is
+        locked while a reproduction runs).
     """
-    from hybridnav.analysis.compare import PlannerSpec, compare, write_comparison
-    from hybridnav.reproduce.report import check_claims, write_report
+    from hybridnav.analysis.compare import PlannerSpec
 
     if name not in PROTOCOLS:
         raise HybridnavError(f"reproduce: unknown protocol {name!r}; expected one of: "
@@ -83,6 +84,15 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
     specs = [PlannerSpec(label, planner, params) for label, planner, params in variants(protocol)]
     scenarios = [row.scenario for row in protocol.rows]
+    with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
+        return _reproduce(name, protocol, specs, scenarios, int(n), Path(out), seed, workers,
+                          dask, progress)
+
+
+def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress):
+    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.reproduce.report import check_claims, write_report
+
     tic = time.perf_counter()
     table, summary = compare(specs, scenarios, int(n), seed=seed, workers=workers, dask=dask,
                              progress=progress)
