@@ -365,11 +365,14 @@ def _cmd_generate(args: argparse.Namespace) -> int:
             table[key] = tomllib.loads(f"v = {text}")["v"]
         except tomllib.TOMLDecodeError:
             table[key] = text.strip()       # a bare word such as random
+        except (ValueError, RecursionError):   # e.g. past Python's 4300-digit integer limit
+            raise HybridnavError(f"--set {key}: expected a number, [low, high] or a word, got "
+                                 f"{short_repr(text)} (a number Python cannot read)") from None
     gen, count, seed = generator_from_table(table, "hybridnav generate: ", "")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for s in gen.generate(count, seed):
-        save_scenario(s, out / f"{s.name}.toml")
+    with locked_folder(out, "generate"):
+        for s in gen.generate(count, seed):
+            save_scenario(s, out / f"{s.name}.toml")
     print(f"wrote {count} solvable worlds (seed {seed}) to {out}/: {gen.name}-{seed}-000.toml"
           + (f" ... {gen.name}-{seed}-{count - 1:03d}.toml" if count > 1 else ""))
     return 0

@@ -122,7 +122,7 @@ def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
     except OSError as exc:
         raise HybridnavError(f"{folder}: cannot make the output folder "
                              f"({exc.strerror or exc})") from None
-    owner = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
+    owner = {"pid": os.getpid(), "host": socket.gethostname(), "command": command[:200],
              "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     for _ in range(3):
         try:
@@ -166,7 +166,7 @@ def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
 def _lock_owner(lock: Path) -> dict[str, Any] | None:
     """The lock's owner, or None when the file is gone or is not a lock we wrote."""
     try:
-        data = json.loads(lock.read_text(encoding="utf-8")[:4096])
+        data = json.loads(lock.read_text(encoding="utf-8")[:65536])
     except FileNotFoundError:
         return None
     except (OSError, ValueError):

@@ -303,3 +303,16 @@ def test_run_compare_and_reproduce_refuse_a_folder_another_job_writes(argv, tmp_
     assert f"hybridnav: error: {o}: another hybridnav job is writing this folder (pid " \
            f"{os.getpid()} on" in err
     assert not o.exists()                      # made for the lock, nothing written: removed
+
+
+def test_a_5000_digit_value_gets_a_short_message_and_leaves_nothing(tmp_path, capsys):
+    big = "9" * 5000
+    for argv in (["compare", "--planners", f"apf@x:speed={big}", "--scenarios", "fastep-s1",
+                  "--runs", "1", "-o", str(tmp_path / "c")],
+                 ["generate", "--set", f"circles=[1,{big}]", "-o", str(tmp_path / "g")],
+                 ["run", "fastep-s1", "--planner", "apf", "--set", f"speed={big}",
+                  "-o", str(tmp_path / "r")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.splitlines()[-1]
+        assert err.startswith("hybridnav: error: ") and len(err) < 400, err
+    assert list(tmp_path.iterdir()) == []          # no folder, no stale lock

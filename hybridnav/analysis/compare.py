@@ -27,6 +27,7 @@ from hybridnav.analysis.convergence import CONVERGENCE_COLUMNS, convergence_rows
 from hybridnav.backends import make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
+from hybridnav.params import short_repr
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +104,7 @@ def parse_planner(text: str) -> PlannerSpec:
     item = text.strip()
 
     def fail(why: str) -> HybridnavError:
-        return HybridnavError(f"--planners {item}: {why}")
+        return HybridnavError(f"--planners {short_repr(item, 120)}: {why}")
 
     head, *assignments = item.split(":")
     name, at, label = (part.strip() for part in head.partition("@"))
@@ -119,7 +120,7 @@ def parse_planner(text: str) -> PlannerSpec:
     for assignment in assignments:
         key, eq, value = (part.strip() for part in assignment.partition("="))
         if not eq or not key:
-            raise fail(f"{assignment.strip()!r}: expected key=value ({SYNTAX})")
+            raise fail(f"{short_repr(assignment.strip())}: expected key=value ({SYNTAX})")
         if key in params:
             raise fail(f"{key}: set twice")
         params[key] = value
@@ -166,13 +167,13 @@ def planner_specs(planners: Sequence[str | PlannerSpec | tuple]) -> list[Planner
     seen: dict[str, int] = {}
     for i, spec in enumerate(specs):
         if not spec.label.strip():
-            raise HybridnavError(f"--planners {spec}: expected a non-empty label")
+            raise HybridnavError(f"--planners {short_repr(str(spec), 120)}: expected a non-empty label")
         if spec.label in seen:
             raise HybridnavError(
-                f"--planners {spec}: duplicate label {spec.label!r} (items {seen[spec.label] + 1} "
+                f"--planners {short_repr(str(spec), 120)}: duplicate label {spec.label!r} (items {seen[spec.label] + 1} "
                 f"and {i + 1}); give each variant its own label, NAME@LABEL")
         if spec.label != spec.name and spec.label in PLANNERS:
-            raise HybridnavError(f"--planners {spec}: the label {spec.label!r} is the name of "
+            raise HybridnavError(f"--planners {short_repr(str(spec), 120)}: the label {spec.label!r} is the name of "
                                  f"another planner; choose another label")
         seen[spec.label] = i
     return specs
@@ -337,7 +338,7 @@ def compare(
             for scenario in loaded:
                 planner.check_scenario(scenario)
         except HybridnavError as exc:
-            raise HybridnavError(f"--planners {spec}: {exc}") from None
+            raise HybridnavError(f"--planners {short_repr(str(spec), 120)}: {exc}") from None
     tasks = [_Task(spec.label, spec.name, tuple(sorted(settings[spec.label].items())), s, r,
                    run_seed(seed, r))
              for spec in specs for s in scenarios for r in range(runs)]
