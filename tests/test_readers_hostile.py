@@ -25,6 +25,13 @@ from hybridnav.world import Scenario, load_scenario
 from hybridnav.world.builtin import _builtin_dir
 
 CORPUS = Path(__file__).parent / "hostile"
+FUZZ = int(__import__("os").environ.get("HYBRIDNAV_FUZZ_EXAMPLES", "0"))   # 0: the defaults
+
+
+def _examples(default: int) -> int:
+    """``HYBRIDNAV_FUZZ_EXAMPLES`` (a long run on demand) or the CI default."""
+    return FUZZ or default
+
 EXPECTED = json.loads((CORPUS / "EXPECTED.json").read_text(encoding="utf-8"))
 
 
@@ -81,7 +88,7 @@ def _check(read, path: Path) -> None:
     assert out is not None
 
 
-@settings(deadline=None, max_examples=150, suppress_health_check=[HealthCheck.too_slow,
+@settings(deadline=None, max_examples=_examples(150), suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_damaged_scenario_files(tmp_path, data):
@@ -90,7 +97,7 @@ def test_damaged_scenario_files(tmp_path, data):
     _check(load_scenario, path)
 
 
-@settings(deadline=None, max_examples=100, suppress_health_check=[HealthCheck.too_slow,
+@settings(deadline=None, max_examples=_examples(100), suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_damaged_job_files(tmp_path, data):
@@ -99,7 +106,7 @@ def test_damaged_job_files(tmp_path, data):
     _check(load_job, path)
 
 
-@settings(deadline=None, max_examples=100, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(deadline=None, max_examples=_examples(100), suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(blob=st.binary(max_size=300), which=st.sampled_from(["scenario", "job"]))
 def test_arbitrary_bytes(tmp_path, blob, which):
     path = tmp_path / f"{which}.toml"
@@ -114,3 +121,89 @@ def test_the_sources_are_valid(tmp_path):
     for k, text in enumerate(JOBS):
         (tmp_path / f"j{k}.toml").write_text(text, encoding="utf-8")
         load_job(tmp_path / f"j{k}.toml")
+
+
+# ---- maps, stored reproductions and command-line values (issue 27) ----------------------------
+
+MAPS = ["type octile\nheight 3\nwidth 4\nmap\n....\n.@T.\n....\n",
+        "type octile\nheight 2\nwidth 2\nmap\n.G\nS.\n"]
+
+
+@settings(deadline=None, max_examples=_examples(100),
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_damaged_map_files(tmp_path, data):
+    from hybridnav.world.grid import load_movingai_map
+
+    path = tmp_path / "m.map"
+    path.write_text(data.draw(mutated(MAPS)), encoding="utf-8")
+    _check(load_movingai_map, path)
+
+
+STORE = Path(__file__).resolve().parents[1] / "docs" / "reproductions" / "fastep-table2"
+STORED = {name: (STORE / name).read_text(encoding="utf-8")
+          for name in ("summary.csv", "comparison.json")}
+
+
+@settings(deadline=None, max_examples=_examples(60),
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(data=st.data(), which=st.sampled_from(sorted(STORED)))
+def test_damaged_stored_reproductions(tmp_path, data, which):
+    import shutil
+
+    from hybridnav.reproduce.readme import load_stored
+
+    folder = tmp_path / "fastep-table2"
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir()
+    for name, text in STORED.items():
+        (folder / name).write_text(text, encoding="utf-8")
+    (folder / which).write_text(data.draw(mutated([STORED[which]])), encoding="utf-8")
+    try:
+        load_stored(folder)
+    except HybridnavError as exc:
+        assert str(exc).startswith(str(folder)), str(exc)
+
+
+OPTIONS = [("show", "--time", ["show", "fastep-s1", "-o", "x.png"]),
+           ("run", "--seed", ["run", "fastep-s1", "--planner", "apf", "-o", "x"]),
+           ("compare", "--runs", ["compare", "--planners", "apf", "--scenarios", "s", "-o", "x"]),
+           ("compare", "--workers", ["compare", "--planners", "apf", "--scenarios", "s",
+                                     "-o", "x"]),
+           ("verify", "--tolerance", ["verify", "effc-5rule", "x.c"]),
+           ("generate", "--count", ["generate", "-o", "x"])]
+
+
+@settings(deadline=None, max_examples=_examples(200))
+@given(option=st.sampled_from(OPTIONS),
+       value=st.one_of(st.text(max_size=30), st.integers().map(str),
+                       st.floats(allow_nan=True).map(repr),
+                       st.sampled_from(["-1", "0", "1e308", "inf", "nan", "9" * 5000, "2**128",
+                                        "340282366920938463463374607431768211456"])))
+def test_command_line_values(option, value):
+    """A typed option either parses into its documented range or exits 2 with the one style."""
+    import contextlib
+    import io
+    import math
+
+    from hybridnav.cli import build_parser
+
+    _, flag, argv = option
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err):
+            args = build_parser().parse_args([*argv, f"{flag}={value}"])
+    except SystemExit as exc:
+        assert exc.code == 2
+        assert "hybridnav: error: " in err.getvalue(), err.getvalue()
+        assert len(err.getvalue()) < 1500
+        return
+    got = getattr(args, flag.lstrip("-"))
+    if flag == "--seed":
+        assert isinstance(got, int) and 0 <= got < 2**128
+    elif flag in ("--runs", "--count"):
+        assert isinstance(got, int) and 1 <= got <= 100_000
+    elif flag == "--workers":
+        assert isinstance(got, int) and 1 <= got <= 256
+    else:
+        assert math.isfinite(got) and got >= 0
