@@ -316,3 +316,26 @@ def test_a_5000_digit_value_gets_a_short_message_and_leaves_nothing(tmp_path, ca
         err = capsys.readouterr().err.splitlines()[-1]
         assert err.startswith("hybridnav: error: ") and len(err) < 400, err
     assert list(tmp_path.iterdir()) == []          # no folder, no stale lock
+
+
+def test_an_unwritable_output_folder_fails_before_any_work(tmp_path, monkeypatch, capsys):
+    """(A read-only folder cannot be made as root; the lock file's creation is refused instead,
+    as the kernel refuses it in a read-only folder.)"""
+    import hybridnav.fileio as fileio
+    import hybridnav.tuner.run as tuner_run
+
+    real_open = fileio.os.open
+
+    def refuse(path, *a, **k):
+        if str(path).endswith(LOCK_NAME):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(path, *a, **k)
+
+    monkeypatch.setattr(fileio.os, "open", refuse)
+    monkeypatch.setattr(tuner_run, "_run_job", lambda *a, **k: pytest.fail("work started"))
+    t0 = time.monotonic()
+    assert main(["tune", "--quick", "--out", str(tmp_path / "o")]) == 2
+    assert time.monotonic() - t0 < 30
+    err = capsys.readouterr().err
+    assert f"hybridnav: error: {tmp_path / 'o'}: cannot write in the output folder (Permission " \
+           "denied)" in err
