@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -318,3 +319,19 @@ def test_run_with_an_edited_c_file_is_refused_too(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{c}: " + REFUSED.format("effc.c") in err and "Traceback" not in err
     assert not (tmp_path / "run").exists()
+
+
+def test_an_embedded_system_far_larger_than_the_file_is_refused_without_generating_it(
+        tmp_path, monkeypatch):
+    from hybridnav.fuzzy.export import c as c_module
+
+    d = fuzzy.builtin(SYSTEM).to_dict()
+    for v in (*d["inputs"], d["output"]):
+        v["points"] = 50_001                   # tables of ~6 MB in a file of 0.1 MB
+    big = c_module._system_comment(fuzzy.FuzzySystem.from_dict(d))
+    c = _export(tmp_path, "big", lambda src: src[:src.index(SYSTEM_MARK) - 1] + big)
+    monkeypatch.setattr(sys.modules[CompiledFIS.__module__], "to_c", None)   # never called
+    with pytest.raises(HybridnavError, match=r"big\.c: expected the file hybridnav exports for "
+                                             r"the system embedded in big\.c, got one too short "
+                                             r"for its tables; pass --trust"):
+        CompiledFIS(c)

@@ -139,13 +139,16 @@ def check_includes(text: str, where: str) -> None:
                 "nothing was compiled")
 
 
-#: Sets the limits given in argv[1], then executes argv[2:]: a fresh interpreter (no site, no
-#: environment) between fork and the program, where ``preexec_fn`` would run Python code in a
+#: Sets the limits given in argv[1], then executes argv[2:]: a fresh, isolated interpreter
+#: (``-I -S``) between fork and the program, where ``preexec_fn`` would run Python code in a
 #: forked copy of a process that may have threads (unsafe: it can deadlock).
 _LAUNCHER = ("import os, resource, sys\n"
              "v = [int(x) for x in sys.argv[1].split(',')]\n"
              "for k in range(0, len(v), 3):\n"
-             "    resource.setrlimit(v[k], (v[k + 1], v[k + 2]))\n"
+             "    try:\n"
+             "        resource.setrlimit(v[k], (v[k + 1], v[k + 2]))\n"
+             "    except (ValueError, OSError):\n"     # a limit this system does not take
+             "        pass\n"
              "os.execvp(sys.argv[2], sys.argv[2:])\n")
 
 
@@ -163,6 +166,9 @@ def _limited(argv: Sequence[str], cpu: int, memory: int, fsize: int) -> list[str
         if hard != resource.RLIM_INFINITY:
             value, top = min(value, hard), min(top, hard)
         plan += [res, value, top]
+    if not sys.executable:
+        raise HybridnavError("cannot start a child process with limits: no Python interpreter "
+                             "path (sys.executable) to start it with")
     return [sys.executable, "-I", "-S", "-c", _LAUNCHER, ",".join(map(str, plan)), *argv]
 
 
@@ -183,6 +189,11 @@ def _kill_group(proc: subprocess.Popen) -> None:
 def _exit_status(proc: subprocess.Popen, wait: float) -> int | None:
     """``proc``'s exit status (``-signal`` if killed) once it has exited, within ``wait``
     seconds, without reaping it (so that its group can still be killed); None if it runs on."""
+    if not hasattr(os, "waitid"):           # (macOS) reaped: its group is then left alone
+        try:
+            return proc.wait(timeout=wait)
+        except subprocess.TimeoutExpired:
+            return None
     deadline = time.monotonic() + wait
     while True:
         info = os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT | os.WNOHANG)

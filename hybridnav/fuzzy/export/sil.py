@@ -116,6 +116,14 @@ def _check_export(src: Path, header: Path, source: str, head: str, real: str) ->
         raise HybridnavError(f"{src}: expected a C file exported by hybridnav (it ends with the "
                              "system it was generated from, and is what hybridnav writes for "
                              f"it), got a file without that system; {TRUST_HINT}")
+    # each table entry takes at least 8 characters ("A_K(0.0)"): a file too short for the
+    # tables of its system is not its export (and is not worth the work of generating them)
+    entries = sum(v.points * (1 + 2 * len(v.terms)) for v in system.inputs) + \
+        system.output.points * (1 + 2 * len({r.then for r in system.rules}))
+    if 8 * entries > len(source):
+        raise HybridnavError(f"{src}: expected the file hybridnav exports for the system "
+                             f"embedded in {src.name}, got one too short for its tables; "
+                             f"{TRUST_HINT}")
     try:
         code = to_c(system, src.stem, real=real)
     except HybridnavError:
