@@ -335,3 +335,15 @@ def test_an_embedded_system_far_larger_than_the_file_is_refused_without_generati
                                              r"the system embedded in big\.c, got one too short "
                                              r"for its tables; pass --trust"):
         CompiledFIS(c)
+
+
+def test_what_trusted_c_prints_does_not_reach_the_replies(tmp_path, capfd):
+    fs = fuzzy.builtin(SYSTEM)
+    noisy = _before_evaluate('printf("noise\\n"); fflush(stdout); fputs("err\\n", stderr);')
+    c = _export(tmp_path, "noisy", lambda src: "#include <stdio.h>\n" + noisy(src))
+    with CompiledFIS(c, trust=True) as compiled:
+        d = np.linspace(0, 3, 20)
+        np.testing.assert_allclose(compiled.evaluate(dtheta=d, alpha=0.5),
+                                   fs.evaluate(dtheta=d, alpha=0.5), rtol=0, atol=1e-12)
+    out, err = capfd.readouterr()
+    assert "noise" not in out and "err" not in err

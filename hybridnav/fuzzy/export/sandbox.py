@@ -297,13 +297,15 @@ def compile_program(files: Mapping[str, str], where: str, *,
         raise
 
 
-def _end(proc: subprocess.Popen, owner: int) -> None:
+def _end(proc: subprocess.Popen, fds: tuple[int, int], owner: int) -> None:
     if os.getpid() != owner:     # a forked copy of the parent: the child is not its to end
         return
     _kill_group(proc)
-    for f in (proc.stdin, proc.stdout):
-        if f is not None:
-            f.close()
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
 
 
 class Child:
@@ -313,7 +315,9 @@ class Child:
     Parameters
     ----------
     argv : sequence of str
-        The program and its arguments.
+        The program and its arguments. Two more arguments follow them: the numbers of the file
+        descriptors it reads requests from and writes replies to (not its standard input and
+        output: what the C prints does not get into the replies).
     where : str
         Named in error messages (the C file).
     timeout : float
@@ -323,10 +327,10 @@ class Child:
 
     Notes
     -----
-    The child's standard error goes to ``/dev/null``; its limits are :data:`CHILD_CPU_SECONDS`
-    of CPU, 1 GiB of address space, 256 MiB files, no core file. It is killed (with everything
-    it started) on a timeout, by :meth:`close`, and when the object is collected or the
-    interpreter exits.
+    The child's standard input, output and error are ``/dev/null``; its limits are
+    :data:`CHILD_CPU_SECONDS` of CPU, 1 GiB of address space, 256 MiB files, no core file. It
+    is killed (with everything it started) on a timeout, by :meth:`close`, and when the object
+    is collected or the interpreter exits.
     """
 
     def __init__(self, argv: Sequence[str], where: str, *, timeout: float = CALL_TIMEOUT,
@@ -336,17 +340,26 @@ class Child:
                                  f"{timeout!r}")
         self.where = where
         self.timeout = float(timeout)
-        self._proc = subprocess.Popen(_limited(argv, CHILD_CPU_SECONDS, _CHILD_MEMORY, _FILE_SIZE),
-                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                      stderr=subprocess.DEVNULL, cwd=cwd, bufsize=0,
-                                      start_new_session=True)
-        assert self._proc.stdin is not None and self._proc.stdout is not None
-        self._w = self._proc.stdin.fileno()
-        self._r = self._proc.stdout.fileno()
+        requests, self._w = os.pipe()
+        self._r, replies = os.pipe()
+        try:
+            self._proc = subprocess.Popen(
+                _limited([*argv, str(requests), str(replies)], CHILD_CPU_SECONDS, _CHILD_MEMORY,
+                         _FILE_SIZE),
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                pass_fds=(requests, replies), cwd=cwd, start_new_session=True)
+        except BaseException:
+            for fd in (self._w, self._r):
+                os.close(fd)
+            raise
+        finally:                # the child's ends: its EOF and ours come when it holds the last
+            os.close(requests)
+            os.close(replies)
         os.set_blocking(self._w, False)
         self._poll = select.poll()
         self._failed: str | None = None
-        self._finalizer = weakref.finalize(self, _end, self._proc, os.getpid())
+        self._finalizer = weakref.finalize(self, _end, self._proc, (self._w, self._r),
+                                           os.getpid())
         self._lock = threading.Lock()
 
     def exchange(self, data: bytes, size: int, what: str) -> bytes:

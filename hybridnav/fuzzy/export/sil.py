@@ -48,27 +48,33 @@ TRUST_HINT = ("pass --trust (hybridnav verify) to compile and run other C: it th
 #: Rows of inputs per exchange with the child (each exchange has its own time limit).
 _CHUNK = 4096
 _HELLO = b"hnS1"
-_DRIVER = r"""/* hybridnav software-in-the-loop driver: batches of inputs in, outputs out */
+_DRIVER = r"""/* hybridnav software-in-the-loop driver: batches of inputs in, outputs out, on the two
+ * file descriptors given as its last arguments (what the C prints goes to /dev/null) */
+#define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <stdlib.h>
 typedef @real hn_real;
 hn_real @p_evaluate(const hn_real *in);
-int main(void)
+int main(int argc, char **argv)
 {
     static const unsigned char hello[4] = {'h', 'n', 'S', '1'};
     double *x = (double *)malloc(sizeof(double) * @chunk * @k);
     double *y = (double *)malloc(sizeof(double) * @chunk);
     hn_real in[@k];
     unsigned int n, i, j;
-    if (x == NULL || y == NULL) return 3;
-    if (fwrite(hello, 1, 4, stdout) != 4 || fflush(stdout) != 0) return 4;
-    while (fread(&n, sizeof n, 1, stdin) == 1) {
-        if (n > @chunk || fread(x, sizeof(double) * @k, n, stdin) != n) return 5;
+    FILE *req, *rep;
+    if (argc < 3 || x == NULL || y == NULL) return 3;
+    req = fdopen(atoi(argv[argc - 2]), "rb");
+    rep = fdopen(atoi(argv[argc - 1]), "wb");
+    if (req == NULL || rep == NULL) return 3;
+    if (fwrite(hello, 1, 4, rep) != 4 || fflush(rep) != 0) return 4;
+    while (fread(&n, sizeof n, 1, req) == 1) {
+        if (n > @chunk || fread(x, sizeof(double) * @k, n, req) != n) return 5;
         for (i = 0; i < n; ++i) {
             for (j = 0; j < @k; ++j) in[j] = (hn_real)x[(size_t)i * @k + j];
             y[i] = (double)@p_evaluate(in);
         }
-        if (fwrite(y, sizeof(double), n, stdout) != n || fflush(stdout) != 0) return 6;
+        if (fwrite(y, sizeof(double), n, rep) != n || fflush(rep) != 0) return 6;
     }
     return 0;
 }
@@ -213,8 +219,8 @@ class CompiledFIS:
         if hello != _HELLO:
             self._child.close()
             raise HybridnavError(f"{src}: the compiled program wrote something else than the "
-                                 "driver's greeting at its start (does the C print to standard "
-                                 "output?)")
+                                 "driver's greeting at its start (does the C write to its "
+                                 "descriptors?)")
 
     def __repr__(self) -> str:
         return f"CompiledFIS({self.source!r}, inputs={self.input_names})"
