@@ -11,7 +11,8 @@ first system of a run with an empty cache starts its build and keeps the Python 
 Then, per system, one sample per call against the exported C: ``FuzzySystem.evaluate`` on the
 Python path and with the compiled C evaluator (``use_native()``; called with literal keywords, as
 the planners call it, and with ``**dict``), and the C export (``hybridnav.fuzzy.export.to_c``)
-compiled and called through ctypes (``export.sil.CompiledFIS``'s function, on input buffers filled
+compiled here into a shared library and called through ctypes (our own fresh export, so in this
+process; ``export.sil.CompiledFIS`` runs C in a child process instead), on input buffers filled
 beforehand: the bare ctypes call), as ns per sample (best of ``--repeat`` passes over
 ``--samples`` random inputs) and the ratio to ctypes (target: at most 2); and whether the C
 evaluator's outputs equal the Python path's bit for bit. The load average is printed first and
@@ -102,8 +103,10 @@ def _best(fn, repeat: int, n: int) -> float:
 
 def bench_one_sample(name: str, n: int, repeat: int, rng: np.random.Generator,
                      workdir: Path) -> dict:
-    from hybridnav.fuzzy.export import to_c
-    from hybridnav.fuzzy.export.sil import CompiledFIS
+    import ctypes
+    import subprocess
+
+    from hybridnav.fuzzy.export import c_identifier, to_c
 
     fs = fuzzy.load(name)
     names = fs.input_names
@@ -116,8 +119,12 @@ def bench_one_sample(name: str, n: int, repeat: int, rng: np.random.Generator,
     code = to_c(fs)
     (workdir / f"{code.basename}.h").write_text(code.header)
     (workdir / f"{code.basename}.c").write_text(code.source)
-    cfis = CompiledFIS(workdir / f"{code.basename}.c")
-    fn, real = cfis._fn, cfis._real
+    lib = workdir / f"lib{code.basename}.so"
+    subprocess.run([os.environ.get("CC", "gcc"), "-std=c99", "-O2", "-shared", "-fPIC", "-o",
+                    str(lib), str(workdir / f"{code.basename}.c")], check=True, timeout=300)
+    real = ctypes.c_double
+    fn = getattr(ctypes.CDLL(str(lib)), f"{c_identifier(code.basename)}_evaluate")
+    fn.restype, fn.argtypes = real, [ctypes.POINTER(real)]
     bufs = [(real * len(names))(*r) for r in rows]
 
     def run_ctypes():

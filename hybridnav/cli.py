@@ -179,17 +179,21 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from hybridnav import fuzzy
-    from hybridnav.analysis.sil import verify
     from hybridnav.fuzzy.export.sil import CompiledFIS
     from hybridnav.world import load_scenario
 
     system = fuzzy.load_any(args.fis)
-    compiled = CompiledFIS(args.c_file)
-    if set(compiled.input_names) != set(system.input_names):
-        raise HybridnavError(f"{args.c_file}: its inputs {', '.join(compiled.input_names)} are "
-                             f"not those of {args.fis} ({', '.join(system.input_names)})")
     names = [s.strip() for s in args.scenarios.split(",") if s.strip()]
-    rows = verify(system, compiled, [load_scenario(n) for n in names], seed=args.seed)
+    scenarios = [load_scenario(n) for n in names]
+    # compiled and run in a child process with limits; other than an unmodified export only
+    # with --trust
+    with CompiledFIS(args.c_file, trust=args.trust, timeout=args.timeout) as compiled:
+        if set(compiled.input_names) != set(system.input_names):
+            raise HybridnavError(f"{args.c_file}: its inputs {', '.join(compiled.input_names)} "
+                                 f"are not those of {args.fis} ({', '.join(system.input_names)})")
+        from hybridnav.analysis.sil import verify   # seconds to import: after the C's checks
+
+        rows = verify(system, compiled, scenarios, seed=args.seed)
     print(f"{args.c_file} (compiled) against {args.fis} (Python), planner effc, seed {args.seed}:")
     print(f"  {'scenario':<16} {'robot':<8} {'outcome':<14} {'samples':>7} {'max |dx|':>10} "
           f"{'max |dw|':>10} {'same inputs':>11}")
@@ -546,6 +550,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_SEED, default=0)
     p.add_argument("--tolerance", type=_TOLERANCE, default=1e-9,
                    help="largest allowed difference of states and w (default 1e-9)")
+    p.add_argument("--trust", action="store_true",
+                   help="compile C that is not an unmodified hybridnav export (it still runs "
+                        "only in a child process with limits)")
+    p.add_argument("--timeout", type=float, default=10.0, metavar="SECONDS",
+                   help="time limit of each call into the compiled C (default 10)")
     p.set_defaults(func=_cmd_verify)
 
     p = add_command("plot", help="redraw path.png and the planner's diagnostics from a result "

@@ -1,5 +1,5 @@
-"""Software in the loop (issue 15): the exported C controller, compiled into a shared library and
-called through ctypes, drives the EFFC closed loop exactly as the Python evaluator does."""
+"""Software in the loop (issue 15): the exported C controller, compiled and run in a child process
+(issue 27), drives the EFFC closed loop exactly as the Python evaluator does."""
 
 from __future__ import annotations
 
@@ -81,9 +81,17 @@ def test_bad_c_files_are_refused_with_the_file(tmp_path, monkeypatch):
     with pytest.raises(HybridnavError, match=r"x\.h: not a hybridnav C export"):
         CompiledFIS(tmp_path / "x.c")
     export(fuzzy.builtin("effc-2rule"), "c", tmp_path / "e")
-    (tmp_path / "e.c").write_text((tmp_path / "e.c").read_text() + "\nthis is not C\n")
-    with pytest.raises(HybridnavError, match=r"e\.c: does not compile"):
+    text = (tmp_path / "e.c").read_text()
+    (tmp_path / "e.c").write_text(text + "\nthis is not C\n")
+    lines = text.count("\n")
+    with pytest.raises(HybridnavError, match=rf"e\.c: expected the file hybridnav exports for the "
+                                             rf"system embedded in e\.c, unmodified, got one that "
+                                             rf"differs from it at line {lines + 2}; .* --trust"):
         CompiledFIS(tmp_path / "e.c")
+    # trusted, it is compiled: the first error's location and kind, nothing it quotes
+    with pytest.raises(HybridnavError, match=rf"e\.c: does not compile: .*e\.c:{lines + 2}:1: "
+                                             r"unknown type name '\.\.\.'\Z"):
+        CompiledFIS(tmp_path / "e.c", trust=True)
     monkeypatch.setenv("CC", "/no/such/compiler")
     with pytest.raises(HybridnavError, match=r"no C compiler"):
-        CompiledFIS(tmp_path / "e.c")
+        CompiledFIS(tmp_path / "e.c", trust=True)

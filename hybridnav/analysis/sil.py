@@ -1,8 +1,10 @@
 """Software in the loop: the compiled C controller against the Python evaluator, in closed loop.
 
 :func:`verify` runs the EFFC planner with a :class:`~hybridnav.fuzzy.FuzzySystem` and with its C
-export compiled (:class:`hybridnav.fuzzy.export.sil.CompiledFIS`) on the same scenarios and
-compares every state and ``w`` sample; ``hybridnav verify`` and the tuner's report call it.
+export compiled (:class:`hybridnav.fuzzy.export.sil.CompiledFIS`: the C runs in a child process,
+one pipe round trip per control cycle) on the same scenarios and compares every state and ``w``
+sample; ``hybridnav verify`` and the tuner's report call it. The Python run's inputs go to the C
+in one batch for the same-inputs comparison.
 """
 
 from __future__ import annotations

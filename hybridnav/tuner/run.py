@@ -466,7 +466,7 @@ def _sil_lines(job: Job, system, out: Path) -> list[str]:
     parted = [r["scenario"] for r in rows if not r["max_state_diff"] <= 1e-9]
     margin = job["planner"].get("safety_margin", 0.0)
     lines = head + [
-        f"`{C_BASENAME}.c`, compiled with the system C compiler and called through ctypes, "
+        f"`{C_BASENAME}.c`, compiled with the system C compiler and run in a child process, "
         f"gives the Python evaluator's w on the same inputs to {exact:.1e} "
         f"({'within' if exact <= 1e-9 else 'NOT within'} 1e-9) along the runs below, and drove "
         "the same EFFC closed loop"
