@@ -347,3 +347,16 @@ def test_what_trusted_c_prints_does_not_reach_the_replies(tmp_path, capfd):
                                    fs.evaluate(dtheta=d, alpha=0.5), rtol=0, atol=1e-12)
     out, err = capfd.readouterr()
     assert "noise" not in out and "err" not in err
+
+
+def test_verify_takes_the_deployment_settings_and_explains_a_parted_loop(tmp_path, capsys):
+    from hybridnav.cli import main
+
+    assert main(["export", "effc-tuned", "--format", "c", "-o", str(tmp_path / "effc")]) == 0
+    capsys.readouterr()
+    code = main(["verify", "effc-tuned", str(tmp_path / "effc.c"), "--set", "safety_margin=0.05",
+                 "--scenarios", "effc-train-2,effc-env-b"])
+    out = capsys.readouterr().out
+    assert code == 0 and "planner effc, safety_margin=0.05, seed 0:" in out
+    assert main(["verify", "effc-tuned", str(tmp_path / "effc.c"), "--set", "nosuch=1"]) == 2
+    assert "planner effc: unknown parameter 'nosuch'" in capsys.readouterr().err
