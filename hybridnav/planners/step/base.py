@@ -250,19 +250,23 @@ class StepPlanner(Planner):
                                             goal_distance=goal_distance[i])
                 return val
 
+            # within reach of the goal no candidate other than the goal itself may be taken
+            # (steps are farther than reach), so the goal is the step when it is feasible:
+            # otherwise a search without the goal among its candidates could only arrive by
+            # aiming beyond it, and stops short once nothing farther is feasible
+            if np.hypot(*(pos - goal)) <= reach[i]:
+                at_goal = f(np.asarray(goal, dtype=float)[None])
+                if np.isfinite(at_goal[0]):
+                    plan_time[i] += time.perf_counter() - tic
+                    searches[i].append(np.asarray(at_goal, dtype=float))   # no search: 1 value
+                    accept(sim, i, np.asarray(goal, dtype=float), float(at_goal[0]))
+                    return
             init = np.clip(goal, lower, upper)[None] if v["goal_candidate"] else None
             res = self.optimize(f, lower, upper, rng, init, memories[i])
             plan_time[i] += time.perf_counter() - tic
             searches[i].append(np.asarray(res.history.best, dtype=float))
             if np.isfinite(res.fun):
-                wp[i] = res.x
-                to_goal[i] = bool(np.all(res.x == goal))
-                planned[i] = True
-                cost[i] = res.fun
-                checked_at[i] = sim.t
-                fail_since[i] = np.nan
-                waypoints[robots[i].name].append((sim.t, float(res.x[0]), float(res.x[1]),
-                                                       float(res.fun)))
+                accept(sim, i, res.x, res.fun)
                 return
             planned[i] = False
             retry_at[i] = sim.t + 1.0
@@ -270,6 +274,15 @@ class StepPlanner(Planner):
                 fail_since[i] = sim.t
             if sim.t - fail_since[i] >= v["patience"]:
                 sim.stop(i, "stuck")
+
+        def accept(sim: Simulation, i: int, x: np.ndarray, fun: float) -> None:
+            wp[i] = x
+            to_goal[i] = bool(np.all(x == sim.goals()[i]))
+            planned[i] = True
+            cost[i] = fun
+            checked_at[i] = sim.t
+            fail_since[i] = np.nan
+            waypoints[robots[i].name].append((sim.t, float(x[0]), float(x[1]), float(fun)))
 
         def go_straight(sim: Simulation, i: int) -> None:
             to_goal[i] = planned[i] = True
