@@ -298,7 +298,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
                            scenarios=scens)
     finally:
         bar.close()
-    words = {True: "holds", False: "does not hold", None: "cannot be checked"}
+    words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
         print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, profile=paper "
               f"{words[c['paper profile']]}; profile=hybridnav {words[c['hybridnav profile']]}")

@@ -38,10 +38,21 @@ __all__ = ["RUN_COLUMNS", "PlannerSpec", "compare", "parse_planner", "planner_sp
 #: name (appended last so that the older columns keep their positions)
 RUN_COLUMNS = ["planner", "scenario", "run", "seed", "robot", "outcome", "path_length",
                "time_to_goal", "smoothness", "min_clearance", "compute_time", "planner_name"]
-METRICS = ["path_length", "time_to_goal", "smoothness", "min_clearance", "compute_time"]
+#: summarized metrics; ``time_with_planning`` is derived per run: ``time_to_goal`` plus the
+#: robot's planning computation ``compute_time`` (the time a paper means when "generation of each
+#: point takes time", FAStep-Kinematic Sec. VIII)
+METRICS = ["path_length", "time_to_goal", "smoothness", "min_clearance", "compute_time",
+           "time_with_planning"]
 SYNTAX = "NAME, NAME@LABEL or NAME@LABEL:key=value[:key=value...]"
 #: metrics summarized over the robots that reached their goal only
-REACHED_ONLY = ("path_length", "time_to_goal", "smoothness")
+REACHED_ONLY = ("path_length", "time_to_goal", "smoothness", "time_with_planning")
+#: metrics compared between planners with a Mann-Whitney U test (``<metric>_p_vs_<label>``)
+TESTED = ("path_length", "time_to_goal", "time_with_planning")
+
+
+def _cut(text: str) -> str:
+    """``text`` as given, or cut (quoted, with its length) when longer than 120 characters."""
+    return text if len(text) <= 120 else short_repr(text, 120)
 
 
 def run_seed(seed: int, run: int) -> int:
@@ -104,7 +115,7 @@ def parse_planner(text: str) -> PlannerSpec:
     item = text.strip()
 
     def fail(why: str) -> HybridnavError:
-        return HybridnavError(f"--planners {short_repr(item, 120)}: {why}")
+        return HybridnavError(f"--planners {_cut(item)}: {why}")
 
     head, *assignments = item.split(":")
     name, at, label = (part.strip() for part in head.partition("@"))
@@ -167,13 +178,13 @@ def planner_specs(planners: Sequence[str | PlannerSpec | tuple]) -> list[Planner
     seen: dict[str, int] = {}
     for i, spec in enumerate(specs):
         if not spec.label.strip():
-            raise HybridnavError(f"--planners {short_repr(str(spec), 120)}: expected a non-empty label")
+            raise HybridnavError(f"--planners {_cut(str(spec))}: expected a non-empty label")
         if spec.label in seen:
             raise HybridnavError(
-                f"--planners {short_repr(str(spec), 120)}: duplicate label {spec.label!r} (items {seen[spec.label] + 1} "
+                f"--planners {_cut(str(spec))}: duplicate label {spec.label!r} (items {seen[spec.label] + 1} "
                 f"and {i + 1}); give each variant its own label, NAME@LABEL")
         if spec.label != spec.name and spec.label in PLANNERS:
-            raise HybridnavError(f"--planners {short_repr(str(spec), 120)}: the label {spec.label!r} is the name of "
+            raise HybridnavError(f"--planners {_cut(str(spec))}: the label {spec.label!r} is the name of "
                                  f"another planner; choose another label")
         seen[spec.label] = i
     return specs
@@ -338,7 +349,7 @@ def compare(
             for scenario in loaded:
                 planner.check_scenario(scenario)
         except HybridnavError as exc:
-            raise HybridnavError(f"--planners {short_repr(str(spec), 120)}: {exc}") from None
+            raise HybridnavError(f"--planners {_cut(str(spec))}: {exc}") from None
     tasks = [_Task(spec.label, spec.name, tuple(sorted(settings[spec.label].items())), s, r,
                    run_seed(seed, r))
              for spec in specs for s in scenarios for r in range(runs)]
@@ -381,7 +392,7 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
     mean (Student's t; ``ci95_lo``, ``ci95_hi``; NaN below two values). ``best_path_length`` and
     ``best_time_to_goal`` are the shortest reached run's length and its own time (``worst_*``:
     the longest), as papers report best and worst cases. For every other planner on the same
-    scenario, ``path_length_p_vs_<label>`` and ``time_to_goal_p_vs_<label>`` hold the two-sided
+    scenario, ``<metric>_p_vs_<label>`` for each metric of :data:`TESTED` holds the two-sided
     Mann-Whitney U test's p-value (:func:`scipy.stats.mannwhitneyu`; NaN where either side has
     no reached run). ``units`` is the scenario's length unit where the table knows it
     (``table.attrs["units"]``, set by :func:`compare`).
@@ -389,6 +400,8 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
     from scipy import stats
 
     units = table.attrs.get("units", {})
+    table = table.assign(time_with_planning=table["time_to_goal"].astype(float)
+                         + table["compute_time"].astype(float))
     out = []
     groups = {key: g for key, g in table.groupby(["planner", "scenario"], sort=False)}
     for (planner, scenario), g in groups.items():
@@ -417,7 +430,7 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
             if sc2 != scenario or other == planner:
                 continue
             ok2 = g2[g2["outcome"] == "reached"]
-            for m in ("path_length", "time_to_goal"):
+            for m in TESTED:
                 a = ok[m].astype(float).dropna().to_numpy()
                 b = ok2[m].astype(float).dropna().to_numpy()
                 row[f"{m}_p_vs_{other}"] = (float(stats.mannwhitneyu(a, b).pvalue)

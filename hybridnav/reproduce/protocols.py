@@ -38,13 +38,23 @@ class Row:
 class Claim:
     """A paper's claim about two planners (``kind``: ``shorter`` or ``faster``: ``a`` beats ``b``
     in mean length / time on every listed row) or one (``reaches``: every run of ``a`` reaches
-    its goal; ``stuck``: none does). ``rows``: the row labels it covers (empty: all)."""
+    its goal; ``stuck``: none does). ``rows``: the row labels it covers (empty: all).
+    ``time``: which time a ``faster`` claim means, as the paper defines it: ``"simulated"`` (the
+    robot's travel time) or ``"with planning"`` (travel plus the planner's computation).
+    ``time_source``: where the paper says so."""
 
     text: str
     kind: str
     a: str
     b: str = ""
     rows: tuple[str, ...] = ()
+    time: str = "simulated"
+    time_source: str = ""
+
+    def __post_init__(self) -> None:
+        if self.time not in ("simulated", "with planning"):
+            raise ValueError(f"claim {self.text!r}: time: expected 'simulated' or "
+                             f"'with planning', got {self.time!r}")
 
 
 @dataclass(frozen=True)
@@ -88,7 +98,9 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
         claims=(Claim("FAStep-Kinematic's mean path is shorter than ACO-Kinematic's in all three "
                       "scenarios", "shorter", "fastep-kinematic", "aco-kinematic"),
                 Claim("FAStep-Kinematic reaches the goal in less time than ACO-Kinematic in all "
-                      "three scenarios", "faster", "fastep-kinematic", "aco-kinematic")),
+                      "three scenarios", "faster", "fastep-kinematic", "aco-kinematic",
+                      time="with planning",
+                      time_source="Sec. VIII: \"generation of each point takes time\"")),
         enhancement=("fastep-kinematic", "aco-kinematic"),
         notes="The scenarios are reconstructions of the paper's figures."),
     Protocol(

@@ -1,10 +1,13 @@
 """``report.md`` of a reproduction: the paper's numbers beside ours, per profile, and its claims.
 
-Our figures are means over the runs that reached the goal (the success count beside them); a
-claim about two planners compares those means row by row. Where one side reached its goal in no
-run and the other did, the one that arrives is the shorter and the faster; where neither did
-(or the paper gives no number) the row "cannot be checked". Each comparison also quotes the
-Mann-Whitney U p-value of our runs (from ``summary.csv``).
+Our figures are means over the runs that reached the goal (the success count beside them). A
+claim about two planners is judged row by row: in the paper's numbers as printed (one value per
+method; one that never arrives is not shorter or faster); in ours it holds on a row only when
+both planners reached in most of their runs and the two-sided Mann-Whitney U test of the reached
+runs (``summary.csv``) gives p < :data:`ALPHA` with ``a`` ahead — the opposite with p < ALPHA
+is "does not hold", so is ``a`` reaching in no run where ``b`` reaches, and anything else "not
+shown". A ``faster`` claim uses the time its paper means (:attr:`Claim.time`: the simulated
+travel time, or travel plus planning computation), and the report says which.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
-__all__ = ["ASTAR_SLACK", "astar_bound", "bounds_section", "check_claims", "claims_section",
+__all__ = ["ALPHA", "ASTAR_SLACK", "MOST_REACHED", "astar_bound", "bounds_section", "check_claims", "claims_section",
            "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
            "profile_sections", "straight_line_bound", "variants_section", "write_report"]
 
@@ -127,16 +130,17 @@ def _rows(protocol: Protocol, claim: Claim) -> list[Row]:
     return [r for r in protocol.rows if not claim.rows or r.label in claim.rows]
 
 
-def _metric(value: Value | dict[str, Any] | None, what: str) -> float | None:
-    """Length or time of a paper value or one of our summary rows (None: none reached)."""
+def _metric(value: Value | dict[str, Any] | None, column: str) -> float | None:
+    """A paper value's length or time, or the mean of ``column`` in one of our summary rows
+    (None: none reached, or the summary has no such column)."""
     if value is None:
         return None
     if isinstance(value, Value):
-        v = value.length if what == "length" else value.time
+        v = value.length if column == "path_length" else value.time
         return v if value.outcome == "reached" else None
     if not value["success_rate"] > 0:
         return None
-    v = value["path_length_mean" if what == "length" else "time_to_goal_mean"]
+    v = value.get(f"{column}_mean")
     return None if v is None or not math.isfinite(v) else float(v)
 
 
@@ -149,6 +153,20 @@ def _reached(value: Value | dict[str, Any] | None) -> float | None:
     return float(value["success_rate"])
 
 
+#: a claim about two planners holds in our runs only with this significance (two-sided
+#: Mann-Whitney U test of the reached runs) and with both reaching in more than
+#: :data:`MOST_REACHED` of their runs; otherwise it is "not shown"
+ALPHA = 0.05
+MOST_REACHED = 0.5
+
+
+def _column(claim: Claim) -> str:
+    """The summary metric a ``shorter`` / ``faster`` claim compares."""
+    if claim.kind == "shorter":
+        return "path_length"
+    return "time_with_planning" if claim.time == "with planning" else "time_to_goal"
+
+
 def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
            ) -> tuple[bool | None, str]:
     parts, verdicts = [], []
@@ -159,28 +177,9 @@ def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
             va = ours(summary, _label(protocol, claim.a, view), row.scenario)
             vb = ours(summary, _label(protocol, claim.b, view), row.scenario) if claim.b else None
         if claim.kind in ("shorter", "faster"):
-            what = "length" if claim.kind == "shorter" else "time"
-            a, b = _metric(va, what), _metric(vb, what)
-            if a is None and b is not None and _reached(va) == 0.0:
-                verdicts.append(False)          # never arriving is not shorter, nor faster
-                parts.append(f"{row.label}: {claim.a} reached none, {claim.b} {b:.4g}")
-                continue
-            if b is None and a is not None and _reached(vb) == 0.0:
-                verdicts.append(True)           # arriving beats never arriving
-                parts.append(f"{row.label}: {claim.a} {a:.4g}, {claim.b} reached none")
-                continue
-            if a is None or b is None:
-                verdicts.append(None)
-                parts.append(f"{row.label}: no number")
-                continue
-            p = ""
-            if isinstance(va, dict):
-                key = f"{'path_length' if what == 'length' else 'time_to_goal'}_p_vs_" \
-                      f"{_label(protocol, claim.b, view)}"
-                if key in va and va[key] == va[key]:
-                    p = f", p = {va[key]:.2g}"
-            verdicts.append(a < b)
-            parts.append(f"{row.label}: {a:.4g} vs {b:.4g}{p}")
+            verdict, part = _compare_row(protocol, claim, view, va, vb)
+            verdicts.append(verdict)
+            parts.append(f"{row.label}: {part}")
         else:
             share = _reached(va)
             if share is None:
@@ -196,6 +195,39 @@ def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
     else:
         holds = None
     return holds, "; ".join(parts)
+
+
+def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb) -> tuple[bool | None, str]:
+    """One row of a ``shorter`` / ``faster`` claim. The paper's numbers (one value per method)
+    are compared as printed; ours need significance and runs that reached (see :data:`ALPHA`)."""
+    col = _column(claim)
+    a, b = _metric(va, col), _metric(vb, col)
+    if view == "paper":
+        if a is None and b is not None and _reached(va) == 0.0:
+            return False, f"{claim.a} reached none, {claim.b} {b:.4g}"
+        if b is None and a is not None and _reached(vb) == 0.0:
+            return True, f"{claim.a} {a:.4g}, {claim.b} reached none"
+        if a is None or b is None:
+            return None, "no number"
+        return a < b, f"{a:.4g} vs {b:.4g}"
+    if va is None or vb is None:
+        return None, "no number"
+    ra, rb = _reached(va), _reached(vb)
+    na, nb = int(va["robots"]), int(vb["robots"])
+    reach = f"reached {round(ra * na)}/{na} vs {round(rb * nb)}/{nb}"
+    if ra == 0.0 and rb > 0.0:
+        return False, f"{claim.a} reached none, {claim.b} {b:.4g} ({reach})"
+    if ra <= MOST_REACHED or rb <= MOST_REACHED:
+        nums = f"{_fmt(a) if a is not None else '-'} vs {_fmt(b) if b is not None else '-'}"
+        return None, f"{nums}, {reach}: not most runs on both sides"
+    key = f"{col}_p_vs_{_label(protocol, claim.b, view)}"
+    p = va.get(key, math.nan)
+    p = math.nan if p is None else float(p)
+    if a is None or b is None or not math.isfinite(p):
+        return None, f"no {col} in this summary (stored before it was recorded: run it again)"
+    if p >= ALPHA:
+        return None, f"{a:.4g} vs {b:.4g}, p = {p:.2g} >= {ALPHA:g}"
+    return a < b, f"{a:.4g} vs {b:.4g}, p = {p:.2g}"
 
 
 def check_claims(protocol: Protocol, summary: pd.DataFrame) -> list[dict[str, Any]]:
@@ -215,15 +247,27 @@ def check_claims(protocol: Protocol, summary: pd.DataFrame) -> list[dict[str, An
     """
     out = []
     for claim in protocol.claims:
-        item: dict[str, Any] = {"text": claim.text}
+        item: dict[str, Any] = {"text": claim.text, "measure": _measure(claim)}
         for view in VIEWS:
             item[view], item[f"{view} detail"] = _check(protocol, claim, summary, view)
         out.append(item)
     return out
 
 
+def _measure(claim: Claim) -> str:
+    """What a claim compares, in words (the report's "measured" column)."""
+    if claim.kind == "shorter":
+        return "mean path length of the reached runs"
+    if claim.kind == "faster":
+        what = ("travel time plus the planner's computation" if claim.time == "with planning"
+                else "simulated travel time")
+        return f"mean {what} of the reached runs" + (
+            f" (the paper's time: {claim.time_source})" if claim.time_source else "")
+    return "share of runs that reached" if claim.kind == "reaches" else "share of runs stuck"
+
+
 def _word(v: bool | None) -> str:
-    return {True: "holds", False: "does not hold", None: "cannot be checked"}[v]
+    return {True: "holds", False: "does not hold", None: "not shown"}[v]
 
 
 def _cell(row: dict[str, Any] | None, units: str) -> str:
@@ -319,7 +363,8 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
                         else:
                             va = ours(summary, _label(protocol, a, view), row.scenario)
                             vb = ours(summary, _label(protocol, b, view), row.scenario)
-                        x, y = _metric(va, what), _metric(vb, what)
+                        col = "path_length" if what == "length" else "time_to_goal"
+                        x, y = _metric(va, col), _metric(vb, col)
                         cells.append(f"{100 * (y - x) / y:.2f} %" if x is not None and y else "-")
                 lines.append("| " + " | ".join(cells) + " |")
             lines.append("")
@@ -338,10 +383,18 @@ def claims_section(claims: Sequence[dict[str, Any]], level: int = 2,
     """The paper's claims with their verdicts in its numbers and in ours (markdown lines;
     ``level``: of the heading; ``profiles``: a column per profile, else one for ours)."""
     views = VIEWS if profiles else VIEWS[::2]
-    head = ("| claim | in the paper's numbers | ours, `profile=paper` | ours, "
-            "`profile=hybridnav` |" if profiles else "| claim | in the paper's numbers | ours |")
-    return [f"{'#' * level} The paper's claims", "", head, "|---" * (len(views) + 1) + "|"] + [
-        f"| {c['text']} | " + " | ".join(f"{_word(c[v])} ({c[f'{v} detail']})" for v in views)
+    head = ("| claim | measured | in the paper's numbers | ours, `profile=paper` | ours, "
+            "`profile=hybridnav` |" if profiles else
+            "| claim | measured | in the paper's numbers | ours |")
+    rule = (f"In the paper's numbers a claim is judged as printed. In ours it holds on a row only "
+            f"when both planners reached in more than {MOST_REACHED:.0%} of their runs and the "
+            f"two-sided Mann-Whitney U test of the reached runs gives p < {ALPHA:g} in its "
+            "favour; significant the other way, or the first planner reaching in no run where "
+            "the second does, is \"does not hold\"; anything else is \"not shown\".")
+    return [f"{'#' * level} The paper's claims", "", rule, "", head,
+            "|---" * (len(views) + 2) + "|"] + [
+        f"| {c['text']} | {c.get('measure', '')} | "
+        + " | ".join(f"{_word(c[v])} ({c[f'{v} detail']})" for v in views)
         + " |" for c in claims] + [""]
 
 
