@@ -78,19 +78,20 @@ _RANGE = re.compile(r'(?P<pre>"range": \[|range: |Range=\[)(?P<lo>[^\s,\]]+)(?P<
 
 def _hostile_range(draw) -> tuple[float, float]:
     """A range the evaluators cannot use, or can only just: a float step wide at some
-    magnitude, a few steps wide, as wide as doubles go, far from zero, next to zero."""
+    magnitude, a number of steps around what 101 or 1001 distinct samples need, as wide as
+    doubles go (or the centroid's moments allow), far from zero, next to zero."""
     x = draw(st.sampled_from([1.0, -1.0, 0.5, 3.0, 1e6, -1e6, 1e15, 1e-300, 0.0, 1e300, -7.5]))
     kind = draw(st.sampled_from(["step", "steps", "huge", "far", "tiny", "eps"]))
     if kind == "step":
         return x, math.nextafter(x, math.inf)
     if kind == "steps":
-        hi = x
-        for _ in range(draw(st.integers(2, 400))):
-            hi = math.nextafter(hi, math.inf)
-        return x, hi
+        m = draw(st.sampled_from([2, 3, 50, 99, 100, 101, 150, 999, 1000, 1001, 5000, 10**5]))
+        return x, x + m * math.ulp(x)
     if kind == "huge":
         return draw(st.sampled_from([(-1e308, 1.0), (-1.7e308, 1.7e308), (0.0, 1e308),
-                                     (-1e200, 1e200), (1e150, 1e151), (-1e154, 1e154)]))
+                                     (-1e200, 1e200), (1e150, 1e151), (-1e154, 1e154),
+                                     (-1e150, 1e150), (0.0, 2.0 ** 500), (-2.0 ** 499, 2.0 ** 499),
+                                     (0.0, 1.7976931348623157e308)]))
     if kind == "far":
         return x, x + draw(st.sampled_from([1e-12, 1e-9, 1.0, 1e-16 * max(abs(x), 1.0)]))
     if kind == "tiny":

@@ -20,8 +20,11 @@ from __future__ import annotations
 import math
 import re
 
+import numpy as np
 import pytest
-from test_fuzzy_export_fuzz import check_evaluates_inside_its_range
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_fuzzy_export_fuzz import check_evaluates_inside_its_range, examples
 
 from hybridnav import HybridnavError, fuzzy
 from hybridnav.cli import main
@@ -188,6 +191,44 @@ def test_ranges_at_the_edge_are_read_and_evaluate_inside_the_output_range(fmt, w
     fs = read_text(text, fmt, f"s.{fmt}")
     assert fs.output.range == tuple(d["output"]["range"])
     check_evaluates_inside_its_range(fs)
+
+
+def _scaled(lo: float, hi: float, points: int) -> dict:
+    """The base system with its output range [lo, hi] and terms moved into it."""
+    d = BASE.to_dict()
+    out = d["output"]
+    with np.errstate(over="ignore"):
+        for t in out["terms"]:
+            t["params"] = [lo + p * (hi - lo) for p in t["params"]]
+    out.update(range=[lo, hi], points=points, default=lo + 0.5 * (hi - lo))
+    return d
+
+
+@settings(deadline=None, max_examples=examples(200),
+          suppress_health_check=[HealthCheck.too_slow])
+@given(x=st.sampled_from([0.0, 1.0, -1.0, 3.7, 1e-300, 1e-12, 1e6, -1e15, 1e100, 2.0 ** 520,
+                          -1e300]),
+       width=st.one_of(st.integers(1, 3000).map(lambda m: ("ulps", m)),
+                       st.floats(-60, 308).map(lambda e: ("pow", 10.0 ** e))),
+       points=st.sampled_from([2, 3, 11, 101, 1001]))
+def test_an_accepted_output_range_evaluates_inside_itself(x, width, points):
+    """Whatever range the check accepts (near its edges: a few float steps per sample, widths
+    up to the moment bound, magnitudes to 2**520) evaluates to finite values inside it, in every
+    format; whatever it refuses is refused naming the output's key."""
+    kind, w = width
+    hi = x + w * math.ulp(x) if kind == "ulps" else x + w
+    if not (math.isfinite(hi) and hi > x):
+        return
+    try:
+        fs = fuzzy.FuzzySystem.from_dict(_scaled(x, hi, points), "s.json")
+    except HybridnavError as exc:
+        assert str(exc).startswith("s.json: output."), str(exc)
+        return
+    check_evaluates_inside_its_range(fs)
+    for fmt in ("fll", "fis"):
+        back = read_text(export(fs, fmt), fmt)
+        assert back.output.range == fs.output.range
+        check_evaluates_inside_its_range(back)
 
 
 # ---- names the readers and exporters agree on ---------------------------------------------------
