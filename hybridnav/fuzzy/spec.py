@@ -25,7 +25,7 @@ from hybridnav.params import short_repr
 __all__ = [
     "FORMAT", "Term", "Variable", "OutputVariable", "TermRef", "And", "Or", "Not", "Antecedent",
     "Rule", "antecedent_sentence", "parse_system", "antecedent_to_json", "range_problem",
-    "finite_number", "decode_json", "HugeInteger", "MAX_MOMENT",
+    "finite_number", "decode_json", "HugeInteger", "MAX_MOMENT", "names_text",
 ]
 
 #: The format string this module reads and writes.
@@ -287,8 +287,20 @@ def range_problem(lo: float, hi: float, points: int, *, output: bool = False) ->
     return None
 
 
-def _listing(names: Sequence[str], limit: int = 160) -> str:
-    """``a, b, c`` cut to about ``limit`` characters (a file may define thousands of terms)."""
+def names_text(names: Sequence[str], limit: int = 160) -> str:
+    """``a, b, c`` for a message, cut to about ``limit`` characters (a file may define
+    thousands of terms, or very long names).
+
+    Parameters
+    ----------
+    names : sequence of str
+    limit : int
+        Longest text returned whole.
+
+    Returns
+    -------
+    str
+    """
     text = ", ".join(names)
     return text if len(text) <= limit else f"{text[:limit]}... ({len(names)} names)"
 
@@ -307,6 +319,8 @@ class _Reader:
         self.source = source
 
     def fail(self, key: str, msg: str) -> HybridnavError:
+        if len(key) > 200:                   # antecedents nested hundreds deep
+            key = f"{key[:80]}...{key[-100:]}"
         prefix = where(self.source, key) if key else (self.source or "")
         return HybridnavError(f"{prefix}: {msg}" if prefix else msg)
 
@@ -449,10 +463,10 @@ def _read_antecedent(r: _Reader, value: Any, key: str, inputs: Mapping[str, Vari
                          "{\"and\": [...]}, {\"or\": [...]} or {\"not\": ...}")
         inp, term = value
         if inp not in inputs:
-            raise r.fail(key, f"no input named {short_repr(inp)} (inputs: {_listing(inputs)})")
+            raise r.fail(key, f"no input named {short_repr(inp)} (inputs: {names_text(inputs)})")
         if term not in inputs[inp].term_names():
             raise r.fail(key, f"input {short_repr(inp)} has no term {short_repr(term)} "
-                         f"(terms: {_listing(inputs[inp].term_names())})")
+                         f"(terms: {names_text(inputs[inp].term_names())})")
         return TermRef(inp, term)
     raise r.fail(key, f"expected [input, term] or an object with 'and', 'or' or 'not', "
                  f"got {_typename(value)}")
@@ -540,7 +554,7 @@ def parse_system(d: Any, source: str | None = None) -> dict[str, Any]:
         then = r.string(dd["then"], f"{k}.then")
         if then not in output.term_names():
             raise r.fail(f"{k}.then", f"output {short_repr(output.name)} has no term "
-                         f"{short_repr(then)} (terms: {_listing(output.term_names())})")
+                         f"{short_repr(then)} (terms: {names_text(output.term_names())})")
         weight = 1.0
         if "weight" in dd:
             weight = r.number(dd["weight"], f"{k}.weight")

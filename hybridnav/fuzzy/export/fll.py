@@ -73,6 +73,7 @@ from hybridnav.fuzzy.spec import (
     TermRef,
     Variable,
     antecedent_to_json,
+    names_text,
 )
 from hybridnav.fuzzy.system import FuzzySystem
 from hybridnav.params import short_repr
@@ -231,7 +232,7 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
             return a
         name = take("an input variable")
         if name not in inputs:
-            raise err(line, f"rule: expected an input variable ({', '.join(inputs)}), "
+            raise err(line, f"rule: expected an input variable ({names_text(inputs)}), "
                       f"got {short_repr(name)}")
         expect("is")
         k = 0
@@ -243,7 +244,7 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
             if term in ("any", "very", "somewhat", "extremely", "seldom"):
                 raise err(line, f"rule: hedge {short_repr(term)} is not supported (only 'not')")
             raise err(line, f"rule: input {short_repr(name)} has no term {short_repr(term)} "
-                      f"(terms: {', '.join(inputs[name])})")
+                      f"(terms: {names_text(inputs[name])})")
         a: Antecedent = TermRef(name, term)
         for _ in range(k):
             a = Not(a)
@@ -277,7 +278,7 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
             raise err(line, "rule: hedges in the consequent are not supported "
                       f"({short_repr(term)})")
         raise err(line, f"rule: output {short_repr(output)} has no term {short_repr(term)} "
-                  f"(terms: {', '.join(out_terms)})")
+                  f"(terms: {names_text(out_terms)})")
     weight = 1.0
     if peek() == "with":
         take("'with'")
