@@ -105,6 +105,31 @@ def test_fll_and_fis_integers_past_the_digit_limit_name_the_line():
     assert short_repr(BIG).endswith("(5002 characters)")           # the value is cut
 
 
+def test_long_keys_and_listings_are_cut():
+    """A 5000-digit .fis key (found by the long fuzz run), an antecedent nested 300 deep, a
+    variable with 2000 terms: each message stays short."""
+    key = "MF2" + "0" * 5000
+    text, n = edit("fis", "MF2='high':'smf',[0.2 1.2]", f"{key}='high':'smf',[1e999 1.2]")
+    refused("fis", text, f"line {n}: expected MF2 here (membership functions are numbered 1, "
+                         f"2, ...), got {short_repr(key)}")
+    d = BASE.to_dict()
+    a = ["dtheta", "nope"]
+    for _ in range(300):
+        a = {"and": [a]}
+    d["rules"][0]["if"] = a
+    with pytest.raises(HybridnavError, match=r"^s\.json: rules\[0\]\.if\.and\[0\].*\.\.\..*"
+                       r"\.and\[0\]: input 'dtheta' has no term 'nope'") as err:
+        fuzzy.FuzzySystem.from_dict(d, "s.json")
+    assert len(str(err.value)) < 300
+    d = BASE.to_dict()
+    d["inputs"][0]["terms"] = [{"name": f"t{i}", "mf": "trimf", "params": [0, 1, 2]}
+                               for i in range(2000)]
+    with pytest.raises(HybridnavError,
+                       match=r"\(terms: t0, t1, .*\.\.\. \(2000 names\)\)$") as err:
+        fuzzy.FuzzySystem.from_dict(d, "s.json")
+    assert len(str(err.value)) < 300
+
+
 # ---- numbers past the largest double ------------------------------------------------------------
 
 @pytest.mark.parametrize("fmt", ["json", "fll", "fis"])

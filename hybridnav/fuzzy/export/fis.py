@@ -409,11 +409,14 @@ def _read_variable(err: LineError, s: _Section, pts: dict[str, int],
         elif key == "NumMFs":
             num_mfs = (n, _int(err, n, key, value))
         elif key.startswith("MF") and key[2:].isdigit():
+            if len(key) >= 12:                 # the key reaches messages: keep it short
+                raise err(n, f"expected MF{len(mfs) + 1} here (membership functions are "
+                          f"numbered 1, 2, ...), got {short_repr(key)}")
             m = _MF.match(value)
             if not m:
                 raise err(n, f"{key}: expected 'name':'type',[params], got {value[:60]!r}")
-            mfs.append((n, int(key[2:]) if len(key) < 12 else -1, m.group("name"),
-                        m.group("type"), _numbers(err, n, key, m.group("params"))))
+            mfs.append((n, int(key[2:]), m.group("name"), m.group("type"),
+                        _numbers(err, n, key, m.group("params"))))
         elif key == "Enabled" or (s.kind == "Output" and key in ("LockPrevious", "LockRange")):
             v = _int(err, n, key, value)
             if key == "Enabled" and v != 1:
