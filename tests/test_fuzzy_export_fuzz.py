@@ -1,13 +1,28 @@
 """The JSON, FLL and .fis importers on damaged and hostile text: they return a system or raise
 HybridnavError naming the file and the line (FLL, .fis) or key (JSON) -- never another exception,
-never a hang. Mutations of valid exports: truncation, random characters, swapped / deleted /
-duplicated lines and tokens, numbers replaced by huge, tiny, NaN, infinite or negative values;
-plus arbitrary text and bytes."""
+never a hang, never a message over 600 characters. Mutations of valid exports: truncation, random
+characters, swapped / deleted / duplicated lines and tokens, numbers replaced by huge (400 to
+5000 digits, past Python's 4300-digit limit), tiny, NaN, infinite or negative values, ranges
+replaced by ones a float step wide, far from zero or as wide as doubles go; plus arbitrary text.
+
+What a reader accepts must be what the evaluators can represent: on a grid of inputs ``evaluate``
+(batch and single samples) gives finite outputs inside the output range -- except where
+scikit-fuzzy's centroid divides by ``eps`` instead of an aggregated area below it (tiny
+activations), which pulls the output towards 0 (the area is computed here independently of the
+engine) -- and an accepted FLL or .fis system can be exported to its format again (readers and
+exporters share one rule for names).
+
+``HYBRIDNAV_FUZZ_EXAMPLES=N`` runs every fuzz test here with N examples (a long run; the default
+counts keep the suite fast).
+"""
 
 from __future__ import annotations
 
+import math
+import os
 import re
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -15,14 +30,27 @@ from test_fuzzy_export import ZOO, ZOO_FLAT
 
 from hybridnav import HybridnavError, fuzzy
 from hybridnav.fuzzy import FuzzySystem
+from hybridnav.fuzzy.engine import universe
 from hybridnav.fuzzy.export import (
     export,
     load_any,
+    normalize,
     read_fis,
     read_fll,
     read_json,
     read_text,
 )
+from hybridnav.fuzzy.mf import sample
+from hybridnav.fuzzy.spec import And, Not, TermRef
+
+#: examples of the long fuzz run (``HYBRIDNAV_FUZZ_EXAMPLES``), else each test's own count
+_LONG = os.environ.get("HYBRIDNAV_FUZZ_EXAMPLES", "").strip()
+
+
+def examples(default: int) -> int:
+    """``default``, or the count ``HYBRIDNAV_FUZZ_EXAMPLES`` asks for."""
+    return int(_LONG) if _LONG else default
+
 
 SOURCES = {
     "json": [export(fuzzy.builtin("effc-5rule"), "json"),
@@ -34,18 +62,57 @@ SOURCES = {
             export(FuzzySystem.from_dict(ZOO_FLAT), "fis")],
 }
 WEIRD_NUMBERS = ["1e308", "-1e308", "1e999", "nan", "NaN", "inf", "-inf", "1e-320", "0", "-0.0",
-                 "2", "-7", "0.5", "1e18", "99999999999999999999999", "0x10", "1_0", "", "--1",
-                 "1e-300", "[", "'", "(", ")", "#", "%", ":", ",", "=", "is", "not", "and"]
+                 "2", "3", "-7", "0.5", "1e18", "99999999999999999999999", "1000000", "0x10",
+                 "1_0", "", "--1", "1e-300", "[", "'", "(", ")", "#", "%", ":", ",", "=", "is",
+                 "not", "and"]
+#: numbers past what doubles and Python's int() take, and the non-finite spellings of each format
+HOSTILE_NUMBERS = ["9" * 400, "-" + "9" * 400, "1" + "0" * 4300, "9" * 5000, "-" + "8" * 5000,
+                   "1." + "3" * 5000, "1e308", "-1e308", "1.7976931348623157e308", "5e-324",
+                   "-1e-310", "nan", "NaN", "-nan", "inf", "-inf", "Infinity", "-Infinity", "Inf",
+                   "1e400"]
 _NUM = re.compile(r"-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?")
+# a range in the three formats: JSON "range": [lo, hi], FLL range: lo hi, .fis Range=[lo hi]
+_RANGE = re.compile(r'(?P<pre>"range": \[|range: |Range=\[)(?P<lo>[^\s,\]]+)(?P<sep>,? )'
+                    r'(?P<hi>[^\s,\]]+)')
+
+
+def _hostile_range(draw) -> tuple[float, float]:
+    """A range the evaluators cannot use, or can only just: a float step wide at some
+    magnitude, a number of steps around what 101 or 1001 distinct samples need, as wide as
+    doubles go (or the centroid's moments allow), far from zero, next to zero."""
+    x = draw(st.sampled_from([1.0, -1.0, 0.5, 3.0, 1e6, -1e6, 1e15, 1e-300, 0.0, 1e300, -7.5]))
+    kind = draw(st.sampled_from(["step", "steps", "huge", "far", "tiny", "eps"]))
+    if kind == "step":
+        return x, math.nextafter(x, math.inf)
+    if kind == "steps":
+        m = draw(st.sampled_from([2, 3, 50, 99, 100, 101, 150, 999, 1000, 1001, 5000, 10**5]))
+        return x, x + m * math.ulp(x)
+    if kind == "huge":
+        return draw(st.sampled_from([(-1e308, 1.0), (-1.7e308, 1.7e308), (0.0, 1e308),
+                                     (-1e200, 1e200), (1e150, 1e151), (-1e154, 1e154),
+                                     (-1e150, 1e150), (0.0, 2.0 ** 500), (-2.0 ** 499, 2.0 ** 499),
+                                     (0.0, 1.7976931348623157e308)]))
+    if kind == "far":
+        return x, x + draw(st.sampled_from([1e-12, 1e-9, 1.0, 1e-16 * max(abs(x), 1.0)]))
+    if kind == "tiny":
+        return draw(st.sampled_from([(0.0, 1e-300), (1e-300, 2e-300), (0.0, 5e-324),
+                                     (-1e-310, 1e-310), (0.0, 1e-307)]))
+    return x, x + draw(st.sampled_from([2.220446049250313e-16, 1.1e-16, 4.5e-16]))
+
+
+KINDS = ("truncate", "insert", "replace_number", "swap_tokens", "swap_lines", "delete_line",
+         "duplicate_line", "replace_char", "hostile_number", "hostile_range")
+#: the mutations of numbers only (most such files still parse: the numeric checks get the work)
+NUMBER_KINDS = ("replace_number", "hostile_number", "hostile_range")
 
 
 @st.composite
-def mutated(draw, fmt: str | list[str]) -> str:
-    """A valid text of ``fmt`` (a key of SOURCES, or a list of texts) damaged 1-4 times."""
+def mutated(draw, fmt: str | list[str], kinds: tuple[str, ...] = KINDS) -> str:
+    """A valid text of ``fmt`` (a key of SOURCES, or a list of texts) damaged 1-4 times by
+    mutations of ``kinds``."""
     text = draw(st.sampled_from(SOURCES[fmt] if isinstance(fmt, str) else fmt))
     for _ in range(draw(st.integers(1, 4))):
-        kind = draw(st.sampled_from(["truncate", "insert", "replace_number", "swap_tokens",
-                                     "swap_lines", "delete_line", "duplicate_line", "replace_char"]))
+        kind = draw(st.sampled_from(kinds))
         lines = text.split("\n")
         if kind == "truncate":
             text = text[:draw(st.integers(0, len(text)))]
@@ -60,6 +127,18 @@ def mutated(draw, fmt: str | list[str]) -> str:
             if nums:
                 m = nums[draw(st.integers(0, len(nums) - 1))]
                 text = text[:m.start()] + draw(st.sampled_from(WEIRD_NUMBERS)) + text[m.end():]
+        elif kind == "hostile_number":
+            nums = list(_NUM.finditer(text))
+            if nums:
+                m = nums[draw(st.integers(0, len(nums) - 1))]
+                text = text[:m.start()] + draw(st.sampled_from(HOSTILE_NUMBERS)) + text[m.end():]
+        elif kind == "hostile_range":
+            ranges = list(_RANGE.finditer(text))
+            if ranges:
+                m = ranges[draw(st.integers(0, len(ranges) - 1))]
+                lo, hi = _hostile_range(draw)
+                text = (text[:m.start()] + m["pre"] + repr(lo) + m["sep"] + repr(hi)
+                        + text[m.end():])
         elif kind == "swap_tokens":
             toks = re.split(r"(\s+)", text)
             if len(toks) > 2:
@@ -87,6 +166,7 @@ def check(fmt: str, text: str) -> None:
     except HybridnavError as exc:
         msg = str(exc)
         assert msg.startswith(f"{source}: "), msg
+        assert len(msg) < 600, msg[:2000]                  # long values are cut
         rest = msg[len(source) + 2:]
         if fmt == "json":  # "line L column C: ...", "<key path>: ...", or a whole-document problem
             assert ": " in rest or rest.startswith(("expected", "duplicate key", "JSON")), msg
@@ -95,8 +175,81 @@ def check(fmt: str, text: str) -> None:
                 r"expected|missing|no '|no \[|section", rest), msg
         return
     assert isinstance(fs, FuzzySystem)
-    # whatever was accepted evaluates
-    fs.evaluate(**{n: 0.0 for n in fs.input_names})
+    check_evaluates_inside_its_range(fs)
+    if fmt != "json":                  # JSON carries any name; FLL and .fis what they can write
+        assert read_text(export(fs, fmt), fmt) == normalize(fs, flat=fmt == "fis")
+
+
+def grid(fs: FuzzySystem, n: int = 7) -> dict[str, np.ndarray]:
+    """``n`` points per input over its range (between universe samples too), all combinations."""
+    with np.errstate(over="ignore"):         # k * step near the largest double: hi replaces it
+        axes = [np.linspace(v.range[0], v.range[1], n) for v in fs.inputs]
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return {name: m.ravel() for name, m in zip(fs.input_names, mesh)}
+
+
+def aggregated_area(fs: FuzzySystem, X: dict[str, np.ndarray]) -> np.ndarray:
+    """scikit-fuzzy's aggregated output area per sample, computed without the engine: rule
+    strengths from np.interp of the sampled input terms (min / max / 1 - x, times the weight),
+    each output term cut at its largest strength, the universe upsampled at every cut's
+    crossings (``_interp_universe_fast``), the clipped terms' maximum integrated as a polyline."""
+    mu = {}
+    for v in fs.inputs:
+        xs = universe(v)
+        x = np.clip(X[v.name], *v.range)
+        for t in v.terms:
+            mu[(v.name, t.name)] = np.interp(x, xs, sample(t.mf, t.params, xs))
+
+    def ev(a):
+        if isinstance(a, TermRef):
+            return mu[(a.input, a.term)]
+        if isinstance(a, Not):
+            return 1.0 - ev(a.item)
+        vals = [ev(i) for i in a.items]
+        return np.minimum.reduce(vals) if isinstance(a, And) else np.maximum.reduce(vals)
+
+    n = len(next(iter(X.values())))
+    cuts = {t.name: np.zeros(n) for t in fs.output.terms}
+    for r in fs.rules:
+        cuts[r.then] = np.maximum(cuts[r.then], ev(r.antecedent) * r.weight)
+    xs = universe(fs.output)
+    F = {t.name: sample(t.mf, t.params, xs) for t in fs.output.terms}
+    area = np.empty(n)
+    for b in range(n):
+        live = [(F[name], c[b]) for name, c in cuts.items() if c[b] > 0.0]
+        new = [xs]
+        for f, c in live:
+            above = f >= c
+            i = np.flatnonzero(above[:-1] != above[1:])
+            new.append(xs[i] + (c - f[i]) * (xs[i + 1] - xs[i]) / (f[i + 1] - f[i]))
+        u = np.union1d(xs, np.concatenate(new))
+        agg = np.zeros(len(u))
+        for f, c in live:
+            np.maximum(agg, np.minimum(c, np.interp(u, xs, f)), out=agg)
+        area[b] = np.trapezoid(agg, u)
+    return area
+
+
+def check_evaluates_inside_its_range(fs: FuzzySystem) -> None:
+    """Finite outputs on a grid, inside the output range (to rounding); where the aggregated
+    area is below eps scikit-fuzzy's centroid is moment / eps, between 0 and the centroid."""
+    X = grid(fs)
+    y = fs.evaluate(**X)
+    k = np.linspace(0, len(y) - 1, 5).astype(int)          # the single-sample path agrees
+    one = np.array([fs.evaluate(**{n: float(c[i]) for n, c in X.items()}) for i in k])
+    np.testing.assert_allclose(one, y[k], rtol=1e-9, atol=1e-12 * np.abs(fs.output.range).max())
+    assert np.all(np.isfinite(y)), (fs.output.range, y[~np.isfinite(y)][:5])
+    lo, hi = fs.output.range
+    tol = 1e-9 * (hi - lo) + 1e-12 * max(abs(lo), abs(hi))
+    inside = (y >= lo - tol) & (y <= hi + tol)
+    if not inside.all():
+        floor = aggregated_area(fs, {n: c[~inside] for n, c in X.items()}) < 1.000001 * EPS
+        yo = y[~inside]
+        assert floor.all(), (fs.output.range, yo[~floor][:5])
+        assert np.all((yo >= min(lo, 0.0) - tol) & (yo <= max(hi, 0.0) + tol)), (lo, hi, yo)
+
+
+EPS = float(np.finfo(float).eps)
 
 
 @pytest.mark.parametrize("fmt", ["json", "fll", "fis"])
@@ -105,19 +258,26 @@ def test_the_sources_are_valid(fmt):
         assert isinstance(read_text(text, fmt), FuzzySystem)
 
 
-@settings(deadline=None, max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@settings(deadline=None, max_examples=examples(300), suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), fmt=st.sampled_from(["json", "fll", "fis"]))
 def test_mutated_files(data, fmt):
     check(fmt, data.draw(mutated(fmt)))
 
 
-@settings(deadline=None, max_examples=150)
+@settings(deadline=None, max_examples=examples(300),
+          suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data(), fmt=st.sampled_from(["json", "fll", "fis"]))
+def test_number_mutations(data, fmt):
+    check(fmt, data.draw(mutated(fmt, NUMBER_KINDS)))
+
+
+@settings(deadline=None, max_examples=examples(150))
 @given(text=st.text(max_size=300), fmt=st.sampled_from(["json", "fll", "fis"]))
 def test_arbitrary_text(text, fmt):
     check(fmt, text)
 
 
-@settings(deadline=None, max_examples=100)
+@settings(deadline=None, max_examples=examples(100))
 @given(prefix=st.sampled_from(["Engine: x\nInputVariable: a\n", "[System]\n", '{"format": "h']),
        body=st.text(alphabet=st.sampled_from(list("()[]{}'\":=,# \n%-.0123456789eEanotisf")),
                     max_size=200))
@@ -172,7 +332,7 @@ def test_hostile_inputs_are_user_errors(tmp_path):
     ("MF1='low':'zmf',[0.2 1.2]", "MF1='low':'pimf',[0.2 1.2 1 2]",
      r"line 23: MF1 'low': membership function 'pimf' is not supported"),
     ("MF1='low':'zmf',[0.2 1.2]", "MF1='low':'zmf',[1.2 0.2]", r"line 23: term 'low': expected a < b"),
-    ("2 1, 1 (1.0) : 1", "2.2 1, 1 (1.0) : 1", r"line 4\d: rule: input code 2.2 has a hedge"),
+    ("2 1, 1 (1.0) : 1", "2.2 1, 1 (1.0) : 1", r"line 4\d: rule: input code '2.2' has a hedge"),
     ("2 1, 1 (1.0) : 1", "2 1, -1 (1.0) : 1", r"line 4\d: rule: output code must be a term index"),
     ("2 1, 1 (1.0) : 1", "2 1, 1 (1.5) : 1", r"line 4\d: rule weight: expected a number in \[0, 1\]"),
     ("2 1, 1 (1.0) : 1", "2 1, 1 (1.0) : 3", r"line 4\d: rule connector: expected 1 \(AND\) or 2"),

@@ -21,6 +21,7 @@ from hybridnav import HybridnavError, fuzzy
 from hybridnav.cli import main
 from hybridnav.fuzzy import FuzzySystem
 from hybridnav.fuzzy.export import export, read_text
+from hybridnav.params import short_repr
 
 #: the attack of the issue: a term name that closes the C comment and redefines the default
 INJECTION = "low */\n#undef EFFC_5RULE_DEFAULT\n#define EFFC_5RULE_DEFAULT ((effc_5rule_real)1.0)\n/*"
@@ -77,7 +78,7 @@ def test_a_hostile_variable_or_term_name_is_refused_with_its_key(fmt, key, name)
         return
     with pytest.raises(HybridnavError) as err:
         export(fs, fmt)
-    assert key in str(err.value) and repr(name) in str(err.value)
+    assert key in str(err.value) and short_repr(name) in str(err.value)   # long names cut
 
 
 @pytest.mark.parametrize("fmt", FORMATS)

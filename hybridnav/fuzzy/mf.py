@@ -150,7 +150,7 @@ def sample(mf: str, params: Sequence[float], x: FloatArray) -> FloatArray:
     """
     x = np.asarray(x, dtype=np.float64)
     try:
-        with np.errstate(over="ignore", under="ignore", divide="ignore"):
+        with np.errstate(all="ignore"):      # non-finite values are refused below
             y = _FUNCS[mf](x, *(float(v) for v in params))
     except OverflowError:               # a Python float power, e.g. gaussmf sigma = 1e308
         raise FloatingPointError(f"{mf}{tuple(params)} overflows") from None

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 import hybridnav.fuzzy._native as _native  # noqa: PLR0402
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, read_text_file
+from hybridnav.params import short_repr
 from hybridnav.fuzzy.engine import CompiledSystem, universe
 from hybridnav.fuzzy.spec import (
     FORMAT,
@@ -31,6 +32,7 @@ from hybridnav.fuzzy.spec import (
     TermRef,
     Variable,
     antecedent_to_json,
+    decode_json,
     parse_system,
     variable_to_json,
 )
@@ -412,8 +414,8 @@ def _no_duplicate_keys(source: str | None):
         d: dict[str, Any] = {}
         for k, v in pairs:
             if k in d:
-                raise HybridnavError(f"{source + ': ' if source else ''}duplicate key {k!r} in "
-                                     "a JSON object")
+                raise HybridnavError(f"{source + ': ' if source else ''}duplicate key "
+                                     f"{short_repr(k)} in a JSON object")
             d[k] = v
         return d
     return hook
@@ -436,16 +438,10 @@ def loads(text: str, source: str | None = None) -> FuzzySystem:
     Raises
     ------
     HybridnavError
-        JSON syntax errors (with line and column), duplicate keys, or invalid content.
+        JSON syntax errors (with line and column), duplicate keys, or invalid content (the key
+        named; an integer with more digits than Python converts included).
     """
-    prefix = f"{source}: " if source else ""
-    try:
-        d = json.loads(text, object_pairs_hook=_no_duplicate_keys(source))
-    except json.JSONDecodeError as exc:
-        raise HybridnavError(f"{prefix}line {exc.lineno} column {exc.colno}: invalid JSON "
-                             f"({exc.msg})") from None
-    except RecursionError:
-        raise HybridnavError(f"{prefix}JSON nested too deeply") from None
+    d = decode_json(text, source, _no_duplicate_keys(source))
     return FuzzySystem.from_dict(d, source)
 
 

@@ -25,7 +25,7 @@ from hybridnav import models
 from hybridnav.backends import DASK_ADDRESS
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import parse_toml, read_text_file
-from hybridnav.params import Param, check_value
+from hybridnav.params import Param, check_value, short_repr
 from hybridnav.tuner.costs.navigation import COVERAGE, PLANNER, REWARD
 
 __all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "quick"]
@@ -422,6 +422,12 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
                        + ", ".join(sorted(schema)))
         for key, value in table.items():
             data[section][key] = schema[key].check(f"{section}.{key}", value, where)
+        for name, b in (table.get("bounds", {}) if section in ("free", "settings") else {}).items():
+            key = f"{section}.bounds.{name}"          # the tuner's bounds: two finite numbers
+            if not isinstance(b, list) or len(b) != 2:
+                raise fail(key, f"expected [lo, hi], got {short_repr(b)}")
+            for i, x in enumerate(b):
+                check_value(where, f"{key}[{i}]", x, float)
     ga = data["ga"]
     if ga["elite"] >= ga["population"]:
         raise fail("ga.elite", f"expected fewer elites than the population "

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import short_repr
 
 __all__ = ["Gene", "TunableSettings"]
 
@@ -317,7 +318,8 @@ class TunableSettings:
                       and math.isfinite(hi - lo) and hi - lo > 1e-9 * max(abs(lo), abs(hi)))
         if not ok:
             raise HybridnavError(f"bounds.{name}: expected [lo, hi] with finite lo < hi (and a "
-                                 f"finite width, not vanishing against lo and hi), got {b!r}")
+                                 f"finite width, not vanishing against lo and hi), got "
+                                 f"{short_repr(b)}")
         self._bounds[self._names.index(name)] = (lo, hi)
 
     def _paths(self, paths) -> list[str]:

@@ -25,19 +25,22 @@ from hybridnav.fuzzy.spec import (
     Term,
     TermRef,
     Variable,
+    decode_json,
+    finite_number,
+    range_problem,
 )
 from hybridnav.fuzzy.system import FuzzySystem
+from hybridnav.params import short_repr
 
 __all__ = [
-    "DEFAULT_POINTS", "MAX_POINTS", "IDENT", "fnum", "check_names", "comment_text", "normalize_antecedent",
+    "DEFAULT_POINTS", "MAX_POINTS", "IDENT", "fnum", "name_problem", "check_names",
+    "comment_text", "normalize_antecedent",
     "flatten_antecedent", "normalize", "LineError", "build_system", "metadata_json",
     "parse_metadata", "version", "sampled_polyline",
 ]
 
 #: Universe samples per variable when an imported file does not say (FLL, MATLAB .fis).
 DEFAULT_POINTS = 101
-#: Importers reject more universe samples than this (a file must not make us allocate gigabytes).
-
 #: Names the text formats can carry unchanged: C-like identifiers.
 IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
@@ -70,30 +73,54 @@ def fnum(x: float) -> str:
 
 # ---------------------------------------------------------------------------------------- names
 
-def check_names(system: FuzzySystem, fmt: str) -> None:
-    """Raise :class:`HybridnavError` unless every name can be written to ``fmt`` unchanged.
+_LABEL = {"fll": "FLL", "fis": ".fis", "fcl": "FCL", "c": "C"}
 
-    Variable and term names must be identifiers (``[A-Za-z_][A-Za-z0-9_]*``) that fuzzylite's
+
+def name_problem(name: str, fmt: str) -> str | None:
+    """What keeps a variable or term name from being written to ``fmt`` and read back, or None.
+
+    The one rule for names, used by the exporters (:func:`check_names`) and by the FLL and .fis
+    importers, so that whatever they read can be written again. Names must be identifiers
+    (``[A-Za-z_][A-Za-z0-9_]*``: fuzzylite keeps only letters, digits, ``_`` and ``.`` of a name,
+    IEC 61131 identifiers are letters, digits and ``_``, C needs identifiers) that fuzzylite's
     rule parser does not read as a keyword or hedge (``if is then and or with not any very
-    somewhat extremely seldom``); for ``fcl`` also not an FCL keyword (any case); for ``c``
-    identifiers of any spelling.
+    somewhat extremely seldom``, case-sensitive; fuzzylite also builds rules from a .fis file's
+    names); for ``fcl`` also not an FCL keyword (any case); for ``c`` identifiers of any spelling.
+
+    Parameters
+    ----------
+    name : str
+    fmt : {"fll", "fis", "fcl", "c"}
+
+    Returns
+    -------
+    str or None
+        ``"expected ..."`` (without the name), or None when the name can be carried.
     """
-    # C only needs identifiers (names reach its comments and macros); the others are read by
-    # fuzzylite, whose rule parser would take a keyword for a keyword
-    words = frozenset() if fmt == "c" else \
-        _FUZZYLITE_WORDS | (_FCL_WORDS if fmt == "fcl" else frozenset())
+    if not IDENT.match(name):
+        return "expected an identifier (letters, digits, '_', not starting with a digit)"
+    if fmt == "c":                   # names reach only C comments and macros
+        return None
+    if fmt == "fcl":
+        if name.lower() in _FUZZYLITE_WORDS | _FCL_WORDS:
+            return ("expected a name that is not a keyword in FCL rules (FCL keywords in any "
+                    "case, fuzzylite's rule words; fuzzylite would misread the rules)")
+    elif name in _FUZZYLITE_WORDS:
+        return (f"expected a name that is not a keyword in {_LABEL.get(fmt, fmt)} rules "
+                f"({' '.join(sorted(_FUZZYLITE_WORDS))}; fuzzylite would misread the rules)")
+    return None
+
+
+def check_names(system: FuzzySystem, fmt: str) -> None:
+    """Raise :class:`HybridnavError` unless every name can be written to ``fmt`` unchanged
+    (:func:`name_problem`)."""
     src = f"{system.source}: " if system.source else ""
 
     def check(name: str, key: str) -> None:
-        if not IDENT.match(name):
-            raise HybridnavError(
-                f"{src}{key}: name {name!r} cannot be written to {fmt.upper()}: expected an "
-                "identifier (letters, digits, '_', not starting with a digit)")
-        reserved = name.lower() in words if fmt == "fcl" else name in words
-        if reserved:
-            raise HybridnavError(
-                f"{src}{key}: name {name!r} is a keyword in {fmt.upper()} rules "
-                f"(fuzzylite would misread the rules); rename it")
+        problem = name_problem(name, fmt)
+        if problem:
+            raise HybridnavError(f"{src}{key}: name {short_repr(name)} cannot be written to "
+                                 f"{_LABEL.get(fmt, fmt)}: {problem}")
 
     for i, v in enumerate(system.inputs):
         check(v.name, f"inputs[{i}].name")
@@ -265,25 +292,24 @@ def parse_metadata(text: str, where: str) -> dict[str, Any]:
     ``[mf, params]``), ``points`` (name -> int), ``default`` (float),
     ``description`` (str) and ``rule_descriptions`` (list of str or None).
     """
-    try:
-        raw = json.loads(text)
-    except (ValueError, RecursionError) as exc:
-        raise HybridnavError(f"{where}: invalid hybridnav metadata JSON ({exc})") from None
+    raw = decode_json(text, f"{where}: hybridnav metadata")
     if not isinstance(raw, dict):
         raise HybridnavError(f"{where}: hybridnav metadata: expected a JSON object")
     out: dict[str, Any] = {}
     for k, v in raw.items():
         if k == "format":
             if v != "hybridnav-fis/1":
-                raise HybridnavError(f"{where}: hybridnav metadata: unsupported format {v!r}")
+                raise HybridnavError(f"{where}: hybridnav metadata: unsupported format "
+                                     f"{short_repr(v)}")
         elif k == "points":
             if not isinstance(v, dict):
                 raise HybridnavError(f"{where}: hybridnav metadata: 'points' must map names to "
                                      "integers")
             for name, n in v.items():
                 if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= MAX_POINTS:
-                    raise HybridnavError(f"{where}: hybridnav metadata: points of {name!r}: "
-                                         f"expected an integer in [2, {MAX_POINTS}], got {n!r}")
+                    raise HybridnavError(f"{where}: hybridnav metadata: points of "
+                                         f"{short_repr(name)}: expected an integer in [2, "
+                                         f"{MAX_POINTS}], got {short_repr(n)}")
             out["points"] = dict(v)
         elif k == "name":
             if not isinstance(v, str) or not v.strip():
@@ -295,8 +321,7 @@ def parse_metadata(text: str, where: str) -> dict[str, Any]:
                 isinstance(terms, dict) and all(
                     isinstance(d, list) and len(d) == 2 and d[0] in MF_PARAMS
                     and isinstance(d[1], list) and len(d[1]) == len(MF_PARAMS[d[0]])
-                    and all(isinstance(p, (int, float)) and not isinstance(p, bool)
-                            and math.isfinite(p) for p in d[1])
+                    and all(finite_number(p) is not None for p in d[1])
                     for d in terms.values())
                 for terms in v.values())
             if not ok:
@@ -304,9 +329,10 @@ def parse_metadata(text: str, where: str) -> dict[str, Any]:
                                      "term -> [mf, [parameters]]")
             out["mfs"] = v
         elif k == "default":
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise HybridnavError(f"{where}: hybridnav metadata: 'default' must be a number")
-            out["default"] = float(v)
+            if finite_number(v) is None:
+                raise HybridnavError(f"{where}: hybridnav metadata: default: expected a finite "
+                                     f"number, got {short_repr(v)}")
+            out["default"] = finite_number(v)
         elif k == "description":
             if not isinstance(v, str):
                 raise HybridnavError(f"{where}: hybridnav metadata: 'description' must be a "
@@ -318,7 +344,7 @@ def parse_metadata(text: str, where: str) -> dict[str, Any]:
                                      "a list of strings or nulls")
             out["rule_descriptions"] = list(v)
         else:
-            raise HybridnavError(f"{where}: hybridnav metadata: unknown key {k!r}")
+            raise HybridnavError(f"{where}: hybridnav metadata: unknown key {short_repr(k)}")
     return out
 
 
@@ -347,33 +373,39 @@ def check_term(err: LineError, line: int, name: str, mf: str, params: Sequence[f
         raise err(line, f"term '{name}': {mf} takes {len(MF_PARAMS[mf])} parameters "
                   f"({', '.join(MF_PARAMS[mf])}), got {len(p)}")
     if not all(math.isfinite(v) for v in p):
-        raise err(line, f"term '{name}': expected finite parameters, got {list(p)}")
+        raise err(line, f"term {short_repr(name)}: expected finite parameters, got {list(p)}")
     problem = check_params(mf, p)
     if problem:
-        raise err(line, f"term '{name}': {problem}")
+        raise err(line, f"term {short_repr(name)}: {problem}")
     try:
         sample(mf, p, np.linspace(lo, hi, points))
     except FloatingPointError:
-        raise err(line, f"term '{name}': {mf}{list(p)} has no finite membership values on "
-                  f"[{lo!r}, {hi!r}] (parameters too extreme)") from None
+        raise err(line, f"term {short_repr(name)}: {mf}{list(p)} has no finite membership "
+                  f"values on [{lo!r}, {hi!r}] (parameters too extreme)") from None
     return p
 
 
-def check_range(err: LineError, line: int, lo: float, hi: float, what: str) -> None:
-    """``lo < hi``, both finite, and universe samples that are distinct."""
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise err(line, f"{what}: expected a finite range, got [{lo!r}, {hi!r}]")
-    if not lo < hi:
-        raise err(line, f"{what}: expected a range [lo, hi] with lo < hi, got [{lo!r}, {hi!r}]")
-    if not math.isfinite(hi - lo):
-        raise err(line, f"{what}: range [{lo!r}, {hi!r}] is too wide")
+def check_range(err: LineError, line: int, lo: float, hi: float, points: int, what: str, *,
+                output: bool = False) -> None:
+    """The shared range check (:func:`hybridnav.fuzzy.spec.range_problem`) as a line error."""
+    problem = range_problem(lo, hi, points, output=output)
+    if problem:
+        raise err(line, f"{what}: {problem}")
+
+
+def check_name(err: LineError, line: int, name: str, fmt: str, what: str) -> str:
+    """``name`` if :func:`name_problem` has nothing against it, else a line error."""
+    problem = name_problem(name, fmt)
+    if problem:
+        raise err(line, f"{what}: {problem}, got {short_repr(name)}")
+    return name
 
 
 def check_points(err: LineError, line: int | None, n: int, name: str) -> int:
     """Universe samples within [2, MAX_POINTS]."""
     if not 2 <= n <= MAX_POINTS:
-        raise err(line, f"variable '{name}': expected between 2 and {MAX_POINTS} universe points, "
-                  f"got {n}")
+        raise err(line, f"variable {short_repr(name)}: expected between 2 and {MAX_POINTS} "
+                  f"universe points, got {short_repr(n)}")
     return n
 
 
@@ -399,7 +431,7 @@ def parse_number(err: LineError, line: int, text: str, what: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise err(line, f"{what}: expected a number, got {text!r}") from None
+        raise err(line, f"{what}: expected a number, got {short_repr(text)}") from None
     if not math.isfinite(v):
-        raise err(line, f"{what}: expected a finite number, got {text!r}")
+        raise err(line, f"{what}: expected a finite number, got {short_repr(text)}")
     return v

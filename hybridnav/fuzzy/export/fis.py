@@ -33,7 +33,10 @@ What .fis has no place for:
 
 Import accepts MATLAB's Mamdani files with these seven membership functions (and fuzzylite's
 .fis files: ``#`` comments, ``Default=``); every other type, method, hedge code (fractional
-indices) or Sugeno system is a :class:`HybridnavError` naming the file and line.
+indices) or Sugeno system is a :class:`HybridnavError` naming the file and line. Names must pass
+the exporter's rule (:func:`~hybridnav.fuzzy.export._common.name_problem`: identifiers, no
+fuzzylite rule words, since fuzzylite builds rules from them), ranges
+:func:`hybridnav.fuzzy.spec.range_problem` with the variable's points.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from hybridnav.fuzzy.export._common import (
     DEFAULT_POINTS,
     LineError,
     build_system,
+    check_name,
     check_names,
     comment_text,
     check_points,
@@ -61,6 +65,7 @@ from hybridnav.fuzzy.export._common import (
 )
 from hybridnav.fuzzy.spec import And, Antecedent, Not, Or, TermRef, antecedent_to_json
 from hybridnav.fuzzy.system import FuzzySystem
+from hybridnav.params import short_repr
 
 __all__ = ["to_fis", "read_fis", "fis_rule_row"]
 
@@ -209,16 +214,16 @@ def _string(err: LineError, n: int, key: str, value: str) -> str:
     if len(v) >= 2 and v[0] == "'" and v[-1] == "'":
         v = v[1:-1]
     if "'" in v:
-        raise err(n, f"{key}: expected a quoted string, got {value!r}")
+        raise err(n, f"{key}: expected a quoted string, got {short_repr(value)}")
     return v
 
 
 def _int(err: LineError, n: int, key: str, text: str) -> int:
     v = parse_number(err, n, text, key)
     if v != int(v):
-        raise err(n, f"{key}: expected an integer, got {text!r}")
+        raise err(n, f"{key}: expected an integer, got {short_repr(text)}")
     if abs(v) > 1e9:
-        raise err(n, f"{key}: integer too large: {text!r}")
+        raise err(n, f"{key}: integer too large: {short_repr(text)}")
     return int(v)
 
 
@@ -299,7 +304,7 @@ def read_fis(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
             raise err(n, f"duplicate key {key}")
         if key not in ("Name", "Type", "Version", "NumInputs", "NumOutputs", "NumRules",
                        "AndMethod", "OrMethod", "ImpMethod", "AggMethod", "DefuzzMethod"):
-            raise err(n, f"unknown [System] key {key!r}")
+            raise err(n, f"unknown [System] key {short_repr(key)}")
         sysd[key] = (n, value.strip())
 
     def sysval(key: str) -> tuple[int, str]:
@@ -310,12 +315,12 @@ def read_fis(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
 
     n, typ = sysval("Type")
     if "Type" in sysd and typ != "mamdani":
-        raise err(n, f"Type: only 'mamdani' systems are supported, got {typ!r}")
+        raise err(n, f"Type: only 'mamdani' systems are supported, got {short_repr(typ)}")
     for key, want in _SYSTEM_DEFAULTS.items():
         n, got = sysval(key)
         if got != want:
             raise err(n, f"{key}: only '{want}' is supported (hybridnav uses scikit-fuzzy's "
-                      f"Mamdani semantics), got {got!r}")
+                      f"Mamdani semantics), got {short_repr(got)}")
     name = sysval("Name")[1].strip() or "unnamed"
 
     inputs = [s for s in sections if s.kind == "Input"]
@@ -347,9 +352,10 @@ def read_fis(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
     if len(set(names)) != len(names):
         dup = next(x for x in names if names.count(x) > 1)
         raise err(inputs[names.index(dup, names.index(dup) + 1)].line,
-                  f"duplicate input name {dup!r}")
+                  f"duplicate input name {short_repr(dup)}")
     if out_doc["name"] in names:
-        raise err(outputs[0].line, f"output name {out_doc['name']!r} is also an input name")
+        raise err(outputs[0].line, f"output name {short_repr(out_doc['name'])} is also an input "
+                  "name")
     lo, hi = out_doc["range"]
     default = meta.get("default", 0.5 * (lo + hi))
     if not lo <= default <= hi:
@@ -383,6 +389,7 @@ def _read_variable(err: LineError, s: _Section, pts: dict[str, int],
     what = f"[{s.kind}{s.index}]"
     name: str | None = None
     rng: tuple[float, float] | None = None
+    rng_line = s.line
     num_mfs: tuple[int, int] | None = None
     mfs: list[tuple[int, int, str, str, list[float]]] = []
     for n, line in s.items:
@@ -391,25 +398,25 @@ def _read_variable(err: LineError, s: _Section, pts: dict[str, int],
         if not eq:
             raise err(n, f"expected Key=value, got {line[:60]!r}")
         if key == "Name":
-            name = _string(err, n, key, value)
-            if not name.strip():
-                raise err(n, "Name: expected a non-empty name")
+            name = check_name(err, n, _string(err, n, key, value), "fis", "Name")
         elif key == "Range":
             if not (value.startswith("[") and value.endswith("]")):
-                raise err(n, f"Range: expected [lo hi], got {value!r}")
+                raise err(n, f"Range: expected [lo hi], got {short_repr(value)}")
             nums = _numbers(err, n, "Range", value[1:-1])
             if len(nums) != 2:
-                raise err(n, f"Range: expected two numbers [lo hi], got {value!r}")
-            check_range(err, n, nums[0], nums[1], f"{what} Range")
-            rng = (nums[0], nums[1])
+                raise err(n, f"Range: expected two numbers [lo hi], got {short_repr(value)}")
+            rng, rng_line = (nums[0], nums[1]), n   # checked with the points below
         elif key == "NumMFs":
             num_mfs = (n, _int(err, n, key, value))
         elif key.startswith("MF") and key[2:].isdigit():
+            if len(key) >= 12:                 # the key reaches messages: keep it short
+                raise err(n, f"expected MF{len(mfs) + 1} here (membership functions are "
+                          f"numbered 1, 2, ...), got {short_repr(key)}")
             m = _MF.match(value)
             if not m:
                 raise err(n, f"{key}: expected 'name':'type',[params], got {value[:60]!r}")
-            mfs.append((n, int(key[2:]) if len(key) < 12 else -1, m.group("name"),
-                        m.group("type"), _numbers(err, n, key, m.group("params"))))
+            mfs.append((n, int(key[2:]), m.group("name"), m.group("type"),
+                        _numbers(err, n, key, m.group("params"))))
         elif key == "Enabled" or (s.kind == "Output" and key in ("LockPrevious", "LockRange")):
             v = _int(err, n, key, value)
             if key == "Enabled" and v != 1:
@@ -419,7 +426,7 @@ def _read_variable(err: LineError, s: _Section, pts: dict[str, int],
         elif s.kind == "Output" and key == "Default":
             continue  # fuzzylite's extension; hybridnav's default comes from metadata / mid-range
         else:
-            raise err(n, f"unknown {what} key {key!r}")
+            raise err(n, f"unknown {what} key {short_repr(key)}")
     if name is None:
         raise err(s.line, f"{what}: missing Name=")
     if rng is None:
@@ -429,22 +436,22 @@ def _read_variable(err: LineError, s: _Section, pts: dict[str, int],
     if num_mfs is not None and num_mfs[1] != len(mfs):
         raise err(num_mfs[0], f"NumMFs={num_mfs[1]} but {what} has {len(mfs)} MF lines")
     m_pts = check_points(err, s.line, pts.get(name, points), name)
+    check_range(err, rng_line, rng[0], rng[1], m_pts, f"{what} Range", output=s.kind == "Output")
     terms = []
     seen: set[str] = set()
     for k, (n, idx, tname, typ, params) in enumerate(mfs, start=1):
         if idx != k:
             raise err(n, f"expected MF{k} here (membership functions are numbered 1, 2, ...)")
-        if not tname.strip():
-            raise err(n, f"MF{k}: expected a non-empty name")
+        check_name(err, n, tname, "fis", f"MF{k} name")
         if tname in seen:
-            raise err(n, f"MF{k}: duplicate term name {tname!r}")
+            raise err(n, f"MF{k}: duplicate term name {short_repr(tname)}")
         seen.add(tname)
         if typ not in _TO_MATLAB:
-            raise err(n, f"MF{k} '{tname}': membership function {typ!r} is not supported "
-                      f"(supported: {', '.join(_TO_MATLAB)})")
+            raise err(n, f"MF{k} {short_repr(tname)}: membership function {short_repr(typ)} is "
+                      f"not supported (supported: {', '.join(_TO_MATLAB)})")
         order = _TO_MATLAB[typ]
         if len(params) != len(order):
-            raise err(n, f"MF{k} '{tname}': {typ} takes {len(order)} parameters, got "
+            raise err(n, f"MF{k} {short_repr(tname)}: {typ} takes {len(order)} parameters, got "
                       f"{len(params)}")
         ours = [0.0] * len(order)
         for k, i in enumerate(order):  # MATLAB's k-th parameter is our i-th
@@ -471,18 +478,19 @@ def _read_rule(err: LineError, n: int, line: str, in_docs: list[dict[str, Any]],
         raise err(n, f"rule weight: expected a number in [0, 1], got {weight!r}")
     conn = m.group("conn")
     if conn not in ("1", "2"):
-        raise err(n, f"rule connector: expected 1 (AND) or 2 (OR), got {conn!r}")
+        raise err(n, f"rule connector: expected 1 (AND) or 2 (OR), got {short_repr(conn)}")
     leaves: list[Antecedent] = []
     for d, code_s in zip(in_docs, ins):
         code = parse_number(err, n, code_s, "rule input code")
         if code != int(code):
-            raise err(n, f"rule: input code {code_s} has a hedge (fractional part); hedges are "
-                      "not supported")
+            raise err(n, f"rule: input code {short_repr(code_s)} has a hedge (fractional part); "
+                      "hedges are not supported")
         c = int(code)
         if c == 0:
             continue
         if abs(c) > len(d["terms"]):
-            raise err(n, f"rule: input '{d['name']}' has {len(d['terms'])} terms, got code {c}")
+            raise err(n, f"rule: input {short_repr(d['name'])} has {len(d['terms'])} terms, got "
+                      f"code {short_repr(code_s)}")
         leaf: Antecedent = TermRef(d["name"], d["terms"][abs(c) - 1]["name"])
         leaves.append(Not(leaf) if c < 0 else leaf)
     if not leaves:
@@ -490,7 +498,8 @@ def _read_rule(err: LineError, n: int, line: str, in_docs: list[dict[str, Any]],
     oc = parse_number(err, n, outs[0], "rule output code")
     if oc != int(oc) or not 1 <= oc <= len(out_doc["terms"]):
         raise err(n, f"rule: output code must be a term index 1..{len(out_doc['terms'])} "
-                  f"(negated or hedged consequents are not supported), got {outs[0]}")
+                  "(negated or hedged consequents are not supported), got "
+                  f"{short_repr(outs[0])}")
     ante: Antecedent = leaves[0] if len(leaves) == 1 else (
         And(tuple(leaves)) if conn == "1" else Or(tuple(leaves)))
     return {"if": antecedent_to_json(ante), "then": out_doc["terms"][int(oc) - 1]["name"],

@@ -32,7 +32,10 @@ aggregation, ``Centroid`` (any resolution), ``Minimum`` (or ``none``) conjunctio
 rules with ``and``, ``or``, parentheses, the ``not`` hedge and ``with``. Universe points come
 from the metadata comment, else ``points`` (default :data:`DEFAULT_POINTS` = 101). A ``default``
 of ``nan`` (fuzzylite's own default) becomes the middle of the output range, with a warning.
-Every error is a :class:`HybridnavError` naming the file and line.
+Variable and term names must pass the exporter's rule
+(:func:`~hybridnav.fuzzy.export._common.name_problem`: identifiers, no fuzzylite rule words), so
+whatever is read can be written again; ranges pass :func:`hybridnav.fuzzy.spec.range_problem`
+with the variable's points. Every error is a :class:`HybridnavError` naming the file and line.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from hybridnav.fuzzy.export._common import (
     DEFAULT_POINTS,
     LineError,
     build_system,
+    check_name,
     check_names,
     comment_text,
     check_points,
@@ -69,8 +73,10 @@ from hybridnav.fuzzy.spec import (
     TermRef,
     Variable,
     antecedent_to_json,
+    names_text,
 )
 from hybridnav.fuzzy.system import FuzzySystem
+from hybridnav.params import short_repr
 
 __all__ = ["to_fll", "read_fll"]
 
@@ -214,7 +220,7 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
     def expect(word: str) -> None:
         got = take(f"'{word}'")
         if got != word:
-            raise err(line, f"rule: expected '{word}', got {got!r}")
+            raise err(line, f"rule: expected '{word}', got {short_repr(got)}")
 
     def item(depth: int) -> Antecedent:
         if depth > _MAX_DEPTH:
@@ -226,19 +232,19 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
             return a
         name = take("an input variable")
         if name not in inputs:
-            raise err(line, f"rule: expected an input variable ({', '.join(inputs)}), "
-                      f"got {name!r}")
+            raise err(line, f"rule: expected an input variable ({names_text(inputs)}), "
+                      f"got {short_repr(name)}")
         expect("is")
         k = 0
         while peek() == "not":
             take("'not'")
             k += 1
-        term = take(f"a term of '{name}'")
+        term = take(f"a term of {short_repr(name)}")
         if term not in inputs[name]:
             if term in ("any", "very", "somewhat", "extremely", "seldom"):
-                raise err(line, f"rule: hedge '{term}' is not supported (only 'not')")
-            raise err(line, f"rule: input '{name}' has no term {term!r} "
-                      f"(terms: {', '.join(inputs[name])})")
+                raise err(line, f"rule: hedge {short_repr(term)} is not supported (only 'not')")
+            raise err(line, f"rule: input {short_repr(name)} has no term {short_repr(term)} "
+                      f"(terms: {names_text(inputs[name])})")
         a: Antecedent = TermRef(name, term)
         for _ in range(k):
             a = Not(a)
@@ -263,15 +269,16 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
     expect("then")
     name = take("the output variable")
     if name != output:
-        raise err(line, f"rule: expected the output variable '{output}' after 'then', got "
-                  f"{name!r}")
+        raise err(line, f"rule: expected the output variable {short_repr(output)} after 'then', "
+                  f"got {short_repr(name)}")
     expect("is")
-    term = take(f"a term of '{output}'")
+    term = take(f"a term of {short_repr(output)}")
     if term not in out_terms:
         if term in ("not", "any", "very", "somewhat", "extremely", "seldom"):
-            raise err(line, f"rule: hedges in the consequent are not supported ('{term}')")
-        raise err(line, f"rule: output '{output}' has no term {term!r} "
-                  f"(terms: {', '.join(out_terms)})")
+            raise err(line, "rule: hedges in the consequent are not supported "
+                      f"({short_repr(term)})")
+        raise err(line, f"rule: output {short_repr(output)} has no term {short_repr(term)} "
+                  f"(terms: {names_text(out_terms)})")
     weight = 1.0
     if peek() == "with":
         take("'with'")
@@ -282,7 +289,7 @@ def parse_rule(err: LineError, line: int, text: str, inputs: dict[str, list[str]
         nxt = peek()
         if nxt == "and":
             raise err(line, "rule: only one consequent is supported")
-        raise err(line, f"rule: unexpected {nxt!r} after the consequent")
+        raise err(line, f"rule: unexpected {short_repr(nxt)} after the consequent")
     return ante, term, weight
 
 
@@ -359,8 +366,9 @@ def read_fll(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
                 raise err(n, f"'{key}:' after the RuleBlock is not supported")
             if not value:
                 raise err(n, f"{key}: expected a name")
+            check_name(err, n, value, "fll", f"{key} name")
             if any(v.name == value for v in variables):
-                raise err(n, f"duplicate variable name {value!r}")
+                raise err(n, f"duplicate variable name {short_repr(value)}")
             out = key == "OutputVariable"
             if out and any(v.output for v in variables):
                 raise err(n, "only one OutputVariable is supported")
@@ -374,17 +382,17 @@ def read_fll(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
             block_seen, section, cur = True, "rules", None
             continue
         if section is None:
-            raise err(n, f"expected 'Engine:' before {key!r}")
+            raise err(n, f"expected 'Engine:' before {short_repr(key)}")
         if key == "description":
             if section == "engine":
                 description = value
             continue
         if key == "enabled":
             if value != "true":
-                raise err(n, f"enabled: only 'true' is supported, got {value!r}")
+                raise err(n, f"enabled: only 'true' is supported, got {short_repr(value)}")
             continue
         if section == "engine":
-            raise err(n, f"unexpected key {key!r} in the Engine section")
+            raise err(n, f"unexpected key {short_repr(key)} in the Engine section")
         if section == "variable":
             assert cur is not None
             _variable_key(err, n, cur, key, value)
@@ -392,22 +400,22 @@ def read_fll(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
         # rule block
         if key == "conjunction":
             if value not in ("Minimum", "none", ""):
-                raise err(n, f"conjunction: only Minimum is supported, got {value!r}")
+                raise err(n, f"conjunction: only Minimum is supported, got {short_repr(value)}")
             conj = value
         elif key == "disjunction":
             if value not in ("Maximum", "none", ""):
-                raise err(n, f"disjunction: only Maximum is supported, got {value!r}")
+                raise err(n, f"disjunction: only Maximum is supported, got {short_repr(value)}")
             disj = value
         elif key == "implication":
             if value != "Minimum":
-                raise err(n, f"implication: only Minimum is supported, got {value!r}")
+                raise err(n, f"implication: only Minimum is supported, got {short_repr(value)}")
         elif key == "activation":
             if value not in ("General", "none", ""):
-                raise err(n, f"activation: only General is supported, got {value!r}")
+                raise err(n, f"activation: only General is supported, got {short_repr(value)}")
         elif key == "rule":
             rules_raw.append((n, value))
         else:
-            raise err(n, f"unexpected key {key!r} in the RuleBlock section")
+            raise err(n, f"unexpected key {short_repr(key)} in the RuleBlock section")
 
     if section is None:
         raise err(None, "no 'Engine:' section (not an FLL file?)")
@@ -424,17 +432,18 @@ def read_fll(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
     docs: list[dict[str, Any]] = []
     for v in variables:
         if v.range is None:
-            raise err(v.line, f"variable '{v.name}': missing 'range:'")
+            raise err(v.line, f"variable {short_repr(v.name)}: missing 'range:'")
         if not v.terms:
-            raise err(v.line, f"variable '{v.name}': expected at least one term")
+            raise err(v.line, f"variable {short_repr(v.name)}: expected at least one term")
         m = pts.get(v.name, points)
+        check_range(err, v.range_line, v.range[0], v.range[1], m, "range", output=v.output)
         mfs = meta.get("mfs", {}).get(v.name, {})
         for k, (tname, mf, p, tl) in enumerate(v.terms):
             if not mf:
                 if tname not in mfs:
-                    raise err(tl, f"term '{tname}': Discrete terms are read only from files "
-                              "hybridnav wrote with sampled=True (the metadata line names the "
-                              "membership function)")
+                    raise err(tl, f"term {short_repr(tname)}: Discrete terms are read only from "
+                              "files hybridnav wrote with sampled=True (the metadata line names "
+                              "the membership function)")
                 mf, p = mfs[tname][0], tuple(float(q) for q in mfs[tname][1])
             v.terms[k] = (tname, mf, check_term(err, tl, tname, mf, p, v.range[0], v.range[1],
                                                 m), tl)
@@ -498,7 +507,7 @@ def _uses(a: Antecedent, cls: type) -> bool:
 
 def _bool(err: LineError, n: int, key: str, value: str) -> bool:
     if value not in ("true", "false"):
-        raise err(n, f"{key}: expected true or false, got {value!r}")
+        raise err(n, f"{key}: expected true or false, got {short_repr(value)}")
     return value == "true"
 
 
@@ -507,48 +516,48 @@ def _variable_key(err: LineError, n: int, v: _Var, key: str, value: str) -> None
     if key == "range":
         parts = value.split()
         if len(parts) != 2:
-            raise err(n, f"range: expected two numbers 'lo hi', got {value!r}")
+            raise err(n, f"range: expected two numbers 'lo hi', got {short_repr(value)}")
         lo = parse_number(err, n, parts[0], "range")
         hi = parse_number(err, n, parts[1], "range")
-        check_range(err, n, lo, hi, f"variable '{v.name}'")
-        v.range, v.range_line = (lo, hi), n
+        v.range, v.range_line = (lo, hi), n   # checked with the points, once they are known
     elif key == "lock-range":
         _bool(err, n, key, value)  # inputs are always clipped by hybridnav
     elif key == "term":
         parts = value.split()
         if len(parts) < 2:
-            raise err(n, f"term: expected 'name Class parameters...', got {value!r}")
+            raise err(n, f"term: expected 'name Class parameters...', got {short_repr(value)}")
         tname, cls, args = parts[0], parts[1], parts[2:]
+        check_name(err, n, tname, "fll", "term name")
         if any(t[0] == tname for t in v.terms):
-            raise err(n, f"variable '{v.name}': duplicate term name {tname!r}")
+            raise err(n, f"variable {short_repr(v.name)}: duplicate term name {short_repr(tname)}")
         if v.range is None:
-            raise err(n, f"term '{tname}': 'range:' must come before the terms")
+            raise err(n, f"term {short_repr(tname)}: 'range:' must come before the terms")
         if cls == "Discrete":  # written by to_fll(sampled=True): the metadata has the mf
             v.terms.append((tname, "", (), n))
             return
         if cls not in _FROM_FL:
-            raise err(n, f"term '{tname}': class {cls!r} is not supported (supported: "
-                      f"{', '.join(_FROM_FL)})")
+            raise err(n, f"term {short_repr(tname)}: class {short_repr(cls)} is not supported "
+                      f"(supported: {', '.join(_FROM_FL)})")
         mf, order = _FROM_FL[cls]
         if len(args) not in (len(order), len(order) + 1):
-            raise err(n, f"term '{tname}': {cls} takes {len(order)} parameters (and an optional "
-                      f"height), got {len(args)}")
-        nums = [parse_number(err, n, a, f"term '{tname}'") for a in args]
+            raise err(n, f"term {short_repr(tname)}: {cls} takes {len(order)} parameters (and an "
+                      f"optional height), got {len(args)}")
+        nums = [parse_number(err, n, a, f"term {short_repr(tname)}") for a in args]
         if len(nums) > len(order) and nums[-1] != 1.0:
-            raise err(n, f"term '{tname}': only height 1 is supported, got {nums[-1]!r}")
+            raise err(n, f"term {short_repr(tname)}: only height 1 is supported, got {nums[-1]!r}")
         params = [0.0] * len(order)
         for k, i in enumerate(order):  # fuzzylite's k-th parameter is our i-th
             params[i] = nums[k]
         v.terms.append((tname, mf, tuple(params), n))
     elif not v.output:
-        raise err(n, f"unexpected key {key!r} in an InputVariable section")
+        raise err(n, f"unexpected key {short_repr(key)} in an InputVariable section")
     elif key == "aggregation":
         if value != "Maximum":
-            raise err(n, f"aggregation: only Maximum is supported, got {value!r}")
+            raise err(n, f"aggregation: only Maximum is supported, got {short_repr(value)}")
     elif key == "defuzzifier":
         parts = value.split()
         if not parts or parts[0] != "Centroid" or len(parts) > 2:
-            raise err(n, f"defuzzifier: only Centroid is supported, got {value!r}")
+            raise err(n, f"defuzzifier: only Centroid is supported, got {short_repr(value)}")
         if len(parts) == 2:
             parse_number(err, n, parts[1], "Centroid resolution")
     elif key == "default":
@@ -564,4 +573,4 @@ def _variable_key(err: LineError, n: int, v: _Var, key: str, value: str) -> None
         if _bool(err, n, key, value):
             raise err(n, "lock-valid: true is not supported (hybridnav systems have no state)")
     else:
-        raise err(n, f"unexpected key {key!r} in an OutputVariable section")
+        raise err(n, f"unexpected key {short_repr(key)} in an OutputVariable section")
