@@ -88,6 +88,10 @@ def _cmd_planners(args: argparse.Namespace) -> int:
                       + ", ".join(f"{k} = {short_repr(v)}" for k, v in values.items()))
         if cls.paper_notes:
             print(f"    {cls.paper_notes}")
+        if cls.paper_deviations:
+            print("  still different from the paper in profile 'paper':")
+            for item in cls.paper_deviations:
+                print(f"    - {item}")
     return 0
 
 

@@ -155,3 +155,16 @@ def test_export_measures_the_formula_form_and_says_what_it_wrote(tmp_path, capsy
     assert main(["export", "effc-tuned", "--format", "fll", "-o", str(tmp_path / "d.fll")]) == 0
     assert "agrees with hybridnav's evaluate within" in capsys.readouterr().err
     assert main(["export", "effc-5rule", "--format", "fll", "--formula", "--sampled"]) == 2
+
+
+def test_planners_lists_what_the_paper_profiles_still_do_differently(capsys):
+    from hybridnav.cli import main
+
+    assert main(["planners"]) == 0
+    out = capsys.readouterr().out
+    block = out.split("\naco-kinematic:")[1].split("\napf:")[0]
+    assert "still different from the paper in profile 'paper':" in block
+    for word in ("step switching", "feasibility", "stop rules", "xi_law"):
+        assert word in block, word
+    assert "search window" in out.split("\nfastep-kinematic:")[1].split("\nfuzzy-steer:")[0]
+    assert "waypoints: K = 8" in out.split("\nrfd-pso:")[1]

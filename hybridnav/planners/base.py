@@ -63,6 +63,9 @@ class Planner(ABC):
     profiles: ClassVar[dict[str, dict[str, Any]]] = {}
     #: what the ``paper`` profile does and where it still differs from the paper's text
     paper_notes: ClassVar[str] = ""
+    #: what even the ``paper`` profile still does differently from the paper's text, one item
+    #: each (listed by ``hybridnav planners`` and the reproduction reports)
+    paper_deviations: ClassVar[tuple[str, ...]] = ()
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -519,6 +519,12 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
         "paper": {"slope": 0.0, "iterations": 50, "shorten": False}}
     paper_notes = ("paper: flat RFD terrain, 50 PSO iterations (Figs. 7-11), the seed particle "
                    "is the RFD path sampled at K points (no shortening)")
+    paper_deviations = (
+        "grid: the scenario's grid (rfd-pso-20m: 0.25 m cells, 80 x 80), where the paper's maps "
+        "in this literature are about 20 x 20 cells; flat RFD rarely finds the goal on the finer "
+        "grid",
+        "waypoints: K = 8 intermediate waypoints per particle; the paper does not give K",
+    )
 
     def seed_particle(self, ctx, robot, rngs):
         base = self.rfd_path(ctx, robot, rngs[0])

@@ -108,6 +108,19 @@ class StepPlanner(Planner):
     """Base of the step planners: a swarm places each step, the model's controller drives to it."""
 
     stochastic = True
+    paper_deviations = (
+        "step switching: a robot takes its next step once within `reach` (4 robot radii, at "
+        "least the goal radius) of the current one, and the goal itself once within reach of "
+        "the goal; the papers drive to each step",
+        "feasibility: every candidate step is rolled out with the robot's compiled model for "
+        "`horizon` s and refused when its swept footprint comes closer than `margin` to an "
+        "obstacle, a robot or the border; the papers judge a step by its fitness (eqs. 10, 13)",
+        "stop rules the papers do not have: `patience` s without a feasible step, `stall_steps` "
+        "steps without getting closer to the goal, `stuck_window` s inside a small disk",
+        "the tractor-trailer's xi follows a first-order filter (model option xi_law='filter'); "
+        "the papers' printed law (xi_law='paper') makes the robot circle (see the model's "
+        "documentation)",
+    )
     #: drive straight to the goal while that is safe, plan steps only to get round obstacles
     direct_first: ClassVar[bool] = False
     #: names of (circles, lines, robots, goal distance) weights in :attr:`params`

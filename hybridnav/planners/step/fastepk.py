@@ -63,6 +63,9 @@ class FAStepKinematic(StepPlanner):
         "paper": {"distance": "euclidean", "goal_candidate": False}}
     paper_notes = ("paper: the straight-line distance to the goal in the step fitness (eq. 10), "
                    "no goal among the fireflies' starting points")
+    paper_deviations = StepPlanner.paper_deviations + (
+        "search window: the fireflies search a square of `window` = 10 robot radii around the "
+        "robot; the paper does not bound the search",)
 
     def optimize(self, f, lower, upper, rng, init, memory):
         v = self.values
