@@ -161,7 +161,7 @@ def test_planners_lists_what_the_paper_profiles_still_do_differently(capsys):
     from hybridnav.cli import main
 
     assert main(["planners"]) == 0
-    out = capsys.readouterr().out
+    out = "\n" + capsys.readouterr().out
     block = out.split("\naco-kinematic:")[1].split("\napf:")[0]
     assert "still different from the paper in profile 'paper':" in block
     for word in ("step switching", "feasibility", "stop rules", "xi_law"):
