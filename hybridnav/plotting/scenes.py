@@ -17,6 +17,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 from matplotlib.patches import Rectangle as RectanglePatch
 
 from hybridnav.fileio import atomic_path
+from hybridnav.params import short_repr
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
 __all__ = ["draw_scenario", "plot_result", "save_figure", "save_scenario_png"]
@@ -205,5 +206,5 @@ def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
         ax.plot(*xy[-1], marker=mark, color=mcol, markersize=11, markeredgecolor="black",
                 zorder=8)
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(f"{scenario.name}: {result.planner} (seed {result.seed})")
+    ax.set_title(f"{scenario.name}: {result.planner} (seed {short_repr(result.seed, 24)})")
     return fig
