@@ -29,6 +29,7 @@ import io
 import json
 import math
 import sys
+import tokenize
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +52,7 @@ from hybridnav.resultspec import (
     OUTCOMES,
     SAFE_NAME,
     Array,
+    Table,
     check_entry,
     check_extra,
     show_key,
@@ -583,6 +585,8 @@ def _read_extra(folder: Path, listing: Path, name: Any, entry: Any, robots: list
     if len(set(header)) != len(header) or not all(SAFE_NAME.fullmatch(c) for c in header):
         raise HybridnavError(f"{path}: line 1: expected distinct column names of letters, "
                              f"digits, '_', '-' or '.', got {short_repr(','.join(header))}")
+    if isinstance(spec, Table):                        # before any value is read
+        spec.check_names(header, str(path))
     table = {}
     for j, col in enumerate(header):
         values = [r[j] for r in rows[1:]]
@@ -627,8 +631,11 @@ def _read_npy(path: Path) -> np.ndarray:
             return np.load(fh, allow_pickle=False)
     except HybridnavError:
         raise
-    except (OSError, ValueError, EOFError) as exc:
-        raise HybridnavError(f"{path}: not a numpy .npy array of numbers: {exc}") from None
+    # what numpy's header parser (tokenize, ast.literal_eval) raises on damaged bytes
+    except (OSError, ValueError, EOFError, SyntaxError, TypeError, OverflowError,
+            RecursionError, tokenize.TokenError) as exc:
+        why = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        raise HybridnavError(f"{path}: not a numpy .npy array of numbers: {why}") from None
 
 
 def _csv_rows(path: Path, what: str) -> list[list[str]]:

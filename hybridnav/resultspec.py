@@ -139,16 +139,39 @@ class Table:
         The kind of any further column (None: no further columns).
     rows : int or None
         The exact number of rows, if fixed.
+    less : tuple of (str, str)
+        Pairs of columns ``(a, b)`` with ``a < b`` in every row (an extent's bounds).
     """
 
     columns: Mapping[str, Any]
     others: str | None = None
     rows: int | None = None
+    less: tuple[tuple[str, str], ...] = ()
 
     def expected(self) -> str:
         """The columns, as the messages list them."""
         more = f", and any further columns of {_KINDS[self.others]}" if self.others else ""
         return f"the columns {', '.join(self.columns)}{more}"
+
+    def check_names(self, names: list[str], source: str) -> None:
+        """Raise a :class:`HybridnavError` unless ``names`` (a header) holds every declared
+        column and no other (unless further columns are declared).
+
+        Parameters
+        ----------
+        names : list of str
+        source : str
+            What the messages start with: the file, or ``result: extras.<name>``.
+        """
+        for col in self.columns:
+            if col not in names:
+                raise HybridnavError(f"{source}: column {col}: missing (expected "
+                                     f"{self.expected()})")
+        if self.others is None:
+            for col in names:
+                if col not in self.columns:
+                    raise HybridnavError(f"{source}: column {show_key(col)}: not expected "
+                                         f"(expected {self.expected()})")
 
     def check(self, table: Mapping[str, np.ndarray], source: str,
               first_line: int | None = None) -> None:
@@ -163,20 +186,21 @@ class Table:
         first_line : int or None
             Line of the first row in the file (rows are named by line then), else None.
         """
-        for col in self.columns:
-            if col not in table:
-                raise HybridnavError(f"{source}: column {col}: missing (expected "
-                                     f"{self.expected()})")
+        self.check_names(list(table), source)
         for col, values in table.items():
             kind = self.columns.get(col, self.others)
-            if kind is None:
-                raise HybridnavError(f"{source}: column {show_key(col)}: not expected "
-                                     f"(expected {self.expected()})")
             _check_column(np.asarray(values), kind, f"{source}: column {col}", first_line)
         n = len(next(iter(table.values()))) if table else 0
         if self.rows is not None and n != self.rows:
             raise HybridnavError(f"{source}: expected {self.rows} row{'s' * (self.rows != 1)}"
                                  f" of {', '.join(self.columns)}, got {n}")
+        for a, b in self.less:
+            bad = ~(np.asarray(table[a]) < np.asarray(table[b]))
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise HybridnavError(f"{source}: column {b}: expected more than {a} "
+                                     f"({float(table[a][k])!r}), got {float(table[b][k])!r} at "
+                                     f"{_at(k, first_line)}")
 
 
 @dataclass(frozen=True)
@@ -222,7 +246,7 @@ EXTRAS: dict[str, Table | Array] = {
     # hapf: the harmonic potential on its grid and the grid's extent
     "harmonic_potential": Array(ndim=2),
     "harmonic_grid": Table({"x0": "finite", "x1": "finite", "y0": "finite", "y1": "finite"},
-                           rows=1),
+                           rows=1, less=(("x0", "x1"), ("y0", "y1"))),
     # every swarm search (pbpf, path planners, step planners, pso-ba): best cost per iteration
     "swarm_best": Table({"plan": "index", "iteration": "index", "best": "extended"}),
     # path planners
@@ -333,10 +357,12 @@ def show_key(key: Any) -> str:
     return key if isinstance(key, str) and SAFE_NAME.fullmatch(key) else short_repr(key, 40)
 
 
-def _check_column(values: np.ndarray, kind: Any, key: str, first_line: int | None) -> None:
-    def at(k: int) -> str:
-        return f"line {k + first_line}" if first_line is not None else f"row {k}"
+def _at(k: int, first_line: int | None) -> str:
+    """Row ``k`` of a table, as a line of its file or a row index."""
+    return f"line {k + first_line}" if first_line is not None else f"row {k}"
 
+
+def _check_column(values: np.ndarray, kind: Any, key: str, first_line: int | None) -> None:
     if kind == "text" or isinstance(kind, tuple):
         what = _KINDS["text"] if kind == "text" else f"one of {', '.join(kind)}"
         if values.dtype.kind != "U":
@@ -346,7 +372,7 @@ def _check_column(values: np.ndarray, kind: Any, key: str, first_line: int | Non
             if bad.any():
                 k = int(np.argmax(bad))
                 raise HybridnavError(f"{key}: expected {what}, got {short_repr(str(values[k]))}"
-                                     f" at {at(k)}")
+                                     f" at {_at(k, first_line)}")
         return
     if values.dtype.kind != "f":
         raise HybridnavError(f"{key}: expected {_KINDS[kind]}, got text")
@@ -359,5 +385,5 @@ def _check_column(values: np.ndarray, kind: Any, key: str, first_line: int | Non
     if bad.any():
         k = int(np.argmax(bad))
         raise HybridnavError(f"{key}: expected {_KINDS[kind]}, got {float(values[k])!r} at "
-                             f"{at(k)}")
+                             f"{_at(k, first_line)}")
 
