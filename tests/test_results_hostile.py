@@ -276,8 +276,8 @@ def test_a_header_only_table_the_writer_writes_too_plots(written, tmp_path, plan
     ("rfd-pso", "planning_time", "0.1", "expected a finite number >= 0, got '0.1'"),
     ("rfd-pso", "planning_time", -1.0, "expected a finite number >= 0, got -1.0"),
     ("rfd-pso", "planning_time", 10**400,
-     "expected a finite number >= 0, got 1000000000000000000000000000000000000000...0000000000 "
-     "(401 characters)"),
+     ("expected a finite number >= 0, got 1000000000000000000000000000000000000000...0000000000 "
+      "(401 characters)")),
     ("effc", "path_length", "long", "expected a finite number >= 0, got 'long'"),
     ("effc", "smoothness", [1.0], "expected a finite number >= 0, got [1.0]"),
     ("effc", "compute_time", None, "expected a finite number >= 0, got None"),
@@ -287,8 +287,8 @@ def test_a_header_only_table_the_writer_writes_too_plots(written, tmp_path, plan
     ("rfd-pso", "pso_runs", None, "expected a whole number from 0 to 2**63 - 1, got None"),
     ("fastep-kinematic", "steps_planned", -1,
      "expected a whole number from 0 to 2**63 - 1, got -1"),
-    ("pso-ba", "ls_repairs", 2**63, "expected a whole number from 0 to 2**63 - 1, got "
-                                    "9223372036854775808"),
+    ("pso-ba", "ls_repairs", 2**63,
+     "expected a whole number from 0 to 2**63 - 1, got 9223372036854775808"),
     ("effc", "anything_else", "text", "expected a finite number or null, got 'text'"),
     ("effc", "outcome", "won",
      "expected one of reached, collided, out_of_bounds, stuck, timeout, got 'won'"),
@@ -322,8 +322,8 @@ def test_every_metric_a_planner_writes_is_declared(written):
 
 @pytest.mark.parametrize("change, file, message", [
     (lambda d: d.update(extra={}), "result.json",
-     "extra: not a key of result.json (expected scenario, planner, params, seed, version, "
-     "robots, extras)"),
+     ("extra: not a key of result.json (expected scenario, planner, params, seed, version, "
+      "robots, extras)")),
     (lambda d: d.update(seed=-1), "result.json",
      "seed: expected a non-negative integer or null, got -1"),
     (lambda d: d.update(seed=1.5), "result.json",
@@ -419,10 +419,10 @@ def _robots():
 @pytest.mark.parametrize("extras, message", [
     ({"steps_R": {"t": [0.0]}}, "result: extras.steps_R: column target_x: missing"),
     ({"harmonic_potential_R": np.zeros(4)}, "result: extras.harmonic_potential_R: expected a 2-D"),
-    ({"harmonic_potential_R": {"x": [0.0]}}, "result: extras.harmonic_potential_R: expected an "
-                                             r"array \(.npy\), got a table"),
-    ({"planned_R": {"x": [np.nan], "y": [0.0]}}, "result: extras.planned_R: column x: expected "
-                                                 "finite numbers .* got nan at row 0"),
+    ({"harmonic_potential_R": {"x": [0.0]}},
+     r"result: extras.harmonic_potential_R: expected an array \(.npy\), got a table"),
+    ({"planned_R": {"x": [np.nan], "y": [0.0]}},
+     "result: extras.planned_R: column x: expected finite numbers .* got nan at row 0"),
     ({"swarm_best_R": {"plan": [0], "iteration": [0], "best": [np.nan]}},
      r"column best: expected numbers or \+-inf \(no nan\), got nan at row 0"),
 ])
