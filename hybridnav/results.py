@@ -425,9 +425,13 @@ def _json_object(pairs: list[tuple[str, Any]]) -> dict:
     out = dict(pairs)
     if len(out) == len(pairs):
         return out
-    seen: set[str] = set()
     dup = _Duplicates(out)
-    dup.duplicate = next(k for k, _ in pairs if k in seen or seen.add(k))
+    seen: set[str] = set()
+    for k, _ in pairs:
+        if k in seen:
+            dup.duplicate = k
+            break
+        seen.add(k)
     return dup
 
 
@@ -563,11 +567,11 @@ def _read_extra(folder: Path, listing: Path, name: Any, entry: Any, robots: list
         raise HybridnavError(f"{listing}: extras.{name}: expected {{\"file\": \"{name}.csv\" or "
                              f"\"{name}.npy\"}}, got {short_repr(entry)}")
     spec = spec_of(name, robots)
-    if spec is not None and not entry["file"].endswith(".npy" if isinstance(spec, Array)
-                                                       else ".csv"):
-        kind = "an array: .npy" if isinstance(spec, Array) else "a table: .csv"
-        raise HybridnavError(f"{listing}: extras.{name}.file: expected {name}.{kind[-3:]} "
-                             f"({kind}), got {short_repr(entry['file'])}")
+    if spec is not None:
+        ext, what = ("npy", "an array") if isinstance(spec, Array) else ("csv", "a table")
+        if entry["file"] != f"{name}.{ext}":
+            raise HybridnavError(f"{listing}: extras.{name}.file: expected {name}.{ext} ({what}),"
+                                 f" got {short_repr(entry['file'])}")
     path = folder / entry["file"]
     if not path.is_file():
         raise HybridnavError(f"{path}: no such file (listed in result.json extras)")

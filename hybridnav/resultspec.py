@@ -109,15 +109,16 @@ METRICS: dict[str, Metric] = {
     # RobotResult's own (time_to_goal is null unless the robot reached its goal; min_clearance
     # is null when there was nothing to be near: infinite)
     "path_length": _NUMBER0, "smoothness": _NUMBER0, "compute_time": _NUMBER0,
-    "time_to_goal": Metric("number", null=True, lo=0.0), "min_clearance": Metric("number", True),
+    "time_to_goal": Metric("number", null=True, lo=0.0),
+    "min_clearance": Metric("number", null=True),
     # planners that plan before they move (step, path, pso-ba)
     "planning_time": _NUMBER0,
     # step planners
     "steps_planned": _COUNT, "planning_calls": _COUNT,
     # path planners (null or infinite when no path was found)
-    "planned_length": Metric("number", null=True, lo=0.0), "waypoints": Metric("count", True),
+    "planned_length": Metric("number", null=True, lo=0.0), "waypoints": Metric("count", null=True),
     "grid_length": Metric("number", null=True, lo=0.0), "expanded": _COUNT,
-    "rfd_iterations": _COUNT, "pso_runs": _COUNT, "rfd_length": Metric("number", True, 0.0),
+    "rfd_iterations": _COUNT, "pso_runs": _COUNT, "rfd_length": Metric("number", null=True, lo=0.0),
     # pso-ba
     "path_points": _COUNT, "pso_ba_runs": _COUNT, "ls_repairs": _COUNT, "wall_episodes": _COUNT,
     "direction_changes": _COUNT, "memory_refusals": _COUNT,

@@ -335,7 +335,7 @@ def test_every_metric_a_planner_writes_is_declared(written):
     (lambda d: d["robots"].append(d["robots"][0]), "result.json",
      "robots: expected distinct names, got ['R', 'Q', 'R']"),
     (lambda d: d["extras"].update(steps_R={"file": "steps_R.npy"}), "result.json",
-     "extras.steps_R.file: expected steps_R.csv (a table: .csv), got 'steps_R.npy'"),
+     "extras.steps_R.file: expected steps_R.csv (a table), got 'steps_R.npy'"),
     (lambda d: d["extras"]["steps_R"].update(text=[]), "steps_R.csv",
      "column mode: expected numbers, got 'goal' at line 2"),
     (lambda d: d["extras"]["steps_R"].update(text=["mode", "cost"]), "steps_R.csv",
