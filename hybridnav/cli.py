@@ -141,34 +141,44 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     import numpy as np
 
     from hybridnav import planners
+    from hybridnav.params import short_repr
     from hybridnav.plotting import plot_result, save_figure
     from hybridnav.results import read_result
-    from hybridnav.world import load_scenario
+    from hybridnav.world import list_scenarios, load_scenario
 
     result = read_result(args.result)
+    listing = Path(args.result) / "result.json"
+    scen = short_repr(result.scenario)
     if args.scenario is None:
-        try:
-            scenario = load_scenario(result.scenario)
-        except HybridnavError as exc:
-            raise HybridnavError(f"{exc}; the result in {args.result} is of scenario "
-                                 f"{result.scenario!r}: pass its file with --scenario") from None
+        # only a built-in by its name: result.json does not choose a file to read
+        if result.scenario not in {n for n, _ in list_scenarios()}:
+            raise HybridnavError(f"{listing}: scenario: {scen} is not a built-in scenario; pass "
+                                 "the scenario file the result was run on with --scenario")
+        scenario = load_scenario(result.scenario)
     else:
         scenario = load_scenario(args.scenario)
-    where = f"--scenario {args.scenario}" if args.scenario else f"scenario {result.scenario!r}"
+    where = f"--scenario {args.scenario}" if args.scenario else f"scenario {scen}"
     if scenario.name != result.scenario:
-        raise HybridnavError(f"{where}: the result in {args.result} is of scenario "
-                             f"{result.scenario!r}, not {scenario.name!r}")
+        raise HybridnavError(f"{listing}: scenario: the result is of scenario {scen}, not "
+                             f"{short_repr(scenario.name)} ({where})")
     # a file scenario may share a built-in's name: the robots must be the result's
     names = [r.name for r in scenario.robots]
-    if names != [r.name for r in result.robots] or any(
-            not np.allclose(rr.states[0, :2], r.start) for rr, r in zip(result.robots,
-                                                                         scenario.robots)):
-        raise HybridnavError(f"{where}: its robots {names} do not start where the result's "
-                             f"{[r.name for r in result.robots]} do; pass the scenario the result "
-                             "was run on with --scenario")
+    if names != [r.name for r in result.robots]:
+        got = [r.name for r in result.robots]
+        raise HybridnavError(f"{listing}: robots: expected the robots of {where} "
+                             f"{short_repr(names)}, got {short_repr(got)}; pass the scenario "
+                             "the result was run on with --scenario")
+    for rr, r in zip(result.robots, scenario.robots):
+        if not np.allclose(rr.states[0, :2], r.start):
+            raise HybridnavError(
+                f"{Path(args.result) / f'trajectory_{rr.name}.csv'}: line 2: robot {rr.name} "
+                f"starts at {tuple(float(v) for v in rr.states[0, :2])}, in {where} at "
+                f"{tuple(float(v) for v in r.start)}: its robots do not start where the "
+                "result's do; pass the scenario the result was run on with --scenario")
     if result.planner not in planners.PLANNERS:
-        raise HybridnavError(f"{Path(args.result) / 'result.json'}: planner: expected one of "
-                             f"{', '.join(sorted(planners.PLANNERS))}, got {result.planner!r}")
+        raise HybridnavError(f"{listing}: planner: expected one of "
+                             f"{', '.join(sorted(planners.PLANNERS))}, got "
+                             f"{short_repr(result.planner)}")
     out = Path(args.out or args.result)
     out.mkdir(parents=True, exist_ok=True)
     save_figure(plot_result(scenario, result), out / "path.png")

@@ -15,6 +15,11 @@ A planner run that writes to a folder leaves there
 
 All are written atomically. :func:`read_result` reads a folder back, extras included, so a
 planner's ``diagnostics(scenario, result)`` works on a result read from disk.
+
+What a robot's metrics and each planner's extras hold is declared once, in
+:mod:`hybridnav.resultspec`: :class:`Result` and :func:`write_result` refuse to write anything
+else, and :func:`read_result` refuses to read anything else (naming the file and the key), so a
+figure drawn from a result folder never meets a missing column or a NaN it cannot draw.
 """
 
 from __future__ import annotations
@@ -22,7 +27,9 @@ from __future__ import annotations
 import csv
 import io
 import json
-import re
+import math
+import sys
+import tokenize
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,23 +47,28 @@ from hybridnav.fileio import (
 )
 from hybridnav.limits import MAX_GRID_CELLS
 from hybridnav.params import short_repr
+from hybridnav.resultspec import (
+    MAX_MAGNITUDE,
+    OUTCOMES,
+    SAFE_NAME,
+    Array,
+    Table,
+    check_entry,
+    check_extra,
+    show_key,
+    spec_of,
+)
 
 __all__ = [
     "OUTCOMES",
     "Result",
-    "check_extras",
     "RobotResult",
+    "check_extras",
     "path_length",
     "read_result",
     "smoothness",
     "write_result",
 ]
-
-#: The outcome of each robot. A planner that runs out of its step or time budget reports
-#: ``timeout``; it never loops forever and never raises for it.
-OUTCOMES = ("reached", "collided", "out_of_bounds", "stuck", "timeout")
-
-_SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 #: Longest text value of an extra table's text column.
 MAX_TEXT = 1000
@@ -146,7 +158,7 @@ class RobotResult:
                 f"robot {self.name}: outcome: expected one of {', '.join(OUTCOMES)}, got "
                 f"{self.outcome!r}"
             )
-        if not isinstance(self.name, str) or not _SAFE_NAME.match(self.name):
+        if not isinstance(self.name, str) or not SAFE_NAME.fullmatch(self.name):
             raise HybridnavError(
                 f"robot name: expected letters, digits, '_', '-' or '.', got {self.name!r}"
             )
@@ -224,7 +236,7 @@ class Result:
         names = [r.name for r in self.robots]
         if len(set(names)) != len(names):
             raise HybridnavError(f"result: robots: duplicate robot names in {names}")
-        self.extras = check_extras(self.extras)
+        self.extras = check_extras(self.extras, names)
 
     def extra_files(self) -> dict[str, str]:
         """Extra name -> the file it is written to (``<name>.csv`` or ``<name>.npy``)."""
@@ -268,7 +280,16 @@ def write_result(result: Result, folder: str | Path) -> Path:
     result : Result
     folder : str or Path
         Created if needed.
+
+    Raises
+    ------
+    HybridnavError
+        A robot's metric is not as :data:`hybridnav.resultspec.METRICS` declares it (e.g. a
+        metric that may not be null is infinite: JSON writes null for it); nothing is written.
     """
+    content = result.to_dict()
+    for i, entry in enumerate(content["robots"]):
+        check_entry(entry, f"result: robots[{i}]")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     for r in result.robots:
@@ -282,87 +303,187 @@ def write_result(result: Result, folder: str | Path) -> Path:
         else:
             atomic_write_text(folder / file, _table_csv(value))
     path = folder / "result.json"
-    atomic_write_text(path, dumps_json(result.to_dict()))
+    atomic_write_text(path, dumps_json(content))
     return path
+
+
+#: The keys of ``result.json`` (``extras`` may be missing: results written before extras).
+_TOP_KEYS = ("scenario", "planner", "params", "seed", "version", "robots", "extras")
 
 
 def read_result(folder: str | Path) -> Result:
     """Read a folder written by :func:`write_result` back into a :class:`Result`.
+
+    Everything is checked before it is used: ``result.json`` is JSON as the writer writes it
+    (no NaN or Infinity, no number beyond the float range or Python's integer digit limit, no
+    duplicate keys), its keys have their types, every robot's entry is as
+    :func:`hybridnav.resultspec.check_entry` requires (outcome, metrics of the declared types),
+    every trajectory holds finite numbers at strictly increasing times, and every extra a figure
+    reads is as :data:`hybridnav.resultspec.EXTRAS` declares it.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder :func:`write_result` wrote.
+
+    Returns
+    -------
+    Result
 
     Raises
     ------
     HybridnavError
         Naming the file and the key, for anything that is not a result folder as
         :func:`write_result` writes it (missing or unreadable files, wrong types, rows of the
-        wrong length, extras that name files outside the folder or arrays beyond the limits).
+        wrong length, non-finite or huge numbers where the writer writes none, missing or
+        renamed columns of a declared extra, extras that name files outside the folder or
+        arrays beyond the limits).
     """
     folder = Path(folder)
     path = folder / "result.json"
     if not path.is_file():
         raise HybridnavError(f"{path}: no such file (expected a hybridnav result folder)")
-    text = read_text_file(path, "result file")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
-    except RecursionError:
-        raise HybridnavError(f"{path}: not a result: nested too deeply") from None
+    data = _load_json(path)
     if not isinstance(data, dict):
-        raise HybridnavError(f"{path}: expected a JSON object at the top level")
-    for key in ("scenario", "planner", "params", "seed", "version", "robots"):
+        raise HybridnavError(f"{path}: expected a JSON object at the top level, got "
+                             f"{type(data).__name__}")
+    for key in data:
+        if key not in _TOP_KEYS:
+            raise HybridnavError(f"{path}: {show_key(key)}: not a key of result.json "
+                                 f"(expected {', '.join(_TOP_KEYS)})")
+    for key in _TOP_KEYS[:-1]:
         if key not in data:
             raise HybridnavError(f"{path}: {key}: missing (expected a hybridnav result.json)")
-    for key, kind, what in (("scenario", str, "a string"), ("planner", str, "a string"),
+    for key, kind, what in (("scenario", str, "a name"), ("planner", str, "a name"),
                             ("version", str, "a string"), ("params", dict, "an object"),
-                            ("robots", list, "an array")):
-        if not isinstance(data[key], kind):
-            raise HybridnavError(f"{path}: {key}: expected {what}, got "
-                                 f"{type(data[key]).__name__}")
-    if data["seed"] is not None and (isinstance(data["seed"], bool)
-                                     or not isinstance(data["seed"], int)):
-        raise HybridnavError(f"{path}: seed: expected an integer or null, got {data['seed']!r}")
+                            ("robots", list, "an array"),
+                            ("extras", dict, "an object of name -> file")):
+        value = data.get(key, {})
+        if not isinstance(value, kind) or (what == "a name" and not value.strip()):
+            raise HybridnavError(f"{path}: {key}: expected {what}, got {short_repr(value)}")
+    seed = data["seed"]
+    if seed is not None and (type(seed) is not int or seed < 0):
+        raise HybridnavError(f"{path}: seed: expected a non-negative integer or null, got "
+                             f"{short_repr(seed)}")
+    for i, entry in enumerate(data["robots"]):
+        check_entry(entry, f"{path}: robots[{i}]")
     robots = []
     standard = {"name", "outcome", "path_length", "smoothness", "time_to_goal", "min_clearance",
                 "compute_time"}
     for i, entry in enumerate(data["robots"]):
-        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str) \
-                or not _SAFE_NAME.match(entry["name"]) or "outcome" not in entry:
-            raise HybridnavError(f"{path}: robots[{i}]: expected an object with a name (letters, "
-                                 "digits, '_', '-', '.') and an outcome")
-        for key in ("time_to_goal", "min_clearance", "compute_time"):
-            v = entry.get(key)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-                raise HybridnavError(f"{path}: robots[{i}].{key}: expected a number or null, "
-                                     f"got {short_repr(v)}")
         t, states, names = _read_trajectory(folder / f"trajectory_{entry['name']}.csv")
         try:
             robots.append(RobotResult(
                 name=entry["name"], outcome=entry["outcome"], t=t, states=states,
                 state_names=names, time_to_goal=entry.get("time_to_goal"),
                 min_clearance=entry.get("min_clearance"),
-                compute_time=entry.get("compute_time") or 0.0,
+                compute_time=entry.get("compute_time", 0.0),
                 metrics={k: v for k, v in entry.items() if k not in standard},
             ))
         except HybridnavError as exc:
             raise HybridnavError(f"{path}: robots[{i}]: {exc}") from None
-    listed = data.get("extras", {})          # results written before extras have none
-    if not isinstance(listed, dict):
-        raise HybridnavError(f"{path}: extras: expected an object of name -> file")
-    extras = {name: _read_extra(folder, path, name, entry) for name, entry in listed.items()}
+    names = [r.name for r in robots]
+    if len(set(names)) != len(names):
+        raise HybridnavError(f"{path}: robots: expected distinct names, got {short_repr(names)}")
+    extras = {name: _read_extra(folder, path, name, entry, names)
+              for name, entry in data.get("extras", {}).items()}
     try:
         return Result(scenario=data["scenario"], planner=data["planner"], params=data["params"],
-                      seed=data["seed"], robots=robots, version=data["version"], extras=extras)
+                      seed=seed, robots=robots, version=data["version"], extras=extras)
     except HybridnavError as exc:
         raise HybridnavError(f"{path}: {exc}") from None
+
+
+class _Unreadable:
+    """A JSON number the writer never writes (NaN, Infinity, 1e999, an integer past Python's
+    digit limit), kept in place so that the message can name its key."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+
+
+class _Duplicates(dict):
+    """A JSON object with a key given twice (the first of them in ``duplicate``)."""
+
+    duplicate: str = ""
+
+
+def _json_int(text: str) -> Any:
+    try:
+        return int(text)
+    except ValueError:                 # Python's 4300-digit limit
+        return _Unreadable(f"an integer of {len(text.lstrip('-'))} digits")
+
+
+def _json_float(text: str) -> Any:
+    value = float(text)
+    return value if math.isfinite(value) else _Unreadable(f"{short_repr(text, 40)} (beyond "
+                                                          "the float range)")
+
+
+def _json_object(pairs: list[tuple[str, Any]]) -> dict:
+    out = dict(pairs)
+    if len(out) == len(pairs):
+        return out
+    dup = _Duplicates(out)
+    seen: set[str] = set()
+    for k, _ in pairs:
+        if k in seen:
+            dup.duplicate = k
+            break
+        seen.add(k)
+    return dup
+
+
+def _load_json(path: Path) -> Any:
+    """``result.json`` parsed, every number in it finite and readable and no key given twice."""
+    text = read_text_file(path, "result file")
+    try:
+        data = json.loads(text, parse_int=_json_int, parse_float=_json_float,
+                          parse_constant=lambda c: _Unreadable(c), object_pairs_hook=_json_object)
+    except json.JSONDecodeError as exc:
+        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
+    except RecursionError:
+        raise HybridnavError(f"{path}: not a result: nested too deeply") from None
+    stack: list[tuple[str, Any]] = [("", data)]
+    while stack:                       # iterative: as deep as the JSON parser went
+        key, value = stack.pop()
+        if isinstance(value, _Unreadable):
+            raise HybridnavError(f"{path}: {key or '(top level)'}: expected a number as "
+                                 f"hybridnav writes them (finite, at most "
+                                 f"{sys.get_int_max_str_digits() or 'any number of'} digits), got "
+                                 f"{value.what}")
+        if isinstance(value, _Duplicates):
+            raise HybridnavError(f"{path}: {key or '(top level)'}: duplicate key "
+                                 f"{short_repr(value.duplicate, 40)}")
+        if isinstance(value, dict):
+            stack.extend((f"{key}.{show_key(k)}" if key else show_key(k), v)
+                         for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            stack.extend((f"{key}[{i}]", v) for i, v in reversed(list(enumerate(value))))
+    return data
 
 
 # --------------------------------------------------------------------------------------------
 # extras: tables and arrays
 
 
-def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
+def check_extras(extras: Mapping[str, Any], robots: Sequence[str] = ()) -> dict[str, Any]:
     """Validate and normalize the extras of a result (tables become dicts of 1-D arrays: numbers
     and booleans as ``float64``, text as ``str``).
+
+    Parameters
+    ----------
+    extras : mapping
+        Name -> table (column -> 1-D array) or ``numpy.ndarray``.
+    robots : sequence of str
+        The result's robot names: an extra ``<prefix>_<robot>`` of a prefix that
+        :data:`hybridnav.resultspec.EXTRAS` declares must be as declared.
+
+    Returns
+    -------
+    dict
+        The normalized extras.
 
     Raises
     ------
@@ -370,7 +491,8 @@ def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
         A name that is not a safe file name or collides with the result's own files; a table
         whose columns are not named, 1-D and of one length, or hold text that is not one line of
         at most :data:`MAX_TEXT` printable characters; an array that is not numbers or has more
-        than :data:`hybridnav.limits.MAX_GRID_CELLS` entries.
+        than :data:`hybridnav.limits.MAX_GRID_CELLS` entries; a declared extra that is not as
+        declared (a missing column, ``nan`` in a column of finite numbers, ...).
     """
     if not isinstance(extras, Mapping):
         raise HybridnavError(f"result: extras: expected a mapping, got {type(extras).__name__}")
@@ -391,7 +513,7 @@ def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
                                  f" or a numpy array, got {type(value).__name__}")
         table = {}
         for col, v in value.items():
-            if not isinstance(col, str) or not _SAFE_NAME.match(col):
+            if not isinstance(col, str) or not SAFE_NAME.fullmatch(col):
                 raise HybridnavError(f"result: extras.{name}: expected column names of letters, "
                                      f"digits, '_', '-' or '.', got {col!r}")
             arr = np.asarray(v)
@@ -415,11 +537,15 @@ def check_extras(extras: Mapping[str, Any]) -> dict[str, Any]:
             raise HybridnavError(f"result: extras.{name}: expected columns of one length, got "
                                  f"{ {k: len(a) for k, a in table.items()} }")
         out[name] = table
+    for name, value in out.items():
+        spec = spec_of(name, robots)
+        if spec is not None:
+            check_extra(value, spec, f"result: extras.{name}")
     return out
 
 
 def _extra_name_ok(name: Any) -> bool:
-    return (isinstance(name, str) and bool(_SAFE_NAME.match(name)) and name != "result"
+    return (isinstance(name, str) and bool(SAFE_NAME.fullmatch(name)) and name != "result"
             and not name.startswith("trajectory_") and name not in (".", ".."))
 
 
@@ -433,36 +559,64 @@ def _table_csv(table: Mapping[str, np.ndarray]) -> str:
     return buf.getvalue()
 
 
-def _read_extra(folder: Path, listing: Path, name: Any, entry: Any) -> Any:
+def _read_extra(folder: Path, listing: Path, name: Any, entry: Any, robots: list[str]) -> Any:
     if not _extra_name_ok(name):                       # before any file is opened
         raise HybridnavError(f"{listing}: extras: expected names of letters, digits, '_', '-' "
                              f"or '.', got {short_repr(name)}")
     if not isinstance(entry, dict) or entry.get("file") not in (f"{name}.csv", f"{name}.npy"):
         raise HybridnavError(f"{listing}: extras.{name}: expected {{\"file\": \"{name}.csv\" or "
                              f"\"{name}.npy\"}}, got {short_repr(entry)}")
+    spec = spec_of(name, robots)
+    if spec is not None:
+        ext, what = ("npy", "an array") if isinstance(spec, Array) else ("csv", "a table")
+        if entry["file"] != f"{name}.{ext}":
+            raise HybridnavError(f"{listing}: extras.{name}.file: expected {name}.{ext} ({what}),"
+                                 f" got {short_repr(entry['file'])}")
     path = folder / entry["file"]
     if not path.is_file():
         raise HybridnavError(f"{path}: no such file (listed in result.json extras)")
     if entry["file"].endswith(".npy"):
-        return _read_npy(path)
+        value = _read_npy(path)
+        if spec is not None:
+            check_extra(value, spec, str(path))
+        return value
     text_cols = entry.get("text", [])
     if not isinstance(text_cols, list) or not all(isinstance(c, str) for c in text_cols):
-        raise HybridnavError(f"{listing}: extras.{name}.text: expected a list of column names")
+        raise HybridnavError(f"{listing}: extras.{name}.text: expected a list of column names, "
+                             f"got {short_repr(text_cols)}")
     rows = _csv_rows(path, "extra table")
     header = rows[0]
-    if len(set(header)) != len(header) or not all(_SAFE_NAME.match(c) for c in header):
-        raise HybridnavError(f"{path}: line 1: expected distinct column names")
+    if len(set(header)) != len(header) or not all(SAFE_NAME.fullmatch(c) for c in header):
+        raise HybridnavError(f"{path}: line 1: expected distinct column names of letters, "
+                             f"digits, '_', '-' or '.', got {short_repr(','.join(header))}")
+    if isinstance(spec, Table):                        # before any value is read
+        spec.check_names(header, str(path))
     table = {}
     for j, col in enumerate(header):
         values = [r[j] for r in rows[1:]]
         if col in text_cols:
             table[col] = np.array(values, dtype=str)
+            bad = [v for v in values if len(v) > MAX_TEXT or not v.isprintable()]
+            if bad:
+                raise HybridnavError(f"{path}: column {col}: expected one-line printable text "
+                                     f"of at most {MAX_TEXT} characters, got {short_repr(bad[0])}")
         else:
-            try:
-                table[col] = np.array([float(v) for v in values], dtype=float)
-            except ValueError as exc:
-                raise HybridnavError(f"{path}: column {col}: expected numbers: {exc}") from None
+            table[col] = _floats(values, path, f"column {col}")
+    if spec is not None:
+        check_extra(table, spec, str(path), first_line=2)
     return table
+
+
+def _floats(values: list[str], path: Path, key: str) -> np.ndarray:
+    """CSV fields as floats; the message names the line (the header is line 1)."""
+    out = []
+    for k, v in enumerate(values):
+        try:
+            out.append(float(v))
+        except ValueError:
+            raise HybridnavError(f"{path}: {key}: expected numbers, got {short_repr(v)} at line "
+                                 f"{k + 2}") from None
+    return np.array(out, dtype=float)
 
 
 def _read_npy(path: Path) -> np.ndarray:
@@ -481,8 +635,11 @@ def _read_npy(path: Path) -> np.ndarray:
             return np.load(fh, allow_pickle=False)
     except HybridnavError:
         raise
-    except (OSError, ValueError, EOFError) as exc:
-        raise HybridnavError(f"{path}: not a numpy .npy array of numbers: {exc}") from None
+    # what numpy's header parser (tokenize, ast.literal_eval) raises on damaged bytes
+    except (OSError, ValueError, EOFError, SyntaxError, TypeError, OverflowError,
+            RecursionError, tokenize.TokenError) as exc:
+        why = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        raise HybridnavError(f"{path}: not a numpy .npy array of numbers: {why}") from None
 
 
 def _csv_rows(path: Path, what: str) -> list[list[str]]:
@@ -502,15 +659,30 @@ def _csv_rows(path: Path, what: str) -> list[list[str]]:
 
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """Times and states of a trajectory CSV: finite numbers (of magnitude at most
+    :data:`hybridnav.resultspec.MAX_MAGNITUDE`), at strictly increasing times."""
     if not path.is_file():
         raise HybridnavError(f"{path}: no such file (every robot has a trajectory CSV)")
     rows = _csv_rows(path, "trajectory")
     if rows[0][:3] != ["t", "x", "y"]:
-        raise HybridnavError(f"{path}: line 1: expected the header t,x,y,...")
+        raise HybridnavError(f"{path}: line 1: expected the header t,x,y,..., got "
+                             f"{short_repr(','.join(rows[0]))}")
     if len(rows) < 2:
         raise HybridnavError(f"{path}: expected at least one sample after the header")
-    try:
-        data = np.array([[float(v) for v in r] for r in rows[1:]], dtype=float)
-    except ValueError as exc:
-        raise HybridnavError(f"{path}: expected numbers in every data row: {exc}") from None
+    cols = [_floats([r[j] for r in rows[1:]], path, f"column {show_key(name)}")
+            for j, name in enumerate(rows[0])]
+    for name, col in zip(rows[0], cols):
+        bad = ~(np.abs(col) <= MAX_MAGNITUDE)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise HybridnavError(f"{path}: column {show_key(name)}: expected finite numbers of "
+                                 f"magnitude at most {MAX_MAGNITUDE:g}, got {float(col[k])!r} "
+                                 f"at line {k + 2}")
+    back = np.flatnonzero(np.diff(cols[0]) <= 0)
+    if len(back):
+        k = int(back[0]) + 1
+        raise HybridnavError(f"{path}: column t: expected strictly increasing times, got "
+                             f"{float(cols[0][k])!r} after {float(cols[0][k - 1])!r} at line "
+                             f"{k + 2}")
+    data = np.column_stack(cols)
     return data[:, 0], data[:, 1:], tuple(rows[0][1:])

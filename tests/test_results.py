@@ -155,9 +155,10 @@ def test_read_result_errors_name_the_file(tmp_path):
 def test_extras_are_written_as_documented_files_and_read_back(tmp_path):
     import dataclasses
 
+    # points_R1 is no planner's extra: its columns are free (a declared one's are not)
     res = dataclasses.replace(make_result(), extras={
         "signals_R1": {"t": [0.0, 0.1, 0.2], "w": [0.5, 0.25, 1e-300]},
-        "path_points_R1": {"t": [0.0, 1.0], "mode": ["goal", "wall"],
+        "points_R1": {"t": [0.0, 1.0], "mode": ["goal", "wall"],
                            "fitness": [1.5, math.nan]},
         "potential": np.arange(12.0).reshape(3, 4) / 7.0,
         "empty": {"x": [], "y": []},
@@ -166,11 +167,11 @@ def test_extras_are_written_as_documented_files_and_read_back(tmp_path):
     data = json.loads((tmp_path / "result.json").read_text())
     assert data["extras"] == {
         "signals_R1": {"file": "signals_R1.csv", "text": []},
-        "path_points_R1": {"file": "path_points_R1.csv", "text": ["mode"]},
+        "points_R1": {"file": "points_R1.csv", "text": ["mode"]},
         "potential": {"file": "potential.npy"}, "empty": {"file": "empty.csv", "text": []}}
     assert (tmp_path / "signals_R1.csv").read_text().splitlines() == [
         "t,w", "0.0,0.5", "0.1,0.25", "0.2,1e-300"]
-    assert (tmp_path / "path_points_R1.csv").read_text().splitlines()[2] == "1.0,wall,nan"
+    assert (tmp_path / "points_R1.csv").read_text().splitlines()[2] == "1.0,wall,nan"
     np.testing.assert_array_equal(np.load(tmp_path / "potential.npy"), res.extras["potential"])
     back = read_result(tmp_path)
     assert back.extras.keys() == res.extras.keys()
@@ -180,7 +181,7 @@ def test_extras_are_written_as_documented_files_and_read_back(tmp_path):
         else:
             for col in value:
                 np.testing.assert_array_equal(back.extras[name][col], value[col])
-    assert back.extras["path_points_R1"]["mode"].dtype.kind == "U"
+    assert back.extras["points_R1"]["mode"].dtype.kind == "U"
 
 
 def test_old_result_folders_without_extras_still_read(tmp_path):
@@ -250,15 +251,15 @@ def _edit(path, fn):
 
 @pytest.mark.parametrize("change, message", [
     (lambda f: _edit(f / "result.json", lambda d: d.update(robots=5)),
-     r"result.json: robots: expected an array, got int"),
+     r"result.json: robots: expected an array, got 5"),
     (lambda f: _edit(f / "result.json", lambda d: d.update(robots=None)),
-     r"result.json: robots: expected an array, got NoneType"),
+     r"result.json: robots: expected an array, got None"),
     (lambda f: _edit(f / "result.json", lambda d: d.update(seed="x")),
-     r"result.json: seed: expected an integer or null"),
+     r"result.json: seed: expected a non-negative integer or null, got 'x'"),
     (lambda f: _edit(f / "result.json", lambda d: d["robots"][0].update(name="../R1")),
-     r"result.json: robots\[0\]: expected an object with a name"),
+     r"result.json: robots\[0\].name: expected letters, digits"),
     (lambda f: _edit(f / "result.json", lambda d: d["robots"][0].update(outcome="won")),
-     r"result.json: robots\[0\]: robot R1: outcome: expected one of"),
+     r"result.json: robots\[0\].outcome: expected one of reached, .* got 'won'"),
     (lambda f: (f / "trajectory_R1.csv").write_text("t,x,y\n"),
      r"trajectory_R1.csv: expected at least one sample"),
     (lambda f: (f / "trajectory_R1.csv").write_text("t,x,y\n0,1\n"),

@@ -5,7 +5,9 @@ during its run, written beside ``result.json`` and read back with it), so a figu
 from a result folder long after the run. The planners' ``diagnostics(scenario, result)`` methods
 choose which of these apply; ``hybridnav run`` writes them next to ``path.png``.
 
-The extras each figure reads (``<robot>`` is a robot name):
+The extras each figure reads (``<robot>`` is a robot name) are declared, with their columns and
+what each holds, in :data:`hybridnav.resultspec.EXTRAS`: the writer and the reader check them
+against it, and :func:`extras_of` hands a figure only the declared columns.
 
 ========================  ==================================================================
 figure                    extras
@@ -13,7 +15,7 @@ figure                    extras
 :func:`plot_signals`      ``signals_<robot>``: ``t`` and one column per traced signal
 :func:`plot_potential`    ``harmonic_potential_<robot>`` (array), ``harmonic_grid_<robot>``
 :func:`plot_gain_search`  ``swarm_best_<robot>``: ``plan``, ``iteration`` (generation), ``best``
-:func:`plot_planned`      ``planned_<robot>`` (``x``, ``y``, ``time``), ``rfd_seed_<robot>``,
+:func:`plot_planned`      ``planned_<robot>`` (``x``, ``y``), ``rfd_seed_<robot>``,
                           ``rfd_path_<robot>``, ``swarm_best_<robot>`` (``plan``, ``iteration``, ``best``)
 :func:`plot_steps`        ``steps_<robot>``: ``t``, ``cost``, ``xdot``, ``ydot``, ...
 :func:`plot_waypoints`    ``waypoints_<robot>``: ``t``, ``x``, ``y``, ``cost``
@@ -31,18 +33,30 @@ from matplotlib.figure import Figure
 
 from hybridnav.plotting.scenes import plot_result
 from hybridnav.results import Result, path_length
+from hybridnav.resultspec import EXTRAS, Table, declared
 
 __all__ = ["extras_of", "plot_gain_search", "plot_planned", "plot_potential", "plot_pso_ba",
            "plot_signals", "plot_steps", "plot_waypoints"]
 
 
-def extras_of(result: Result, prefix: str) -> dict[str, Mapping[str, np.ndarray]]:
-    """The extras named ``<prefix>_<robot>``, as robot name -> extra, in the robots' order."""
+def extras_of(result: Result, prefix: str) -> dict[str, Mapping[str, np.ndarray] | np.ndarray]:
+    """The extras named ``<prefix>_<robot>``, as robot name -> extra, in the robots' order.
+
+    ``prefix`` must be declared in :data:`hybridnav.resultspec.EXTRAS`; a table comes with its
+    declared columns only, so a figure cannot read a column the declaration does not promise.
+
+    Parameters
+    ----------
+    result : Result
+    prefix : str
+        A key of :data:`hybridnav.resultspec.EXTRAS`.
+    """
+    spec = EXTRAS[prefix]
     out = {}
     for r in result.robots:
         value = result.extras.get(f"{prefix}_{r.name}")
         if value is not None:
-            out[r.name] = value
+            out[r.name] = declared(spec, value) if isinstance(spec, Table) else value
     return out
 
 
@@ -75,9 +89,9 @@ def plot_potential(scenario, result: Result) -> Figure | None:
     result : Result
         The run, with the extras the figure reads (see the module docstring).
     """
+    potentials, grids = extras_of(result, "harmonic_potential"), extras_of(result, "harmonic_grid")
     for r in result.robots:
-        phi = result.extras.get(f"harmonic_potential_{r.name}")
-        grid = result.extras.get(f"harmonic_grid_{r.name}")
+        phi, grid = potentials.get(r.name), grids.get(r.name)
         if phi is None or grid is None:
             continue
         fig = Figure(figsize=(6.6, 6.0), layout="constrained")

@@ -217,5 +217,5 @@ def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
         ax.plot(*xy[-1], marker=mark, color=mcol, markersize=11, markeredgecolor="black",
                 zorder=8)
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(f"{scenario.name}: {result.planner} (seed {result.seed})")
+    ax.set_title(f"{scenario.name}: {result.planner} (seed {short_repr(result.seed, 24)})")
     return fig
