@@ -238,8 +238,9 @@ def dumps_json(obj: Any) -> str:
     return json.dumps(json_ready(obj), indent=2, allow_nan=False) + "\n"
 
 
-#: A name that becomes part of a file name (robots' trajectory files, result extras): letters,
-#: digits, ``_``, ``-`` and ``.``, no path separator.
+#: A name that becomes part of a file name or a CSV header (robots' trajectory files, result
+#: extras, columns): letters, digits, ``_``, ``-`` and ``.``, no path separator; test it with
+#: ``SAFE_NAME.fullmatch`` (``$`` alone would let a final newline through).
 SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 #: Largest input file read (scenarios, jobs, fuzzy systems, maps): 64 MiB.

@@ -27,7 +27,6 @@ a tuple       one of these words
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -35,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
+from hybridnav.fileio import SAFE_NAME
 from hybridnav.params import short_repr
 
 __all__ = ["EXTRAS", "MAX_MAGNITUDE", "METRICS", "OTHER_METRIC", "OUTCOMES", "SAFE_NAME", "Array",
@@ -44,8 +44,6 @@ __all__ = ["EXTRAS", "MAX_MAGNITUDE", "METRICS", "OTHER_METRIC", "OUTCOMES", "SA
 #: ``timeout``; it never loops forever and never raises for it.
 OUTCOMES = ("reached", "collided", "out_of_bounds", "stuck", "timeout")
 
-#: Robot, extra and column names: they become file names and CSV headers.
-SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 #: Largest magnitude of a finite number in a result (no measurement comes near it; matplotlib
 #: cannot scale an axis to numbers near the float maximum, 1.8e308).

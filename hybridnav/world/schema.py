@@ -310,7 +310,7 @@ def _parse_robots(chk: _Check, raw: Any, world: World, dt: float) -> list[Robot]
         r = chk.table(rr, key)
         chk.keys(r, key, _ROBOT_KEYS, _ROBOT_REQUIRED)
         name = chk.string(r["name"], f"{key}.name", nonempty=True)
-        if not SAFE_NAME.match(name) or name in (".", ".."):
+        if not SAFE_NAME.fullmatch(name) or name in (".", ".."):
             raise chk.fail(f"{key}.name", "expected a name of letters, digits, '_', '-' or '.' "
                                           f"(it names the robot's result files), got "
                                           f"{short_repr(name)}")
