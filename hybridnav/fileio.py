@@ -20,9 +20,9 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "SAFE_NAME", "atomic_path", "atomic_write_bytes", "atomic_write_text",
-           "clean_temporaries", "decode_text", "dumps_json", "json_ready", "locked_folder",
-           "parse_toml", "read_text_file"]
+__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "SAFE_NAME", "atomic_path", "atomic_write_bytes",
+           "atomic_write_text", "clean_temporaries", "decode_text", "dumps_json", "json_ready",
+           "locked_folder", "parse_toml", "read_text_file", "shown_path"]
 
 
 @contextlib.contextmanager
@@ -267,11 +267,18 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
         with open(p, "rb") as fh:
             data = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
-        raise HybridnavError(f"{p}: cannot read {what} ({exc.strerror or exc})") from None
+        raise HybridnavError(f"{shown_path(p)}: cannot read {what} ({exc.strerror or exc})") \
+            from None
     if len(data) > MAX_FILE_BYTES:
         raise HybridnavError(f"{p}: {what} larger than {MAX_FILE_BYTES // 2**20} MiB; expected a "
                              "text file")
     return decode_text(data, str(p), what)
+
+
+def shown_path(path: str | os.PathLike) -> str:
+    """A path as messages show it: whole up to 200 characters, else its start and end."""
+    s = os.fspath(path)
+    return s if len(s) <= 200 else f"{s[:120]}...{s[-60:]} ({len(s)} characters)"
 
 
 def decode_text(data: bytes, source: str, what: str) -> str:

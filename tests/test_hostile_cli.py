@@ -339,3 +339,18 @@ def test_an_unwritable_output_folder_fails_before_any_work(tmp_path, monkeypatch
     err = capsys.readouterr().err
     assert f"hybridnav: error: {tmp_path / 'o'}: cannot write in the output folder (Permission " \
            "denied)" in err
+
+
+@pytest.mark.parametrize("load", [
+    lambda n: load_scenario(n), lambda n: __import__("hybridnav.fuzzy", fromlist=["x"]).load(n),
+    lambda n: __import__("hybridnav.fuzzy", fromlist=["x"]).load_any(n),
+    lambda n: __import__("hybridnav.world.grid", fromlist=["x"]).load_movingai_map(
+        "movingai:" + n),
+    lambda n: load_scenario("/no/such/" + n + ".toml"),
+])
+def test_a_name_longer_than_a_file_name_is_an_error_not_an_oserror(load):
+    """Built-in names are looked up in the list of built-ins, never as arbitrary file names
+    (a 5,000-character name raised 'File name too long'); long names and paths are cut."""
+    with pytest.raises(HybridnavError) as info:
+        load("effc-train" + "9" * 5000)
+    assert len(str(info.value)) < 600

@@ -20,7 +20,6 @@ from numpy.typing import ArrayLike, NDArray
 import hybridnav.fuzzy._native as _native  # noqa: PLR0402
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, read_text_file
-from hybridnav.params import short_repr
 from hybridnav.fuzzy.engine import CompiledSystem, universe
 from hybridnav.fuzzy.spec import (
     FORMAT,
@@ -36,6 +35,7 @@ from hybridnav.fuzzy.spec import (
     parse_system,
     variable_to_json,
 )
+from hybridnav.params import short_repr
 
 if TYPE_CHECKING:  # pragma: no cover
     from skfuzzy.control import ControlSystem
@@ -496,10 +496,10 @@ def builtin(name: str) -> FuzzySystem:
     HybridnavError
         Unknown name.
     """
-    entry = resources.files(_SYSTEMS_PACKAGE).joinpath(f"{name}.json")
-    if not entry.is_file():
-        raise HybridnavError(f"fuzzy system {name!r}: expected a built-in name "
+    if name not in builtin_names():        # never a file lookup with an arbitrary name
+        raise HybridnavError(f"fuzzy system {short_repr(name)}: expected a built-in name "
                              f"({', '.join(builtin_names())}) or a path to a .json file")
+    entry = resources.files(_SYSTEMS_PACKAGE).joinpath(f"{name}.json")
     return loads(entry.read_text(encoding="utf-8"), f"{name}.json")
 
 

@@ -522,8 +522,9 @@ def resolve_map(spec: str, source: str | None = None) -> Any:
     if spec.startswith("movingai:"):
         name = spec[len("movingai:"):]
         entry = builtin_data_path(f"{name}.map")
-        if not name or not entry.is_file():
-            raise HybridnavError(f"{where(source, 'grid.map')}: unknown built-in map {spec!r}; expected "
+        if not name or len(name) > 200 or "/" in name or not entry.is_file():
+            raise HybridnavError(f"{where(source, 'grid.map')}: unknown built-in map "
+                                 f"{short_repr(spec)}; expected "
                                  f"'movingai:NAME' with NAME.map in hybridnav/scenarios/data")
         return entry
     p = Path(spec)

@@ -432,10 +432,12 @@ def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
         text = read_text_file(path, "scenario file")
         source = str(path)
     else:
+        names = sorted(e.name[:-len(".toml")] for e in _builtin_dir().iterdir()
+                       if e.name.endswith(".toml"))
+        if s not in names:                 # never a file lookup with an arbitrary name
+            raise HybridnavError(f"scenario {short_repr(s)}: expected a built-in scenario name "
+                                 f"({', '.join(names)}) or a path to a .toml file")
         entry = _builtin_dir().joinpath(f"{s}.toml")
-        if not entry.is_file():
-            names = ", ".join(n for n, _ in list_scenarios())
-            raise HybridnavError(f"scenario {s!r}: expected a built-in scenario name ({names}) or a path to a .toml file")
         text = entry.read_text(encoding="utf-8")
         source = str(entry)
     log.debug("loading scenario from %s", source)
