@@ -207,3 +207,16 @@ def test_command_line_values(option, value):
         assert isinstance(got, int) and 1 <= got <= 256
     else:
         assert math.isfinite(got) and got >= 0
+
+
+@pytest.mark.parametrize("width, expected", [
+    ("99999999999999999999999", "expected a map of at most 20000000 cells"),
+    ("9" * 5000, "expected integer height and width, got '3', '9999"),
+])
+def test_a_map_header_beyond_the_limits(width, expected):
+    """Found by the long fuzz run: numpy refused to allocate a 3 x 1e23 map (ValueError)."""
+    from hybridnav.world.grid import parse_movingai_map
+
+    with pytest.raises(HybridnavError, match=re.escape(expected)) as info:
+        parse_movingai_map(f"type octile\nheight 3\nwidth {width}\nmap\n....\n", "m.map")
+    assert str(info.value).startswith("m.map: header: ") and len(str(info.value)) < 300

@@ -419,9 +419,14 @@ def parse_movingai_map(text: str, source: str = "<string>") -> OccupancyGrid:
         H, W = int(header["height"]), int(header["width"])
     except ValueError:
         raise HybridnavError(f"{where(source, 'header')}: expected integer height and width, "
-                             f"got {header['height']!r}, {header['width']!r}") from None
+                             f"got {short_repr(header['height'], 30)}, "
+                             f"{short_repr(header['width'], 30)}") from None
     if H <= 0 or W <= 0:
         raise HybridnavError(f"{where(source, 'header')}: expected positive height and width, got {H}, {W}")
+    if H * W > MAX_GRID_CELLS:
+        raise HybridnavError(f"{where(source, 'header')}: expected a map of at most "
+                             f"{MAX_GRID_CELLS} cells (hybridnav.limits.MAX_GRID_CELLS), got height "
+                             f"{short_repr(H, 30)} x width {short_repr(W, 30)}")
     rows = lines[i:]
     while rows and not rows[-1].strip():
         rows.pop()
