@@ -20,9 +20,10 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "SAFE_NAME", "atomic_path", "atomic_write_bytes",
-           "atomic_write_text", "clean_temporaries", "decode_text", "dumps_json", "json_ready",
-           "locked_folder", "parse_toml", "read_text_file", "shown_path"]
+__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "SAFE_NAME", "TEMPORARY_NAME", "atomic_path",
+           "atomic_write_bytes", "atomic_write_text", "clean_temporaries", "decode_text",
+           "dumps_json", "json_ready", "locked_folder", "parse_toml", "read_text_file",
+           "short_text", "shown_path"]
 
 
 @contextlib.contextmanager
@@ -59,15 +60,17 @@ def _cannot_write(path: Path, exc: OSError) -> HybridnavError:
     return HybridnavError(f"{path}: cannot write ({exc.strerror or exc}); nothing was replaced")
 
 
-#: Temporary files :func:`atomic_path` leaves behind when a process is killed mid-write.
-TEMPORARY_GLOB = ".*.tmp*"
+#: The names :func:`atomic_path` gives its temporary files: ``.NAME.XXXXXXXX.tmpSUFFIX``
+#: (``tempfile.mkstemp``'s 8 random characters); only these are temporaries.
+TEMPORARY_NAME = re.compile(r"^\.(?P<name>.+)\.[a-z0-9_]{8}\.tmp(\.[A-Za-z0-9]+)?$")
 
 
 def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
-    """Remove the temporary files a killed writer left in ``folder`` (and its sub-folders).
+    """Remove the temporary files a killed writer left in ``folder`` (not in its sub-folders).
 
-    Only names :func:`atomic_path` makes (``.NAME.XXXX.tmpSUFFIX``) are removed; call it only
-    while holding the folder's lock (:func:`locked_folder`), so no live writer owns them.
+    Only names :func:`atomic_path` makes (:data:`TEMPORARY_NAME`) and only regular files are
+    removed; call it only while holding the folder's lock (:func:`locked_folder`), so no live
+    writer owns them.
 
     Returns
     -------
@@ -75,8 +78,11 @@ def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
         The files removed.
     """
     gone = []
-    for tmp in Path(folder).rglob(TEMPORARY_GLOB):
-        if tmp.is_file() and ".tmp" in tmp.name:
+    folder = Path(folder)
+    if not folder.is_dir():
+        return gone
+    for tmp in folder.iterdir():
+        if TEMPORARY_NAME.match(tmp.name) and tmp.is_file() and not tmp.is_symlink():
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()
                 gone.append(tmp)
@@ -91,11 +97,11 @@ LOCK_NAME = ".hybridnav.lock"
 def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
     """Hold ``folder`` for one job: a second job writing the same folder is refused.
 
-    The lock is a file :data:`LOCK_NAME` created exclusively in ``folder`` (which is made when
-    missing), holding the owner's pid, host, command and start time; it is removed when the block
-    ends, however it ends. A lock whose owner is a process of this host that no longer exists
-    (a job that was killed) is stale: it is taken over. A lock of another host cannot be checked
-    and is respected. A folder this call made is removed again when the job wrote nothing in it.
+    The lock is an exclusive ``flock`` on the file :data:`LOCK_NAME` in ``folder`` (made when
+    missing), which holds the owner's pid, host, command and start time for the other job's
+    message. The kernel releases it when the owner ends, however it ends (a killed job leaves
+    no lock to clean up); the file is removed when the block ends. A folder this call made is
+    removed again when the job wrote nothing in it.
 
     Parameters
     ----------
@@ -111,86 +117,87 @@ def locked_folder(folder: str | os.PathLike, command: str) -> Iterator[Path]:
     Raises
     ------
     HybridnavError
-        The folder cannot be made or written (read-only, full disk), or another live job holds it
-        (its pid, host, command and start time named).
+        The folder cannot be made or written (read-only, full disk), the lock file is not a
+        regular file, or another job holds the lock (its pid, host, command and start time
+        named).
     """
+    import fcntl
+    import stat
+
     folder = Path(folder)
     lock = folder / LOCK_NAME
     made = not folder.exists()
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise HybridnavError(f"{folder}: cannot make the output folder "
+        raise HybridnavError(f"{shown_path(folder)}: cannot make the output folder "
                              f"({exc.strerror or exc})") from None
     owner = {"pid": os.getpid(), "host": socket.gethostname(), "command": command[:200],
              "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-    for _ in range(3):
+    for _ in range(20):
         try:
-            fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        except FileExistsError:
-            held = _lock_owner(lock)
-            if held is None or _stale(held):
-                with contextlib.suppress(FileNotFoundError):
-                    lock.unlink()
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NONBLOCK | os.O_NOFOLLOW, 0o644)
+        except OSError as exc:
+            raise HybridnavError(f"{shown_path(folder)}: cannot write in the output folder "
+                                 f"({exc.strerror or exc})") from None
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise HybridnavError(f"{shown_path(lock)}: expected the lock file of a hybridnav "
+                                     "job (a regular file); remove it")
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                held = _lock_owner(fd)
+                raise HybridnavError(
+                    f"{shown_path(folder)}: another hybridnav job is writing this folder (pid "
+                    f"{held.get('pid')} on {held.get('host')}, "
+                    f"{short_text(str(held.get('command')), 200)!r}, since {held.get('started')}"
+                    "); wait for it to end or choose another output folder") from None
+            # the file may have been removed by its previous owner after we opened it: the
+            # lock counts only on the file the path names now
+            try:
+                same = os.stat(lock, follow_symlinks=False).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
                 continue
-            raise HybridnavError(
-                f"{folder}: another hybridnav job is writing this folder (pid {held.get('pid')} on "
-                f"{held.get('host')}, {str(held.get('command'))[:200]!r}, since "
-                f"{held.get('started')}); wait for it to end, choose another output folder, or "
-                f"remove {lock} if that job is gone") from None
-        except OSError as exc:
-            raise HybridnavError(f"{folder}: cannot write in the output folder "
-                                 f"({exc.strerror or exc})") from None
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(json.dumps(owner) + "\n")
-        except OSError as exc:
+            os.ftruncate(fd, 0)
+            os.write(fd, (json.dumps(owner) + "\n").encode("utf-8"))
+        except BaseException:
             with contextlib.suppress(OSError):
-                lock.unlink()
-            raise HybridnavError(f"{lock}: cannot write the lock file "
-                                 f"({exc.strerror or exc})") from None
+                os.close(fd)
+            raise
         break
     else:
-        raise HybridnavError(f"{lock}: could not take the folder's lock (it keeps reappearing)")
+        raise HybridnavError(f"{shown_path(lock)}: could not take the folder's lock (it keeps "
+                             "being replaced)")
     try:
         yield folder
     finally:
-        if _lock_owner(lock) == owner:
-            with contextlib.suppress(OSError):
-                lock.unlink()
+        with contextlib.suppress(OSError):
+            lock.unlink()                        # while still holding it: see the inode check
+        with contextlib.suppress(OSError):
+            os.close(fd)
         if made:                                 # a job that failed before writing: no trace
             with contextlib.suppress(OSError):
                 folder.rmdir()                   # only when empty
 
 
-def _lock_owner(lock: Path) -> dict[str, Any] | None:
-    """The lock's owner, or None when the file is gone or is not a lock we wrote."""
+def short_text(text: str, limit: int) -> str:
+    """``text`` cut to about ``limit`` characters (its start and end kept)."""
+    return text if len(text) <= limit else f"{text[:limit - 30]}...{text[-20:]}"
+
+
+def _lock_owner(fd: int) -> dict[str, Any]:
+    """What the lock holder wrote into the lock file (placeholders when unreadable)."""
     try:
-        data = json.loads(lock.read_text(encoding="utf-8")[:65536])
-    except FileNotFoundError:
-        return None
+        data = json.loads(os.pread(fd, 65536, 0).decode("utf-8"))
     except (OSError, ValueError):
-        return {"pid": None, "host": None, "command": "unreadable lock file", "started": None}
+        data = None
     if not isinstance(data, dict):
-        return {"pid": None, "host": None, "command": "unreadable lock file", "started": None}
+        return {"pid": "?", "host": "?", "command": "?", "started": "?"}
     return data
-
-
-def _stale(owner: dict[str, Any]) -> bool:
-    """True when the lock's owner is a process of this host that no longer runs."""
-    pid = owner.get("pid")
-    if owner.get("host") != socket.gethostname() or isinstance(pid, bool) \
-            or not isinstance(pid, int) or pid <= 0:
-        return False
-    if pid == os.getpid():
-        return False                         # this process's own (nested) lock: not stale
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return True
-    except PermissionError:                  # alive, another user's
-        return False
-    return False
 
 
 def _umask() -> int:
@@ -262,9 +269,16 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
         The file cannot be read, is larger than :data:`MAX_FILE_BYTES`, or is not UTF-8 text
         (binary, UTF-16, ...: the message gives the offset of the first bad byte).
     """
+    import stat
+
     p = Path(path)
     try:
-        with open(p, "rb") as fh:
+        # non-blocking: a FIFO or a device is refused instead of waiting for a writer
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK)
+        with open(fd, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise HybridnavError(f"{shown_path(p)}: expected a regular {what}, got a "
+                                     f"{'folder' if p.is_dir() else 'pipe, device or socket'}")
             data = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise HybridnavError(f"{shown_path(p)}: cannot read {what} ({exc.strerror or exc})") \

@@ -395,11 +395,11 @@ def test_sigkill_and_resume_from_the_command_line(tmp_path):
     assert (out / LOCK_NAME).exists()           # the killed job's lock: stale, taken over below
     gen = json.loads(ckpt.read_text())["optimizer"]["generation"]
     assert 2 <= gen <= 5
-    (out / ".paths.png.x1y2.tmp.png").write_bytes(b"half a png")   # a killed writer's leftover
+    (out / ".paths.png.x1y2z3w4.tmp.png").write_bytes(b"half a png")   # a killed writer's leftover
     done = subprocess.run(cmd + [str(out), "--resume"], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr
-    assert not (out / ".paths.png.x1y2.tmp.png").exists() and not (out / LOCK_NAME).exists()
+    assert not (out / ".paths.png.x1y2z3w4.tmp.png").exists() and not (out / LOCK_NAME).exists()
     a = json.loads((out / "fis.json").read_text())
     b = json.loads((tmp_path / "ref" / "fis.json").read_text())
     b["name"] = a["name"]
@@ -431,18 +431,25 @@ def test_tune_cli_quick_writes_every_output(tmp_path, capsys):
         assert "'tune other.toml'" in err
     assert not (o / LOCK_NAME).exists()
     # --force leaves no file of the old run: not an old falsified world, not a temporary file
-    old = [o / "falsified" / "falsified-9999.toml", o / ".fis.json.abc.tmp.json",
+    old = [o / "falsified" / "falsified-9999.toml", o / ".fis.json.abc_1234.tmp.json",
            o / "robust-7" / "checkpoint.json"]
     for f in old:
         f.parent.mkdir(exist_ok=True)
         f.write_text("old run")
     (o / "notes.txt").write_text("the user's own file stays")
+    mine = [o / "robust-notes" / "ideas.txt", o / "falsified" / "my-world.toml",
+            o / ".env.tmpl", o / "front" / "cover.txt"]       # the user's: kept by --force
+    for f in mine:
+        f.parent.mkdir(exist_ok=True)
+        f.write_text("mine")
     assert main(["tune", str(job_file), "--out", str(o), "--force"]) == 0
     assert not any(f.exists() for f in old) and not (o / "robust-7").exists()
-    assert (o / "notes.txt").exists()
+    assert (o / "notes.txt").exists() and all(f.exists() for f in mine)
     # everything a run writes is declared (what --force removes)
     for entry in o.iterdir():
-        assert entry.name == "notes.txt" or entry.name in OUTPUT_FILES or any(
+        if entry.name in ("notes.txt", ".env.tmpl", "robust-notes", "front"):
+            continue
+        assert entry.name in OUTPUT_FILES or any(
             entry.is_dir() and fnmatch.fnmatch(entry.name, g) for g in OUTPUT_FOLDERS), entry
     for name in ("fis.json", "start.json", "logbook.csv", "evaluations.csv", "validation.csv",
                  "heldout.csv", "heldout_summary.csv", "convergence.png", "mfs.png",

@@ -14,9 +14,11 @@ the README's ``main.c`` includes and calls: ``effc_evaluate``, ``EFFC_IN_DTHETA`
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -55,29 +57,49 @@ OUTPUT_FILES = ("checkpoint.json", "evaluations.jsonl", "evaluations.csv", "logb
                 "convergence.png", "coverage.png", "front.png", "mfs.png", "paths.png",
                 "surface.png")
 OUTPUT_FOLDERS = ("falsified", "front", "learning", "robust-*")
+#: what a run writes inside those folders (a file of another name is the user's and stays)
+_FOLDER_FILES = re.compile(r"^(falsified-\d+\.toml|member_\d+\.json)$")
+_ROBUST = re.compile(r"^robust-\d+$")
 
 
 def clear_outputs(out: str | Path) -> list[Path]:
-    """Remove every output of a previous tuning run from ``out`` (:data:`OUTPUT_FILES`,
-    :data:`OUTPUT_FOLDERS` and temporary files), leaving other files alone.
+    """Remove every output of a previous tuning run from ``out``: the files of
+    :data:`OUTPUT_FILES`, in the folders of :data:`OUTPUT_FOLDERS` (``robust-<number>``) the
+    files a run writes there, those folders when that leaves them empty, and temporary files.
+    Other files (and folders holding them) stay.
 
     Returns
     -------
     list of Path
         What was removed.
     """
-    import shutil
-
     out = Path(out)
-    gone = [out / n for n in OUTPUT_FILES if (out / n).is_file()]
-    for path in gone:
-        path.unlink()
-    for pattern in OUTPUT_FOLDERS:
-        for folder in sorted(out.glob(pattern)):
-            if folder.is_dir() and not folder.is_symlink():
-                shutil.rmtree(folder)
+    gone: list[Path] = []
+
+    def known(path: Path, inner: bool) -> bool:
+        return path.is_file() and not path.is_symlink() and (
+            path.name in OUTPUT_FILES or (inner and bool(_FOLDER_FILES.match(path.name))))
+
+    def clear(folder: Path, inner: bool) -> None:
+        for path in sorted(folder.iterdir()):
+            if path.is_dir() and not path.is_symlink() and inner and path.name == "learning":
+                clear(path, True)
+            elif known(path, inner):
+                path.unlink()
+                gone.append(path)
+        gone.extend(clean_temporaries(folder))
+        if inner:
+            with contextlib.suppress(OSError):
+                folder.rmdir()                   # only when nothing of the user's is left
                 gone.append(folder)
-    return gone + clean_temporaries(out)
+
+    clear(out, False)
+    for name in sorted(p.name for p in out.iterdir()):
+        folder = out / name
+        if folder.is_dir() and not folder.is_symlink() and (
+                name in ("falsified", "front", "learning") or _ROBUST.match(name)):
+            clear(folder, True)
+    return gone
 
 
 def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = False,
