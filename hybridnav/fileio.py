@@ -20,7 +20,8 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "SAFE_NAME", "TEMPORARY_NAME", "atomic_path",
+__all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "MAX_ROBOT_NAME", "SAFE_NAME", "TEMPORARY_NAME",
+           "atomic_path",
            "atomic_write_bytes", "atomic_write_text", "clean_temporaries", "decode_text",
            "dumps_json", "json_ready", "locked_folder", "parse_toml", "read_text_file",
            "short_text", "shown_path"]
@@ -248,7 +249,9 @@ def dumps_json(obj: Any) -> str:
 #: A name that becomes part of a file name or a CSV header (robots' trajectory files, result
 #: extras, columns): letters, digits, ``_``, ``-`` and ``.``, no path separator; test it with
 #: ``SAFE_NAME.fullmatch`` (``$`` alone would let a final newline through).
-SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
+SAFE_NAME = re.compile(r"^[A-Za-z0-9_.\-]{1,128}$")
+#: Longest robot name: its files add prefixes (``swarm_best_``) and suffixes to it
+MAX_ROBOT_NAME = 100
 
 #: Largest input file read (scenarios, jobs, fuzzy systems, maps): 64 MiB.
 MAX_FILE_BYTES = 64 * 2**20

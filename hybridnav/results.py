@@ -588,7 +588,7 @@ def _read_extra(folder: Path, listing: Path, name: Any, entry: Any, robots: list
     header = rows[0]
     if len(set(header)) != len(header) or not all(SAFE_NAME.fullmatch(c) for c in header):
         raise HybridnavError(f"{path}: line 1: expected distinct column names of letters, "
-                             f"digits, '_', '-' or '.', got {short_repr(','.join(header))}")
+                             f"digits, '_', '-' or '.', got {_header_text(header)}")
     if isinstance(spec, Table):                        # before any value is read
         spec.check_names(header, str(path))
     table = {}
@@ -666,7 +666,7 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...
     rows = _csv_rows(path, "trajectory")
     if rows[0][:3] != ["t", "x", "y"]:
         raise HybridnavError(f"{path}: line 1: expected the header t,x,y,..., got "
-                             f"{short_repr(','.join(rows[0]))}")
+                             f"{_header_text(rows[0])}")
     if len(rows) < 2:
         raise HybridnavError(f"{path}: expected at least one sample after the header")
     cols = [_floats([r[j] for r in rows[1:]], path, f"column {show_key(name)}")
@@ -686,3 +686,11 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...
                              f"{k + 2}")
     data = np.column_stack(cols)
     return data[:, 0], data[:, 1:], tuple(rows[0][1:])
+
+
+def _header_text(header: list[str]) -> str:
+    """A CSV header for a message: shown when it is a row of names, else only described (a file
+    that is not a hybridnav table, e.g. a link to a secret, is never echoed)."""
+    if header and all(SAFE_NAME.fullmatch(c) for c in header) and sum(map(len, header)) < 200:
+        return short_repr(",".join(header))
+    return f"a first line of {len(header)} field(s) that are not all column names"

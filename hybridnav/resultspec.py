@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import SAFE_NAME
+from hybridnav.fileio import MAX_ROBOT_NAME, SAFE_NAME
 from hybridnav.params import short_repr
 
 __all__ = ["EXTRAS", "MAX_MAGNITUDE", "METRICS", "OTHER_METRIC", "OUTCOMES", "SAFE_NAME", "Array",
@@ -332,8 +332,10 @@ def check_entry(entry: Any, source: str) -> None:
     for key in ("name", "outcome"):
         if key not in entry:
             raise HybridnavError(f"{source}: {key}: missing")
-    if not isinstance(entry["name"], str) or not SAFE_NAME.fullmatch(entry["name"]):
-        raise HybridnavError(f"{source}.name: expected letters, digits, '_', '-' or '.', got "
+    if not isinstance(entry["name"], str) or not SAFE_NAME.fullmatch(entry["name"]) \
+            or len(entry["name"]) > MAX_ROBOT_NAME:
+        raise HybridnavError(f"{source}.name: expected at most 100 letters, digits, '_', '-' or "
+                             "'.', got "
                              f"{short_repr(entry['name'])}")
     if not isinstance(entry["outcome"], str) or entry["outcome"] not in OUTCOMES:
         raise HybridnavError(f"{source}.outcome: expected one of {', '.join(OUTCOMES)}, got "

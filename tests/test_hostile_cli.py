@@ -404,3 +404,42 @@ def test_a_name_longer_than_a_file_name_is_an_error_not_an_oserror(load):
     with pytest.raises(HybridnavError) as info:
         load("effc-train" + "9" * 5000)
     assert len(str(info.value)) < 600
+
+
+def test_a_file_that_is_not_a_table_or_a_fuzzy_system_is_not_echoed(tmp_path, capsys):
+    """Found by a review: a trajectory linked to a secret, and .fll/.fis files that are not,
+    showed their first line in the message."""
+    secret = "API_KEY=sk-very-secret-0123456789abcdef"
+    (tmp_path / "sec.fll").write_text(secret + "\n")
+    (tmp_path / "sec.fis").write_text(secret + "\n")
+    for name in ("sec.fll", "sec.fis"):
+        assert main(["export", str(tmp_path / name), "--format", "json",
+                     "-o", str(tmp_path / "o.json")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"hybridnav: error: {tmp_path / name}: line 1: ") and \
+            "secret" not in err and "API_KEY" not in err, err
+    out = tmp_path / "r"
+    assert main(["run", "fastep-s1", "--planner", "apf", "-o", str(out)]) == 0
+    traj = next(out.glob("trajectory_*.csv"))
+    traj.unlink()
+    (tmp_path / "secret.env").write_text(secret + "\n")
+    traj.symlink_to(tmp_path / "secret.env")
+    capsys.readouterr()
+    assert main(["plot", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "line 1: expected the header t,x,y,..., got a first line of 1 field(s)" in err
+    assert "secret" not in err.replace("secret.env", "") or "API_KEY" not in err
+
+
+def test_a_robot_name_too_long_for_a_file_name_is_refused_before_the_run(tmp_path):
+    from hybridnav.world import scenario_from_dict
+
+    data = {"name": "s", "dt": 0.1, "max_time": 10,
+            "workspace": {"xmin": 0, "xmax": 10, "ymin": 0, "ymax": 10},
+            "robots": [{"name": "r" * 101, "model": "point_mass", "start": [1, 1],
+                        "goal": [9, 9]}]}
+    with pytest.raises(HybridnavError, match=r"robots\[0\]\.name: expected a name of at most "
+                                             r"100 letters"):
+        scenario_from_dict(data, "s.toml")
+    data["robots"][0]["name"] = "r" * 100
+    assert scenario_from_dict(data, "s.toml").robots[0].name == "r" * 100

@@ -257,7 +257,7 @@ def _edit(path, fn):
     (lambda f: _edit(f / "result.json", lambda d: d.update(seed="x")),
      r"result.json: seed: expected a non-negative integer or null, got 'x'"),
     (lambda f: _edit(f / "result.json", lambda d: d["robots"][0].update(name="../R1")),
-     r"result.json: robots\[0\].name: expected letters, digits"),
+     r"result.json: robots\[0\].name: expected at most 100 letters, digits"),
     (lambda f: _edit(f / "result.json", lambda d: d["robots"][0].update(outcome="won")),
      r"result.json: robots\[0\].outcome: expected one of reached, .* got 'won'"),
     (lambda f: (f / "trajectory_R1.csv").write_text("t,x,y\n"),

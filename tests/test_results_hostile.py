@@ -294,8 +294,8 @@ def test_a_header_only_table_the_writer_writes_too_plots(written, tmp_path, plan
      "expected one of reached, collided, out_of_bounds, stuck, timeout, got 'won'"),
     ("effc", "outcome", None,
      "expected one of reached, collided, out_of_bounds, stuck, timeout, got None"),
-    ("effc", "name", "../R", "expected letters, digits, '_', '-' or '.', got '../R'"),
-    ("effc", "name", "R\n", "expected letters, digits, '_', '-' or '.', got 'R\\n'"),
+    ("effc", "name", "../R", "expected at most 100 letters, digits, '_', '-' or '.', got '../R'"),
+    ("effc", "name", "R\n", "expected at most 100 letters, digits, '_', '-' or '.', got 'R\\n'"),
 ])
 def test_a_metric_of_the_wrong_type(written, tmp_path, planner, key, value, message):
     folder = copy_of(written, planner, tmp_path)

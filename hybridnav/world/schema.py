@@ -14,7 +14,7 @@ import numpy as np
 
 from hybridnav import models
 from hybridnav.errors import HybridnavError, where
-from hybridnav.fileio import SAFE_NAME, parse_toml, read_text_file
+from hybridnav.fileio import MAX_ROBOT_NAME, SAFE_NAME, parse_toml, read_text_file
 from hybridnav.limits import (
     MAX_COORDINATE,
     MAX_GRID_CELLS,
@@ -310,9 +310,9 @@ def _parse_robots(chk: _Check, raw: Any, world: World, dt: float) -> list[Robot]
         r = chk.table(rr, key)
         chk.keys(r, key, _ROBOT_KEYS, _ROBOT_REQUIRED)
         name = chk.string(r["name"], f"{key}.name", nonempty=True)
-        if not SAFE_NAME.fullmatch(name) or name in (".", ".."):
-            raise chk.fail(f"{key}.name", "expected a name of letters, digits, '_', '-' or '.' "
-                                          f"(it names the robot's result files), got "
+        if not SAFE_NAME.fullmatch(name) or len(name) > MAX_ROBOT_NAME or name in (".", ".."):
+            raise chk.fail(f"{key}.name", "expected a name of at most 100 letters, digits, '_', "
+                                          "'-' or '.' (it names the robot's result files), got "
                                           f"{short_repr(name)}")
         if any(o.name == name for o in robots):
             raise chk.fail(f"{key}.name", f"expected a unique robot name, {name!r} is used twice")

@@ -288,7 +288,8 @@ def read_fis(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
             raise err(n, f"unknown section {line[:40]!r} (expected [System], [InputN], "
                       "[Output1], [Rules])")
         if not sections:
-            raise err(n, f"{line[:40]!r} is outside any section (expected [System] first)")
+            raise err(n, f"expected [System] first, got a line of {len(line)} characters "
+                         "outside any section")  # not shown: the file may be anything
         sections[-1].items.append((n, line))
 
     system = [s for s in sections if s.kind == "System"]

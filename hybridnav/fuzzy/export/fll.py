@@ -355,7 +355,10 @@ def read_fll(text: str, source: str | None = None, *, points: int = DEFAULT_POIN
         key, sep, value = line.partition(":")
         key, value = key.strip(), value.strip()
         if not sep:
-            raise err(n, f"expected 'key: value', got {line[:60]!r}")
+            # before the Engine line the file may be anything: its text is not shown
+            raise err(n, f"expected 'key: value', got {line[:60]!r}" if section is not None
+                      else "expected 'key: value' (an FLL file starts with 'Engine: NAME'), got "
+                           f"a line of {len(line)} characters without ':'")
         if key == "Engine":
             if section is not None:
                 raise err(n, "'Engine:' must come first, once")
