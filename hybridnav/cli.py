@@ -492,6 +492,15 @@ def _at_least(lo: int, hi: int | None = None):
     return check
 
 
+def _in_range(lo: float, hi: float):
+    """``lo < v <= hi`` (finite)."""
+    def check(v: float) -> float:
+        if not lo < v <= hi:
+            raise HybridnavError("out of range")
+        return v
+    return check
+
+
 def _finite_nonneg(v: float) -> float:
     import math
 
@@ -585,7 +594,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trust", action="store_true",
                    help="compile C that is not an unmodified hybridnav export (it still runs "
                         "only in a child process with limits)")
-    p.add_argument("--timeout", type=float, default=10.0, metavar="SECONDS",
+    p.add_argument("--timeout", type=_typed("a time in (0, 86400] seconds", float,
+                                            _in_range(0.0, 86400.0)),
+                   default=10.0, metavar="SECONDS",
                    help="time limit of each call into the compiled C (default 10)")
     p.set_defaults(func=_cmd_verify)
 

@@ -443,3 +443,29 @@ def test_a_robot_name_too_long_for_a_file_name_is_refused_before_the_run(tmp_pat
         scenario_from_dict(data, "s.toml")
     data["robots"][0]["name"] = "r" * 100
     assert scenario_from_dict(data, "s.toml").robots[0].name == "r" * 100
+
+
+def test_review_findings_of_small_hostile_inputs(tmp_path, capsys):
+    """A 170 kB fuzzy file asking for 24 GB of memberships, a job's objectives of lists, a
+    stored run's protocol of a list, an infinite verify timeout: each a named error."""
+    import json
+
+    from hybridnav.fuzzy import loads
+    from hybridnav.fuzzy.spec import MAX_SAMPLES
+
+    d = json.loads((__import__("pathlib").Path(__import__("hybridnav").__file__).parent
+                    / "fuzzy" / "systems" / "effc-5rule.json").read_text())
+    d["inputs"][0]["points"] = 1_000_000
+    d["inputs"][0]["terms"] += [{"name": f"t{i}", "mf": "trimf", "params": [0, 0.5, 1]}
+                                for i in range(3000)]
+    with pytest.raises(HybridnavError, match=rf"^m.json: inputs\[0\]\.points: expected points x "
+                                             rf"terms of at most {MAX_SAMPLES}"):
+        loads(json.dumps(d), "m.json")
+    job = tmp_path / "j.toml"
+    job.write_text("[cost]\nobjectives = [[1, 2]]\n")
+    assert main(["tune", str(job), "--out", str(tmp_path / "o")]) == 2
+    assert "cost.objectives: expected a list of distinct names" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["verify", "effc-5rule", "x.c", "--timeout", "inf"])
+    assert "argument --timeout: expected a time in (0, 86400] seconds" in \
+        capsys.readouterr().err

@@ -439,7 +439,15 @@ def _read_variable_fields(r: _Reader, d: Mapping[str, Any], key: str) -> dict[st
     if problem:
         raise r.fail(f"{key}.range", problem)
     terms = _read_terms(r, d["terms"], f"{key}.terms")
+    if points * len(terms) > MAX_SAMPLES:
+        raise r.fail(f"{key}.points", f"expected points x terms of at most {MAX_SAMPLES} (the "
+                                      f"sampled memberships' memory), got {points} x "
+                                      f"{len(terms)}")
     return {"name": name, "range": (lo, hi), "points": points, "terms": terms}
+
+
+#: Largest ``points x terms`` of one variable: its sampled memberships (80 MB of float64)
+MAX_SAMPLES = 10_000_000
 
 
 def _read_antecedent(r: _Reader, value: Any, key: str, inputs: Mapping[str, Variable]) -> Antecedent:

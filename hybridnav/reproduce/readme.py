@@ -61,10 +61,10 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     if not isinstance(meta, dict):
         raise HybridnavError(f"{meta_path}: expected a JSON object, got "
                              f"{type(meta).__name__}")
-    name = meta.get("protocol") if isinstance(meta, dict) else None
-    if name not in PROTOCOLS:
+    name = meta.get("protocol")
+    if not isinstance(name, str) or name not in PROTOCOLS:
         raise HybridnavError(f"{meta_path}: protocol: expected one of "
-                             f"{', '.join(sorted(PROTOCOLS))}, got {name!r}")
+                             f"{', '.join(sorted(PROTOCOLS))}, got {short_repr(name)}")
     for key, param in _STORED.items():
         if key in meta or key != "elapsed_s":            # elapsed_s: optional
             meta[key] = param.check(key, meta.get(key), f"{meta_path}: ")

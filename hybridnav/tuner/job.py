@@ -510,10 +510,10 @@ def validate_job(raw: dict[str, Any], source: str | None, base: Path) -> Job:
     if kind == "navigation" and objs != 1:
         from hybridnav.tuner.costs.navigation import MEASURES
 
-        if not (isinstance(objs, list) and objs and all(o in MEASURES for o in objs)
-                and len(set(objs)) == len(objs)):
+        if not (isinstance(objs, list) and objs and all(isinstance(o, str) for o in objs)
+                and all(o in MEASURES for o in objs) and len(set(objs)) == len(objs)):
             raise fail("cost.objectives", f"expected a list of distinct names of "
-                                          f"{', '.join(MEASURES)}, got {objs!r}")
+                                          f"{', '.join(MEASURES)}, got {short_repr(objs)}")
     k = data["validation"]["kfold"]
     if kind != "navigation" and "scenarios" in raw:
         raise fail("scenarios", f"expected no worlds for cost.kind = {kind!r} (they are the "

@@ -179,9 +179,9 @@ class CompiledFIS:
     def __init__(self, source: str | os.PathLike[str], *, trust: bool = False,
                  timeout: float = CALL_TIMEOUT, compile_timeout: float = COMPILE_TIMEOUT) -> None:
         src = Path(source)
-        if not timeout > 0 or not compile_timeout > 0:
-            raise HybridnavError(f"{src}: timeout: expected a positive number of seconds, got "
-                                 f"{timeout if not timeout > 0 else compile_timeout!r}")
+        if not 0 < timeout <= 86400 or not 0 < compile_timeout <= 86400:
+            raise HybridnavError(f"{src}: timeout: expected a number of seconds in (0, 86400], "
+                                 f"got {timeout if not 0 < timeout <= 86400 else compile_timeout!r}")
         header = src.with_suffix(".h")
         code = _read_c(src, "C source")
         text = _read_c(header, "C header")
