@@ -249,7 +249,7 @@ def test_a_pipe_or_a_missing_header_is_refused_without_reading(tmp_path):
     (tmp_path / "alone.c").write_text("int x;\n")
     with pytest.raises(HybridnavError, match=r"alone\.h: no such file"):
         CompiledFIS(tmp_path / "alone.c")
-    with pytest.raises(HybridnavError, match=r"timeout: expected a positive number"):
+    with pytest.raises(HybridnavError, match=r"timeout: expected a number of seconds in \(0, 86400\]"):
         CompiledFIS(tmp_path / "alone.c", timeout=0)
 
 
