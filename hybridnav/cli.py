@@ -725,9 +725,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except BrokenPipeError:  # output piped into head or less that quit early
         return 0
-    except OSError as exc:  # unwritable output folder, disk full, ...
-        print(f"hybridnav: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return 1
+    except OSError as exc:  # an output path that is a file, a dangling link, ...
+        from hybridnav.fileio import shown_path
+
+        where_ = shown_path(exc.filename) if exc.filename else "output"
+        print(f"hybridnav: error: {where_}: cannot use it ({exc.strerror or exc})",
+              file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("hybridnav: interrupted", file=sys.stderr)
         return 130

@@ -469,3 +469,13 @@ def test_review_findings_of_small_hostile_inputs(tmp_path, capsys):
         main(["verify", "effc-5rule", "x.c", "--timeout", "inf"])
     assert "argument --timeout: expected a time in (0, 86400] seconds" in \
         capsys.readouterr().err
+
+
+def test_an_output_path_that_is_a_file_is_exit_2(tmp_path, capsys):
+    res = tmp_path / "r"
+    assert main(["run", "fastep-s1", "--planner", "apf", "-o", str(res)]) == 0
+    (tmp_path / "afile").write_text("x")
+    capsys.readouterr()
+    assert main(["plot", str(res), "-o", str(tmp_path / "afile")]) == 2
+    assert f"hybridnav: error: {tmp_path / 'afile'}: cannot use it (File exists)" in \
+        capsys.readouterr().err
