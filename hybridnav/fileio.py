@@ -61,8 +61,9 @@ def _cannot_write(path: Path, exc: OSError) -> HybridnavError:
     return HybridnavError(f"{path}: cannot write ({exc.strerror or exc}); nothing was replaced")
 
 
-#: The names :func:`atomic_path` gives its temporary files: ``.NAME.XXXXXXXX.tmpSUFFIX``
-#: (``tempfile.mkstemp``'s 8 random characters); only these are temporaries.
+#: The names :func:`atomic_path` gives its temporary files: a dot, the target's name,
+#: ``tempfile.mkstemp``'s 8 random characters, ``.tmp`` and the target's suffix; only these are
+#: temporaries.
 TEMPORARY_NAME = re.compile(r"^\.(?P<name>.+)\.[a-z0-9_]{8}\.tmp(\.[A-Za-z0-9]+)?$")
 
 

@@ -120,13 +120,13 @@ def evaluate(fs: FuzzySystem, X: np.ndarray) -> np.ndarray:
     return fs.evaluate(**{n: X[:, i] for i, n in enumerate(fs.input_names)})
 
 
-def max_strength(fs: FuzzySystem, X: np.ndarray) -> np.ndarray:
-    """Largest rule activation (degree x weight) per sample, computed independently of the
+def rule_strengths(fs: FuzzySystem, inputs: dict[str, np.ndarray]) -> list[np.ndarray]:
+    """Each rule's activation (degree x weight) per sample, computed independently of the
     engine: np.interp of the sampled terms at the clipped inputs, min / max / 1 - x."""
     mu = {}
-    for i, v in enumerate(fs.inputs):
+    for v in fs.inputs:
         xs = np.linspace(v.range[0], v.range[1], v.points)
-        x = np.clip(X[:, i], *v.range)
+        x = np.clip(inputs[v.name], *v.range)
         for t in v.terms:
             mu[(v.name, t.name)] = np.interp(x, xs, sample(t.mf, t.params, xs))
 
@@ -138,7 +138,13 @@ def max_strength(fs: FuzzySystem, X: np.ndarray) -> np.ndarray:
         vals = [ev(x) for x in a.items]
         return np.minimum.reduce(vals) if isinstance(a, And) else np.maximum.reduce(vals)
 
-    return np.max([ev(r.antecedent) * r.weight for r in fs.rules], axis=0)
+    return [ev(r.antecedent) * r.weight for r in fs.rules]
+
+
+def max_strength(fs: FuzzySystem, X: np.ndarray) -> np.ndarray:
+    """Largest rule activation per sample (:func:`rule_strengths`)."""
+    return np.max(rule_strengths(fs, {n: X[:, i] for i, n in enumerate(fs.input_names)}),
+                  axis=0)
 
 
 # ------------------------------------------------------------------------------------- fuzzylite

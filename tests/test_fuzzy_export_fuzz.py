@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_fuzzy_export import ZOO, ZOO_FLAT
+from test_fuzzy_export import ZOO, ZOO_FLAT, rule_strengths
 
 from hybridnav import HybridnavError, fuzzy
 from hybridnav.fuzzy import FuzzySystem
@@ -41,7 +41,6 @@ from hybridnav.fuzzy.export import (
     read_text,
 )
 from hybridnav.fuzzy.mf import sample
-from hybridnav.fuzzy.spec import And, Not, TermRef
 
 #: examples of the long fuzz run (``HYBRIDNAV_FUZZ_EXAMPLES``), else each test's own count
 _LONG = os.environ.get("HYBRIDNAV_FUZZ_EXAMPLES", "").strip()
@@ -193,25 +192,10 @@ def aggregated_area(fs: FuzzySystem, X: dict[str, np.ndarray]) -> np.ndarray:
     strengths from np.interp of the sampled input terms (min / max / 1 - x, times the weight),
     each output term cut at its largest strength, the universe upsampled at every cut's
     crossings (``_interp_universe_fast``), the clipped terms' maximum integrated as a polyline."""
-    mu = {}
-    for v in fs.inputs:
-        xs = universe(v)
-        x = np.clip(X[v.name], *v.range)
-        for t in v.terms:
-            mu[(v.name, t.name)] = np.interp(x, xs, sample(t.mf, t.params, xs))
-
-    def ev(a):
-        if isinstance(a, TermRef):
-            return mu[(a.input, a.term)]
-        if isinstance(a, Not):
-            return 1.0 - ev(a.item)
-        vals = [ev(i) for i in a.items]
-        return np.minimum.reduce(vals) if isinstance(a, And) else np.maximum.reduce(vals)
-
     n = len(next(iter(X.values())))
     cuts = {t.name: np.zeros(n) for t in fs.output.terms}
-    for r in fs.rules:
-        cuts[r.then] = np.maximum(cuts[r.then], ev(r.antecedent) * r.weight)
+    for r, strength in zip(fs.rules, rule_strengths(fs, X)):
+        cuts[r.then] = np.maximum(cuts[r.then], strength)
     xs = universe(fs.output)
     F = {t.name: sample(t.mf, t.params, xs) for t in fs.output.terms}
     area = np.empty(n)

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_fuzzy_export_fuzz import mutated
+from test_fuzzy_export_fuzz import examples, mutated
 
 from hybridnav import HybridnavError
 from hybridnav.cli import main
@@ -25,12 +25,6 @@ from hybridnav.world import Scenario, load_scenario
 from hybridnav.world.builtin import _builtin_dir
 
 CORPUS = Path(__file__).parent / "hostile"
-FUZZ = int(__import__("os").environ.get("HYBRIDNAV_FUZZ_EXAMPLES", "0"))   # 0: the defaults
-
-
-def _examples(default: int) -> int:
-    """``HYBRIDNAV_FUZZ_EXAMPLES`` (a long run on demand) or the CI default."""
-    return FUZZ or default
 
 EXPECTED = json.loads((CORPUS / "EXPECTED.json").read_text(encoding="utf-8"))
 
@@ -88,7 +82,7 @@ def _check(read, path: Path) -> None:
     assert out is not None
 
 
-@settings(deadline=None, max_examples=_examples(150), suppress_health_check=[HealthCheck.too_slow,
+@settings(deadline=None, max_examples=examples(150), suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_damaged_scenario_files(tmp_path, data):
@@ -97,7 +91,7 @@ def test_damaged_scenario_files(tmp_path, data):
     _check(load_scenario, path)
 
 
-@settings(deadline=None, max_examples=_examples(100), suppress_health_check=[HealthCheck.too_slow,
+@settings(deadline=None, max_examples=examples(100), suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_damaged_job_files(tmp_path, data):
@@ -106,7 +100,7 @@ def test_damaged_job_files(tmp_path, data):
     _check(load_job, path)
 
 
-@settings(deadline=None, max_examples=_examples(100), suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(deadline=None, max_examples=examples(100), suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(blob=st.binary(max_size=300), which=st.sampled_from(["scenario", "job"]))
 def test_arbitrary_bytes(tmp_path, blob, which):
     path = tmp_path / f"{which}.toml"
@@ -129,7 +123,7 @@ MAPS = ["type octile\nheight 3\nwidth 4\nmap\n....\n.@T.\n....\n",
         "type octile\nheight 2\nwidth 2\nmap\n.G\nS.\n"]
 
 
-@settings(deadline=None, max_examples=_examples(100),
+@settings(deadline=None, max_examples=examples(100),
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_damaged_map_files(tmp_path, data):
@@ -145,7 +139,7 @@ STORED = {name: (STORE / name).read_text(encoding="utf-8")
           for name in ("summary.csv", "comparison.json")}
 
 
-@settings(deadline=None, max_examples=_examples(60),
+@settings(deadline=None, max_examples=examples(60),
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(data=st.data(), which=st.sampled_from(sorted(STORED)))
 def test_damaged_stored_reproductions(tmp_path, data, which):
@@ -174,7 +168,7 @@ OPTIONS = [("show", "--time", ["show", "fastep-s1", "-o", "x.png"]),
            ("generate", "--count", ["generate", "-o", "x"])]
 
 
-@settings(deadline=None, max_examples=_examples(200))
+@settings(deadline=None, max_examples=examples(200))
 @given(option=st.sampled_from(OPTIONS),
        value=st.one_of(st.text(max_size=30), st.integers().map(str),
                        st.floats(allow_nan=True).map(repr),

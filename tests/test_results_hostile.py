@@ -18,7 +18,6 @@ import contextlib
 import io
 import json
 import math
-import os
 import re
 import shutil
 from pathlib import Path
@@ -28,7 +27,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_fuzzy_export_fuzz import mutated
+from test_fuzzy_export_fuzz import examples, mutated
 
 from hybridnav import HybridnavError, planners
 from hybridnav.cli import main
@@ -36,8 +35,6 @@ from hybridnav.results import Result, RobotResult, read_result, write_result
 from hybridnav.resultspec import EXTRAS, METRICS, Array, Table
 from hybridnav.world import save_scenario, scenario_from_dict
 
-#: mutants per fuzz test (default: a few, within the suite's time budget)
-EXAMPLES = int(os.environ.get("HYBRIDNAV_FUZZ_EXAMPLES", "0") or 0)
 
 SMALL = {
     "name": "hostile-results", "dt": 0.1, "max_time": 40.0,
@@ -551,7 +548,7 @@ def _names_a_file_of(folder: Path, message: str) -> bool:
     return re.match(re.escape(str(folder)) + r"/[\w.\-]+: ", message) is not None
 
 
-@settings(deadline=None, max_examples=EXAMPLES or 25, suppress_health_check=[
+@settings(deadline=None, max_examples=examples(25), suppress_health_check=[
     HealthCheck.too_slow, HealthCheck.function_scoped_fixture, HealthCheck.data_too_large])
 @given(data=st.data(), planner=st.sampled_from(PLANNERS))
 def test_damaged_result_folders(written, tmp_path, data, planner):
