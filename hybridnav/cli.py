@@ -484,39 +484,25 @@ def _typed(name: str, convert, check):
     return parse
 
 
-def _at_least(lo: int, hi: int | None = None):
-    def check(v: int) -> int:
-        if v < lo or (hi is not None and v > hi):
-            raise HybridnavError("out of range")
-        return v
-    return check
-
-
-def _in_range(lo: float, hi: float):
-    """``lo < v <= hi`` (finite)."""
-    def check(v: float) -> float:
-        if not lo < v <= hi:
-            raise HybridnavError("out of range")
-        return v
-    return check
-
-
-def _finite_nonneg(v: float) -> float:
+def _between(lo: float, hi: float = float("inf"), lo_open: bool = False):
+    """A check of ``lo <= v <= hi`` (``lo < v`` when ``lo_open``; never NaN or infinite)."""
     import math
 
-    if not (math.isfinite(v) and v >= 0):
-        raise HybridnavError("out of range")
-    return v
+    def check(v: float) -> float:
+        if not math.isfinite(v) or v < lo or (lo_open and v == lo) or v > hi:
+            raise HybridnavError("out of range")
+        return v
+    return check
 
 
 #: ``--seed``: what numpy's SeedSequence takes
 _SEED = _typed("a non-negative integer below 2**128", int,
                lambda v: check_seed(v, optional=False))
 #: ``--workers``: processes on this machine (a job is also bounded by its chunks)
-_WORKERS = _typed("an integer in [1, 256]", int, _at_least(1, 256))
-_COUNT = _typed("an integer in [1, 100000]", int, _at_least(1, 100000))
-_TIME = _typed("a finite time >= 0 (seconds)", float, _finite_nonneg)
-_TOLERANCE = _typed("a finite number >= 0", float, _finite_nonneg)
+_WORKERS = _typed("an integer in [1, 256]", int, _between(1, 256))
+_COUNT = _typed("an integer in [1, 100000]", int, _between(1, 100000))
+_TIME = _typed("a finite time >= 0 (seconds)", float, _between(0.0))
+_TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -595,7 +581,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="compile C that is not an unmodified hybridnav export (it still runs "
                         "only in a child process with limits)")
     p.add_argument("--timeout", type=_typed("a time in (0, 86400] seconds", float,
-                                            _in_range(0.0, 86400.0)),
+                                            _between(0.0, 86400.0, lo_open=True)),
                    default=10.0, metavar="SECONDS",
                    help="time limit of each call into the compiled C (default 10)")
     p.set_defaults(func=_cmd_verify)

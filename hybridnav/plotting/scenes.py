@@ -134,7 +134,7 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 120,
         As for :meth:`matplotlib.figure.Figure.savefig`.
     """
     path = Path(path)
-    formats = FigureCanvasAgg(Figure()).get_supported_filetypes()
+    formats = FigureCanvasAgg.get_supported_filetypes()
     suffix = path.suffix.lower().lstrip(".")
     if suffix not in formats:
         raise HybridnavError(f"{path}: expected a picture file name ending in one of "
