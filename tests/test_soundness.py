@@ -492,3 +492,23 @@ def test_a_kink_whose_slopes_differ_by_less_than_1e_7_is_not_linearized():
                    1e8 * x[0] - x[1])
     with pytest.raises(HybridnavError, match="not differentiable"):
         linearize(as_system((x, f)), [0.0, 0.0])
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_a_state_just_past_the_level_set_is_not_a_counterexample(seed):
+    """Found by a review: IPOPT stepped 4e-8 past a level set's boundary, where Vdot > 0, and
+    the candidate filter's relative slack accepted it. There V - level = +3.6e-15 exactly, and on
+    {V <= level} Vdot = 0.2 (2 X^4 - 2 X^2 - Y^2) < 0 except at the target."""
+    pm = models.get("point_mass")
+
+    def V(x, t):
+        return (x[1] - t[1]) ** 2 + (x[0] - t[0]) ** 2 * (2 - (x[0] - t[0]) ** 2)
+
+    e = 4e-8
+    rep = check_lyapunov(pm, V, target=(0, 0), region={"x": (-1 - e, 1 + e), "y": (-1, 1)},
+                         level=1 - 1e-14, seed=seed)
+    assert rep.status != "counterexample", rep.method
+    if rep.counterexample is not None:
+        x = rep.counterexample
+        F = Fraction
+        assert F(x[1]) ** 2 + F(x[0]) ** 2 * (2 - F(x[0]) ** 2) <= F(1 - 1e-14)

@@ -296,7 +296,7 @@ def check_lyapunov(
         v, d = (float(np.asarray(a).item()) for a in both(xs))
         if not (np.isfinite(v) and v >= v_floor * (1 - 1e-9)):
             continue
-        if level is not None and v > level * (1 + 1e-9):
+        if not witness.within_level(xs, level):   # IPOPT may step just past the level set
             continue
         if not model.admissible(xs[None])[0]:
             continue
@@ -310,7 +310,13 @@ def check_lyapunov(
     sign, d_lo, d_hi = witness.vdot_sign(best_x)
     report.details["worst_vdot_enclosure"] = [d_lo, d_hi]
     route = "ipopt" if how == "multistart IPOPT" else "sampling"
-    if sign in ("positive", "zero"):
+    if sign in ("positive", "zero") and not witness.within_level(best_x, level):
+        # a state on the level set's boundary to rounding: not surely in the analysed set
+        report.status, report.route = "undecided", route
+        report.method = (f"{how}: Vdot = {best_d:.6g} >= 0 at "
+                         f"{np.array2string(best_x, precision=6)}, but V there is not surely "
+                         f"<= the level {level!r} (its enclosure reaches above it)")
+    elif sign in ("positive", "zero"):
         zero = " (exactly zero)" if sign == "zero" else ""
         _counterexample(report, both, best_x, f"{how}: Vdot = {best_d:.6g}{zero} >= 0 at this "
                         "state", witness)

@@ -53,6 +53,11 @@ class Witness:
         nan = np.isnan(out)
         return np.where(nan, -np.inf, out), np.where(nan, np.inf, out)
 
+    def within_level(self, point, level: float | None) -> bool:
+        """Whether the state surely lies in ``{V <= level}`` (its V enclosure's upper end at
+        most ``level``); always True without a level."""
+        return level is None or bool(self.enclose(point)[1][0, 0] <= level)
+
     def v_negative(self, points) -> np.ndarray:
         """Where ``V < 0`` surely."""
         return self.enclose(points)[1][:, 0] < 0
