@@ -214,3 +214,21 @@ def test_a_map_header_beyond_the_limits(width, expected):
     with pytest.raises(HybridnavError, match=re.escape(expected)) as info:
         parse_movingai_map(f"type octile\nheight 3\nwidth {width}\nmap\n....\n", "m.map")
     assert str(info.value).startswith("m.map: header: ") and len(str(info.value)) < 300
+
+
+def test_a_stored_summary_with_an_integer_beyond_floats(tmp_path):
+    """Found by a long fuzz run: pandas' to_numeric raised OverflowError."""
+    import shutil
+
+    from hybridnav.reproduce.readme import load_stored
+
+    folder = tmp_path / "fastep-table2"
+    folder.mkdir()
+    shutil.copy(STORE / "comparison.json", folder)
+    lines = STORED["summary.csv"].splitlines()
+    head, first = lines[0].split(","), lines[1].split(",")
+    first[head.index("robots")] = "9" * 400
+    (folder / "summary.csv").write_text("\n".join([lines[0], ",".join(first), *lines[2:]]) + "\n")
+    with pytest.raises(HybridnavError, match=r"summary.csv: robots: expected numbers, got an "
+                                             r"integer beyond the float range"):
+        load_stored(folder)

@@ -107,7 +107,11 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
                                      f"empty cell in row {int(values.isna().argmax()) + 2}")
             summary[col] = values.astype(str)
             continue
-        numbers = pd.to_numeric(summary[col], errors="coerce")
+        try:
+            numbers = pd.to_numeric(summary[col], errors="coerce")
+        except OverflowError:                  # an integer beyond any float (pandas raises)
+            raise HybridnavError(f"{path}: {col}: expected numbers, got an integer beyond the "
+                                 "float range") from None
         bad = numbers.isna() & summary[col].notna()
         if bad.any():
             row = int(bad.argmax())
