@@ -76,6 +76,9 @@ class Protocol:
     #: values the paper quotes from other work (not run here): ``{row label: {method: length}}``
     literature: dict[str, dict[str, float]] = field(default_factory=dict)
     notes: str = ""
+    #: where the paper contradicts itself (its tables, text and conclusion), each with which
+    #: version the protocol uses and why; the report lists them before the results
+    conflicts: tuple[str, ...] = ()
 
 
 FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic)"

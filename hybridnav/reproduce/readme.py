@@ -139,8 +139,8 @@ def render(folder: str | Path) -> str:
     """The README block of the stored reproduction in ``folder``: how it was run, the paper's
     numbers beside ours per profile, and the paper's claims checked (as in its ``report.md``).
     """
-    from hybridnav.reproduce.report import (check_claims, claims_section, has_profiles,
-                                            literature_line, profile_sections,
+    from hybridnav.reproduce.report import (check_claims, claims_section, conflicts_section,
+                                            has_profiles, literature_line, profile_sections,
                                             variants_section)
 
     name, summary, meta = load_stored(folder)
@@ -155,6 +155,7 @@ def render(folder: str | Path) -> str:
             f"figures: [`{STORE.as_posix()}/{name}/report.md`]({STORE.as_posix()}/{name}/"
             "report.md).")
     lines = [how, ""]
+    lines += conflicts_section(protocol, level=4)
     lines += profile_sections(protocol, summary, level=4)
     if protocol.ablations:
         lines += variants_section(protocol, summary, level=4,

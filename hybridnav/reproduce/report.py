@@ -24,8 +24,8 @@ from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for
 
-__all__ = ["ALPHA", "ASTAR_SLACK", "MOST_REACHED", "astar_bound", "bounds_section", "check_claims", "claims_section",
-           "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
+__all__ = ["ALPHA", "ASTAR_SLACK", "MOST_REACHED", "astar_bound", "bounds_section", "check_claims",
+           "claims_section", "conflicts_section", "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
            "profile_sections", "straight_line_bound", "variants_section", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
@@ -423,6 +423,15 @@ def variants_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2,
     return lines + [""]
 
 
+def conflicts_section(protocol: Protocol, level: int = 2) -> list[str]:
+    """The paper's internal conflicts and which version we use (markdown lines; none if the
+    protocol lists none; ``level``: of the heading)."""
+    if not protocol.conflicts:
+        return []
+    return [f"{'#' * level} Where the paper contradicts itself", ""] + [
+        f"- {c}" for c in protocol.conflicts] + [""]
+
+
 def literature_line(protocol: Protocol) -> list[str]:
     """The values the paper quotes from other work (markdown lines; none if it quotes none)."""
     if not protocol.literature:
@@ -463,6 +472,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
             for p, s in protocol.settings.items()) + ".", ""]
     if protocol.notes:
         lines += [protocol.notes, ""]
+    lines += conflicts_section(protocol)
     lines += ["Ours: mean time to goal / mean path length over the robots' runs that reached "
               "the goal (reached / robots x runs).", ""]
     lines += bounds_section(protocol, units_of)
