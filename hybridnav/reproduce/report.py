@@ -26,7 +26,7 @@ from hybridnav.reproduce.variants import label_for
 
 __all__ = ["ALPHA", "ASTAR_SLACK", "MOST_REACHED", "astar_bound", "bounds_section", "check_claims",
            "claims_section", "conflicts_section", "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
-           "profile_sections", "straight_line_bound", "variants_section", "write_report"]
+           "profile_sections", "row_verdict", "straight_line_bound", "variants_section", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
 
@@ -167,27 +167,46 @@ def _column(claim: Claim) -> str:
     return "time_with_planning" if claim.time == "with planning" else "time_to_goal"
 
 
+def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, view: str,
+                row: Row) -> tuple[bool | None, str]:
+    """One row's verdict on a claim and the numbers it rests on.
+
+    Parameters
+    ----------
+    protocol : Protocol
+    claim : Claim
+    summary : DataFrame or None
+        Our ``summarize_runs`` (unused, may be None, for the ``paper`` view).
+    view : {"paper", "paper profile", "hybridnav profile"}
+    row : Row
+        A row of the claim; its ``scenario`` names the summary's rows (a perturbed layout's
+        name in :mod:`hybridnav.reproduce.layouts`).
+
+    Returns
+    -------
+    (bool or None, str)
+        holds / does not hold / not shown, and the detail.
+    """
+    if view == "paper":
+        va, vb = row.paper.get(claim.a), row.paper.get(claim.b)
+    else:
+        va = ours(summary, _label(protocol, claim.a, view), row.scenario)
+        vb = ours(summary, _label(protocol, claim.b, view), row.scenario) if claim.b else None
+    if claim.kind in ("shorter", "faster"):
+        return _compare_row(protocol, claim, view, va, vb)
+    share = _reached(va)
+    if share is None:
+        return None, "no number"
+    return (share == 1.0 if claim.kind == "reaches" else share == 0.0), f"reached {share:.0%}"
+
+
 def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
            ) -> tuple[bool | None, str]:
     parts, verdicts = [], []
     for row in _rows(protocol, claim):
-        if view == "paper":
-            va, vb = row.paper.get(claim.a), row.paper.get(claim.b)
-        else:
-            va = ours(summary, _label(protocol, claim.a, view), row.scenario)
-            vb = ours(summary, _label(protocol, claim.b, view), row.scenario) if claim.b else None
-        if claim.kind in ("shorter", "faster"):
-            verdict, part = _compare_row(protocol, claim, view, va, vb)
-            verdicts.append(verdict)
-            parts.append(f"{row.label}: {part}")
-        else:
-            share = _reached(va)
-            if share is None:
-                verdicts.append(None)
-                parts.append(f"{row.label}: no number")
-                continue
-            verdicts.append(share == 1.0 if claim.kind == "reaches" else share == 0.0)
-            parts.append(f"{row.label}: reached {share:.0%}")
+        verdict, part = row_verdict(protocol, claim, summary, view, row)
+        verdicts.append(verdict)
+        parts.append(f"{row.label}: {part}")
     if any(v is False for v in verdicts):
         holds: bool | None = False
     elif verdicts and all(v is True for v in verdicts):
