@@ -16,6 +16,7 @@ from typing import Any
 from hybridnav import HybridnavError, __version__
 from hybridnav.fileio import locked_folder
 from hybridnav.params import check_seed, describe_params, short_repr
+from hybridnav.reproduce.layouts import LAYOUTS, MAX_LAYOUTS
 
 __all__ = ["main"]
 
@@ -304,12 +305,15 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
                desc=args.name)
 
     def progress(done, total):
+        if total != bar.total:               # the layout-sensitivity runs join the count
+            bar.total = total
+            bar.refresh()
         bar.update(done - bar.n)
 
     try:
         result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
                            workers=args.workers, dask=args.dask, progress=progress,
-                           scenarios=scens)
+                           scenarios=scens, layouts=args.layouts)
     finally:
         bar.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
@@ -501,6 +505,7 @@ _SEED = _typed("a non-negative integer below 2**128", int,
 #: ``--workers``: processes on this machine (a job is also bounded by its chunks)
 _WORKERS = _typed("an integer in [1, 256]", int, _between(1, 256))
 _COUNT = _typed("an integer in [1, 100000]", int, _between(1, 100000))
+_LAYOUTS = _typed(f"an integer in [0, {MAX_LAYOUTS}]", int, _between(0, MAX_LAYOUTS))
 _TIME = _typed("a finite time >= 0 (seconds)", float, _between(0.0))
 _TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
@@ -620,6 +625,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="runs per planner and scenario (default: the paper's number)")
     p.add_argument("--scenarios", help="comma-separated: only these of the protocol's scenarios")
     p.add_argument("--seed", type=_SEED, default=0, help="seed from which every run's seed derives")
+    p.add_argument("--layouts", type=_LAYOUTS, default=LAYOUTS,
+                   help="perturbed layouts per row where a claim does not hold in our runs "
+                        f"(layout sensitivity; default {LAYOUTS}, 0: none)")
     backend = p.add_mutually_exclusive_group()
     backend.add_argument("--workers", type=_WORKERS, default=1, help="local worker processes")
     backend.add_argument("--dask", metavar="ADDRESS", help="Dask scheduler address")

@@ -20,6 +20,7 @@ from typing import Any
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import locked_folder
+from hybridnav.reproduce.layouts import LAYOUT_RUNS, LAYOUTS, MAX_LAYOUTS
 from hybridnav.reproduce.protocols import PROTOCOLS, Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import PROFILES, label_for, variants
 
@@ -30,7 +31,7 @@ __all__ = ["PROFILES", "PROTOCOLS", "Claim", "Protocol", "Row", "Value", "label_
 def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
               workers: int = 1, dask: str | Any | None = None,
               progress: Callable[[int, int], None] | None = None,
-              scenarios: Sequence[str] | None = None) -> dict[str, Any]:
+              scenarios: Sequence[str] | None = None, layouts: int = LAYOUTS) -> dict[str, Any]:
     """Run protocol ``name`` and write its report into ``out``.
 
     Parameters
@@ -52,6 +53,11 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         ``progress(done, total)``.
     scenarios : sequence of str, optional
         Run only these of the protocol's scenarios (its rows; default all).
+    layouts : int
+        Perturbed layouts per row where a claim does not hold in our runs
+        (:mod:`hybridnav.reproduce.layouts`; ``min(runs, LAYOUT_RUNS)`` runs per planner and
+        layout; 0: no layout sensitivity). They are written to ``out/layouts/``, their verdicts
+        to ``layouts.csv`` and their runs' summary to ``layouts_summary.csv``.
 
     Returns
     -------
@@ -82,20 +88,35 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     n = protocol.runs if runs is None else runs
     if int(n) != n or n < 1:
         raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
+    if isinstance(layouts, bool) or int(layouts) != layouts or not 0 <= layouts <= MAX_LAYOUTS:
+        raise HybridnavError(f"reproduce: --layouts: expected an integer in [0, {MAX_LAYOUTS}], "
+                             f"got {layouts!r}")
     specs = [PlannerSpec(label, planner, params) for label, planner, params in variants(protocol)]
     scenarios = [row.scenario for row in protocol.rows]
     with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
         return _reproduce(name, protocol, specs, scenarios, int(n), Path(out), seed, workers,
-                          dask, progress)
+                          dask, progress, int(layouts))
 
 
-def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress):
+def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts):
     from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.fileio import atomic_write_text
+    from hybridnav.reproduce.layouts import layout_sensitivity
     from hybridnav.reproduce.report import check_claims, write_report
 
     tic = time.perf_counter()
     table, summary = compare(specs, scenarios, int(n), seed=seed, workers=workers, dask=dask,
                              progress=progress)
+    layout_runs = min(n, LAYOUT_RUNS)
+    first = len(table.groupby(["planner", "scenario", "run"]))     # the main runs, done
+
+    def later(done, total):                  # the layout runs continue the count
+        if progress is not None:
+            progress(first + done, first + total)
+
+    verdicts, lsummary = layout_sensitivity(protocol, summary, count=layouts, runs=layout_runs,
+                                            seed=seed, workers=workers, dask=dask,
+                                            folder=out / "layouts", progress=later)
     elapsed = time.perf_counter() - tic
     from hybridnav import __version__
 
@@ -103,11 +124,19 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
                 "paper_runs": protocol.runs, "seed": seed, "profiles": list(PROFILES),
                 "planners": [s.format() for s in specs], "scenarios": scenarios,
                 "workers": workers if dask is None else f"dask {dask}",
-                "elapsed_s": round(elapsed, 1), "load": _load()}
+                "elapsed_s": round(elapsed, 1), "load": _load(), "layouts": layouts,
+                "layout_runs": layout_runs}
     files = write_comparison(out, table, summary, settings=settings)
+    if not verdicts.empty:
+        atomic_write_text(out / "layouts.csv", verdicts.to_csv(index=False))
+        atomic_write_text(out / "layouts_summary.csv", lsummary.to_csv(index=False))
+        files += ["layouts.csv", "layouts_summary.csv", "layouts/"]
+    else:                                    # an earlier run's verdicts are not this run's
+        for stale in ("layouts.csv", "layouts_summary.csv"):
+            (out / stale).unlink(missing_ok=True)
     claims = check_claims(protocol, summary)
     write_report(Path(out) / "report.md", protocol, summary, claims, runs=int(n), seed=seed,
-                 version=__version__, files=files)
+                 version=__version__, files=files, layouts=verdicts, layout_runs=layout_runs)
     return {"claims": claims, "files": ["report.md", *files]}
 
 

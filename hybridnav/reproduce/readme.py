@@ -24,7 +24,8 @@ from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.params import Param, short_repr
 from hybridnav.reproduce.protocols import PROTOCOLS
 
-__all__ = ["STORE", "blocks", "load_stored", "render", "rewrite_report", "update_readme"]
+__all__ = ["STORE", "blocks", "load_layouts", "load_stored", "render", "rewrite_report",
+           "update_readme"]
 
 #: where the full runs are kept, relative to the repository's root
 STORE = Path("docs") / "reproductions"
@@ -36,7 +37,9 @@ _OPEN = re.compile(r"<!-- reproduce:([\w-]+) -->")
 #: the keys of a stored run's comparison.json that the README and the report read
 _STORED = {"version": Param("", "package version"), "runs": Param(1, "runs", lo=1),
            "seed": Param(0, "base seed"), "elapsed_s": Param(0.0, "wall time (s)", lo=0.0),
-           "scenarios": Param([], "the protocol's scenarios")}
+           "scenarios": Param([], "the protocol's scenarios"),
+           "layout_runs": Param(0, "runs per planner and perturbed layout", lo=0)}
+_OPTIONAL = ("elapsed_s", "layout_runs")
 
 
 def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
@@ -66,7 +69,7 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
         raise HybridnavError(f"{meta_path}: protocol: expected one of "
                              f"{', '.join(sorted(PROTOCOLS))}, got {short_repr(name)}")
     for key, param in _STORED.items():
-        if key in meta or key != "elapsed_s":            # elapsed_s: optional
+        if key in meta or key not in _OPTIONAL:
             meta[key] = param.check(key, meta.get(key), f"{meta_path}: ")
     rows = [row.scenario for row in PROTOCOLS[name].rows]
     if meta["scenarios"] != rows:
@@ -81,6 +84,50 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
         raise HybridnavError(f"{path}: expected the summary of a reproduction (a CSV table): "
                              f"{short_repr(str(exc), 200)}") from None
     return name, _check_summary(path, summary, PROTOCOLS[name]), meta
+
+
+_VERDICTS = {"True": True, "False": False, "": None}
+_LAYOUT_COLUMNS = ("claim", "text", "row", "scenario", "layout", "view", "verdict", "detail")
+
+
+def load_layouts(folder: str | Path, protocol) -> pd.DataFrame | None:
+    """The stored layout-sensitivity verdicts of a reproduction (``layouts.csv``; None where
+    the run has none), checked against the protocol.
+
+    Raises
+    ------
+    HybridnavError
+        A missing column, a claim index or row the protocol does not have, a view or verdict
+        that is not one of the known words (naming the file, column and row).
+    """
+    path = Path(folder) / "layouts.csv"
+    if not path.exists():
+        return None
+    text = read_text_file(path, "layouts")
+    try:
+        table = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise HybridnavError(f"{path}: expected the layout verdicts of a reproduction (a CSV "
+                             f"table): {short_repr(str(exc), 200)}") from None
+    for col in _LAYOUT_COLUMNS:
+        if col not in table.columns:
+            raise HybridnavError(f"{path}: {col}: missing column (expected "
+                                 f"{', '.join(_LAYOUT_COLUMNS)})")
+    labels = {row.label for row in protocol.rows}
+    claims = {str(i) for i in range(len(protocol.claims))}
+    checks = (("claim", claims, "a claim index of the protocol"),
+              ("row", labels, "a row label of the protocol"),
+              ("view", {"paper profile", "hybridnav profile"}, "a profile view"),
+              ("verdict", set(_VERDICTS), "True, False or empty"))
+    for col, allowed, what in checks:
+        bad = ~table[col].isin(allowed)
+        if bad.any():
+            i = int(bad.to_numpy().nonzero()[0][0])
+            raise HybridnavError(f"{path}: {col}: expected {what}, got "
+                                 f"{short_repr(table[col].iloc[i])} in row {i + 2}")
+    table["claim"] = table["claim"].astype(int)
+    table["verdict"] = table["verdict"].map(_VERDICTS).astype(object)
+    return table
 
 
 #: Columns of a stored summary that hold text; every other column holds numbers (or is empty)
@@ -139,6 +186,7 @@ def render(folder: str | Path) -> str:
     """The README block of the stored reproduction in ``folder``: how it was run, the paper's
     numbers beside ours per profile, and the paper's claims checked (as in its ``report.md``).
     """
+    from hybridnav.reproduce.layouts import sensitivity_section
     from hybridnav.reproduce.report import (check_claims, claims_section, conflicts_section,
                                             has_profiles, literature_line, profile_sections,
                                             variants_section)
@@ -163,6 +211,9 @@ def render(folder: str | Path) -> str:
     lines += literature_line(protocol)
     lines += claims_section(check_claims(protocol, summary), level=4,
                             profiles=has_profiles(protocol))
+    lines += sensitivity_section(protocol, load_layouts(folder, protocol), summary,
+                                 runs=meta.get("layout_runs", 0), level=4,
+                                 profiles=has_profiles(protocol))
     return "\n".join(lines)
 
 
@@ -177,7 +228,9 @@ def rewrite_report(folder: str | Path) -> Path:
     protocol = PROTOCOLS[name]
     write_report(folder / "report.md", protocol, summary, check_claims(protocol, summary),
                  runs=meta["runs"], seed=meta["seed"], version=meta["version"],
-                 files=[f.name for f in folder.iterdir()])
+                 files=[f.name for f in folder.iterdir()],
+                 layouts=load_layouts(folder, protocol),
+                 layout_runs=meta.get("layout_runs", 0))
     return folder / "report.md"
 
 

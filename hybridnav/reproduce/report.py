@@ -462,7 +462,8 @@ def literature_line(protocol: Protocol) -> list[str]:
 
 def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                  claims: Sequence[dict[str, Any]], *, runs: int, seed: int, version: str,
-                 files: Sequence[str]) -> None:
+                 files: Sequence[str], layouts: pd.DataFrame | None = None,
+                 layout_runs: int = 0) -> None:
     """Write ``report.md``.
 
     Parameters
@@ -478,13 +479,22 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
         The package version.
     files : sequence of str
         The comparison's files in the same folder (figures are linked).
+    layouts : DataFrame, optional
+        :func:`hybridnav.reproduce.layouts.layout_sensitivity`'s verdicts (none: no section).
+    layout_runs : int
+        Runs per planner and perturbed layout.
     """
+    from hybridnav.reproduce.layouts import sensitivity_section
+
     units_of = _units(summary)
     lines = [f"# `{protocol.name}`: {protocol.paper}", "",
              f"Reproduces {protocol.source}. hybridnav {version}; {runs} run(s) per planner and "
-             f"scenario (the paper: {protocol.runs}), seed {seed}. Every planner with profiles "
-             "ran twice: `profile=paper` (the paper's settings and rules, see `hybridnav "
-             "planners`) and the default `profile=hybridnav`.", ""]
+             f"scenario (the paper: {protocol.runs}), seed {seed}. " + (
+                 "Every planner with profiles ran twice: `profile=paper` (the paper's settings "
+                 "and rules, see `hybridnav planners`) and the default `profile=hybridnav`."
+                 if has_profiles(protocol) else
+                 "No compared planner has a paper profile: each ran once, with the settings "
+                 "below."), ""]
     if protocol.settings:
         lines += ["Settings from the paper: " + "; ".join(
             f"{p}: " + ", ".join(f"{k} = {v}" for k, v in s.items())
@@ -497,6 +507,8 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     lines += bounds_section(protocol, units_of)
     lines += profile_sections(protocol, summary)
     lines += claims_section(claims, profiles=has_profiles(protocol))
+    lines += sensitivity_section(protocol, layouts, summary, runs=layout_runs,
+                                 profiles=has_profiles(protocol))
     lines += variants_section(protocol, summary)
     lines += literature_line(protocol)
     figures = sorted(f for f in files if f.endswith(".png"))   # the same order however found
