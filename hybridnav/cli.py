@@ -287,22 +287,35 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         print(f"{args.readme}: rewrote the blocks of {', '.join(names)} from "
               f"{args.reports or STORE}/")
         return 0
+    from hybridnav.reproduce.tuning import EXPERIMENTS
+
     if args.list or not args.name:
         for name, protocol in PROTOCOLS.items():
             print(f"{name}: {protocol.paper}, {protocol.source}; {protocol.runs} runs; "
                   f"scenarios {', '.join(r.scenario for r in protocol.rows)}")
+        for name, exp in EXPERIMENTS.items():
+            print(f"{name}: {exp.paper}, {exp.source}; {exp.runs} GA runs per profile "
+                  f"({', '.join(exp.profiles)}); world sets {', '.join(exp.sets)}")
         return 0
     if args.out is None:
         raise HybridnavError("reproduce: -o/--out: expected the output folder")
-    if args.name not in PROTOCOLS:
+    if args.name not in PROTOCOLS and args.name not in EXPERIMENTS:
         raise HybridnavError(f"reproduce: unknown protocol {args.name!r}; expected one of: "
-                             + ", ".join(sorted(PROTOCOLS)))
-    protocol = PROTOCOLS[args.name]
-    runs = protocol.runs if args.runs is None else args.runs
+                             + ", ".join(sorted([*PROTOCOLS, *EXPERIMENTS])))
     scens = [s.strip() for s in (args.scenarios or "").split(",") if s.strip()]
-    rows = len(scens) if scens else len(protocol.rows)
-    bar = tqdm(total=len(variants(protocol)) * rows * max(runs, 0), unit="run",
-               desc=args.name)
+    if args.name in EXPERIMENTS:
+        exp = EXPERIMENTS[args.name]
+        total = len(exp.profiles) * (exp.runs if args.runs is None else args.runs)
+        views = [f"{p} profile" for p in exp.profiles]
+        unit = "GA run"
+    else:
+        protocol = PROTOCOLS[args.name]
+        runs = protocol.runs if args.runs is None else args.runs
+        rows = len(scens) if scens else len(protocol.rows)
+        total = len(variants(protocol)) * rows * max(runs, 0)
+        views = ["paper profile", "hybridnav profile"]
+        unit = "run"
+    bar = tqdm(total=total, unit=unit, desc=args.name)
 
     def progress(done, total):
         if total != bar.total:               # the layout-sensitivity runs join the count
@@ -318,8 +331,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         bar.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
-        print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, profile=paper "
-              f"{words[c['paper profile']]}; profile=hybridnav {words[c['hybridnav profile']]}")
+        print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, " + "; ".join(
+            f"profile={v.split()[0]} {words[c[v]]}" for v in views))
     print(f"wrote {args.out}/: {', '.join(result['files'])}")
     return 0
 

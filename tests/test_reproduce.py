@@ -161,11 +161,25 @@ def test_readme_blocks_are_the_stored_full_runs(tmp_path):
     from hybridnav.analysis.compare import PlannerSpec
     from hybridnav.reproduce.readme import STORE, blocks, render, rewrite_report
 
+    import shutil
+
+    from hybridnav.reproduce.tuning import (EXPERIMENTS, render_experiment,
+                                            rewrite_experiment_report)
+
     root = Path(__file__).resolve().parents[1]
     found = blocks((root / "README.md").read_text())
-    assert set(found) == set(PROTOCOLS)
+    assert set(found) == set(PROTOCOLS) | set(EXPERIMENTS)
     for name, body in found.items():
         folder = root / STORE / name
+        if name in EXPERIMENTS:
+            assert body == render_experiment(folder) + "\n", name
+            meta = json.loads((folder / "experiment.json").read_text())
+            assert meta["runs"] == EXPERIMENTS[name].runs, f"{name}: not a full run"
+            copy = tmp_path / name
+            shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("tuning"))
+            rewrite_experiment_report(copy)
+            assert (copy / "report.md").read_text() == (folder / "report.md").read_text()
+            continue
         assert body == render(folder) + "\n", f"README's {name} block is stale: run " \
                                                "hybridnav reproduce --update-readme"
         meta = json.loads((folder / "comparison.json").read_text())
@@ -175,9 +189,7 @@ def test_readme_blocks_are_the_stored_full_runs(tmp_path):
         assert meta["scenarios"] == [row.scenario for row in p.rows], name
         assert meta["runs"] == p.runs, f"{name}: the stored run is not a full run"
         copy = tmp_path / name                    # and its report.md is the current writer's
-        copy.mkdir()
-        for f in folder.iterdir():
-            (copy / f.name).write_bytes(f.read_bytes())
+        shutil.copytree(folder, copy)
         rewrite_report(copy)
         assert (copy / "report.md").read_text() == (folder / "report.md").read_text(), name
 

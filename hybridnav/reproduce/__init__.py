@@ -37,7 +37,9 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     Parameters
     ----------
     name : str
-        A key of :data:`PROTOCOLS`.
+        A key of :data:`PROTOCOLS`, or of :data:`hybridnav.reproduce.tuning.EXPERIMENTS` (a
+        target that tunes before it judges: ``effc-ga``; ``runs`` is then its GA seeds per
+        profile and ``scenarios``/``layouts`` do not apply).
     out : str or Path
         The output folder (``report.md``, ``runs.csv``, ``summary.csv``, figures,
         ``comparison.json``).
@@ -73,9 +75,18 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     """
     from hybridnav.analysis.compare import PlannerSpec
 
-    if name not in PROTOCOLS:
+    from hybridnav.reproduce.tuning import EXPERIMENTS, run_experiment
+
+    if name not in PROTOCOLS and name not in EXPERIMENTS:
         raise HybridnavError(f"reproduce: unknown protocol {name!r}; expected one of: "
-                             + ", ".join(sorted(PROTOCOLS)))
+                             + ", ".join(sorted([*PROTOCOLS, *EXPERIMENTS])))
+    if name in EXPERIMENTS:
+        if scenarios:
+            raise HybridnavError(f"reproduce {name}: --scenarios: this target tunes before it "
+                                 "compares and judges fixed world sets; expected none")
+        with locked_folder(out, f"reproduce {name}"):
+            return run_experiment(name, out, runs=runs, seed=seed, workers=workers, dask=dask,
+                                  progress=progress)
     protocol = PROTOCOLS[name]
     if scenarios:
         known = [row.scenario for row in protocol.rows]

@@ -270,16 +270,22 @@ def update_readme(readme: str | Path, store: str | Path) -> list[str]:
     found = blocks(text, str(readme))
     if not found:
         raise HybridnavError(f"{readme}: expected <!-- reproduce:NAME --> blocks, found none")
+    from hybridnav.reproduce.tuning import (EXPERIMENTS, render_experiment,
+                                            rewrite_experiment_report)
+
     for name in found:
-        if not (Path(store) / name / "summary.csv").exists():
-            raise HybridnavError(f"{Path(store) / name}: summary.csv: expected a stored run of "
+        need = "experiment.json" if name in EXPERIMENTS else "summary.csv"
+        if not (Path(store) / name / need).exists():
+            raise HybridnavError(f"{Path(store) / name}: {need}: expected a stored run of "
                                  f"`hybridnav reproduce {name}` for README's block")
 
     for name in found:
-        rewrite_report(Path(store) / name)
+        (rewrite_experiment_report if name in EXPERIMENTS else rewrite_report)(
+            Path(store) / name)
 
     def sub(m: re.Match) -> str:
-        body = render(Path(store) / m["name"])
+        body = (render_experiment if m["name"] in EXPERIMENTS else render)(
+            Path(store) / m["name"])
         return f"<!-- reproduce:{m['name']} -->\n{body}\n<!-- /reproduce:{m['name']} -->"
 
     atomic_write_text(readme, _BLOCK.sub(sub, text))
