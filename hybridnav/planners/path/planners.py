@@ -501,7 +501,9 @@ class PSOPathPlanner(PathPlanner):
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
         "paper": {"iterations": 50, "waypoints": 28}}
     paper_notes = ("paper (RFD-PSO's PSO baseline): 50 iterations (Figs. 7 and 10), K = 28 "
-                   "waypoints as rfd-pso's paper profile (the same PSO)")
+                   "waypoints as rfd-pso's paper profile (the hybrid is this PSO with one "
+                   "seeded particle); unseeded, its 56-dimensional swarm ends on a colliding "
+                   "path in every run of rfdpso-table3 (K = 8 reached in 2-3 of 10)")
     paper_deviations = (
         "waypoints: K = 28 is ours (the paper gives no K; rfd-pso's paper profile explains it)",
         "cost: length plus one workspace diagonal per colliding segment (penalty = 1); the "
