@@ -167,4 +167,4 @@ def test_planners_lists_what_the_paper_profiles_still_do_differently(capsys):
     for word in ("step switching", "feasibility", "stop rules", "xi_law"):
         assert word in block, word
     assert "search window" in out.split("\nfastep-kinematic:")[1].split("\nfuzzy-steer:")[0]
-    assert "waypoints: K = 8" in out.split("\nrfd-pso:")[1]
+    assert "waypoints: K = 28" in out.split("\nrfd-pso:")[1]

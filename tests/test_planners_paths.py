@@ -276,7 +276,7 @@ def test_a_goal_inside_the_inflation_ends_stuck():
     (RFDPlanner, {"drops": "many"}, "planner rfd: drops: expected an integer, got 'many'"),
     (DijkstraPlanner, {"heuristic": "octile"},
      ("planner dijkstra: unknown parameter 'heuristic'; expected one of: corner_cutting, "
-      "diagonal, lookahead, margin, shorten, speed, stuck_radius, stuck_window")),
+      "diagonal, grid, lookahead, margin, shorten, speed, stuck_radius, stuck_window")),
     (RFDPSOPlanner, {"speed": 0.0},
      "planner rfd-pso: speed: expected a positive number, got 0.0"),
 ])

@@ -52,7 +52,10 @@ def test_paper_profiles_say_what_the_papers_do():
     assert planners.get("rfd", profile="paper").values["slope"] == 0.0
     rp = planners.get("rfd-pso", profile="paper").values
     assert (rp["slope"], rp["iterations"], rp["shorten"]) == (0.0, 50, False)
-    assert planners.get("pso", profile="paper").values["iterations"] == 50
+    assert (rp["grid"], rp["waypoints"]) == (20, 28)
+    assert planners.get("rfd", profile="paper").values["grid"] == 20
+    pp = planners.get("pso", profile="paper").values
+    assert (pp["iterations"], pp["waypoints"]) == (50, 28)
 
 
 def test_rfd_pso_paper_seeds_the_rfd_path_itself_not_its_shortened_form():
@@ -62,13 +65,13 @@ def test_rfd_pso_paper_seeds_the_rfd_path_itself_not_its_shortened_form():
     name = s.robots[0].name
     out = {}
     for profile in ("paper", "hybridnav"):
-        # the same RFD terrain in both, so that only the seeding differs
-        plan = planners.get("rfd-pso", profile=profile, slope=0.01).plans(s, seed=2)[0]
+        # the same RFD terrain and grid in both, so that only the seeding differs
+        plan = planners.get("rfd-pso", profile=profile, slope=0.01, grid=20).plans(s, seed=2)[0]
         out[profile] = plan
     rfd = out["paper"].info["rfd_points"]
     np.testing.assert_array_equal(rfd, out["hybridnav"].info["rfd_points"])
     seed_paper = out["paper"].info["seed_points"]
-    np.testing.assert_allclose(seed_paper[1:-1], sample_along(rfd, 8), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(seed_paper[1:-1], sample_along(rfd, 28), rtol=0, atol=1e-12)
     tight = pull_tight(rfd, obstacle_world(s), 12.5)
     assert path_length(out["hybridnav"].info["seed_points"]) == pytest.approx(
         path_length(tight), rel=1e-12)
@@ -94,7 +97,8 @@ def test_shorten_pulls_the_astar_path_tight():
 def test_profile_from_the_cli_is_listed_and_recorded(tmp_path, capsys):
     assert main(["planners"]) == 0
     text = capsys.readouterr().out
-    assert "profile 'paper': slope = 0.0, iterations = 50, shorten = False" in text
+    assert ("profile 'paper': slope = 0.0, iterations = 50, shorten = False, grid = 20, "
+            "waypoints = 28") in text
     assert main(["run", "rfd-pso-700", "--planner", "rfd", "--set", "profile=paper",
                  "--out", str(tmp_path / "run")]) == 0
     from hybridnav.results import read_result

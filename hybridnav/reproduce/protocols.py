@@ -167,7 +167,43 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "not have. Table 4 gives its lengths in cm on a '20 x 20 m' alley map; they read "
                "as grid cells (Dijkstra's and A*'s 33.48 is 25 straight and 6 diagonal moves), "
                "and our alley map is built so that its grid optimum is exactly that; the "
-               "planners keep their default 0.25-cell margin.")),
+               "planners keep their default 0.25-cell margin."),
+        conflicts=(
+            "Table 2 against the text (700 x 700 cm map): the extracted Table 2 has the hybrid "
+            "shortest, 596.8554 cm, beside 626.8174 cm for RFD and 628.69 cm for PSO (as far as "
+            "the garbled extraction shows its rows), as the text's claim that the hybrid route "
+            "was the most efficient says; the text (Figs. 6-8) gives RFD 596.69 cm, PSO "
+            "626.8174 cm, RFD-PSO 628.8554 cm. The table's numbers mix the text's digits (596 of "
+            "RFD with .8554 of the hybrid, 628 of the hybrid with .69 of RFD). We use the text: "
+            "each of its numbers is stated with the figure it comes from, and its PSO length is "
+            "the straight line between the stated start and goal (626.817 cm), which the text "
+            "gets right. So in the paper's numbers the hybrid is the longest on this map and "
+            "the claims that it is shorter than RFD and PSO do not hold there (with the table "
+            "they would). Either version has a length below that straight line (the text's RFD "
+            "596.69, the table's hybrid 596.8554), which no path between the stated start and "
+            "goal has.",
+            "Table 3 against the paper's claim that RFD-PSO offers the shortest path among the "
+            "compared works: in its own Table 3 FACO [29] (29.3848 m) is shorter than RFD-PSO "
+            "(29.5753 m, 0.65 % longer); only SAACO (29.796 m) is longer. We quote SAACO and FACO "
+            "as printed (not run) and check no claim against them; the claims we check compare "
+            "RFD-PSO with the planners we run.",
+            "The conclusion's percentages match neither table. Recomputed as 100 (b - a) / b "
+            "from the tables (a the first-named): RFD against SAACO -9.68 % and against FACO "
+            "-11.21 % (Table 3: RFD is the longer, not '27.43 %' and '23.25 %'); RFD against ACO "
+            "15.73 % and against ACO* -33.87 % (Table 4: RFD is longer than ACO*, not '24.48 %' "
+            "and '7 %' better); RFD-PSO against RFD 9.50 % (Table 3), 72.98 % (Table 4) and "
+            "-5.39 % (Table 2 as the text gives it; 4.78 % as the table does), not '0.34 %'; "
+            "RFD-PSO against PSO 34.21 % on the complex map (Table 3), 29.98 % (Table 4) and "
+            "-0.33 % (Table 2, text; 5.06 % table), not '13.2 %'. We report none of the "
+            "conclusion's figures and judge the claims on the tables' lengths.",
+            "Table 4 gives 100 repetitions for every method (Dijkstra's and A* included) on the "
+            "alley map, while Figs. 7, 8, 10 and 11 give the PSO and the hybrid a maximum of 50 "
+            "repetitions (iterations) on the other two maps. The paper profile uses 50 PSO "
+            "iterations on all three maps: a profile is one setting per planner, 50 is the "
+            "limit the text states with the cost curves it comes from, and a column that gives "
+            "the deterministic searches 100 repetitions too does not read as the PSO's "
+            "iteration limit.",
+        )),
     Protocol(
         name="effc-table3", paper=EFFC, source="Table 3",
         planners=("effc", "hapf", "pbpf"),

@@ -18,6 +18,26 @@ the shorter workspace side, as :func:`hybridnav.world.grid.build_grid` rasterize
 ``lookahead`` and ``margin`` are given in cells, so one set of defaults suits the 700 cm
 ``rfd-pso-700`` (10 cm cells) and the 49-cell ``arena``.
 
+The grid planners (``astar``, ``dijkstra``, ``rfd`` and the RFD stage of ``rfd-pso``) search the
+scenario's grid unless their ``grid`` parameter asks for another one: ``grid = n`` rasterizes the
+workspace at ``n`` cells across its shorter side (a scenario with a ``[grid] map`` keeps the map's
+cells, which are its obstacle model). That changes the planning grid only: the *cell* above, the
+unit of ``speed``, ``lookahead`` and ``margin``, stays the scenario's.
+
+The RFD-PSO paper's grid (profile ``paper``: ``grid = 20``)
+    The paper never states its grids, but its three maps are 20 x 20: Table 4's alley map is a
+    20 x 20 cell map (its lengths are in cells: Dijkstra's and A*'s 33.48 is 25 straight and 6
+    diagonal moves), and the 20 x 20 m map is the map of the ant-colony papers it compares with
+    in Table 3 (SAACO [28], FACO [29]), which by our reading is a grid map of 20 x 20 cells of
+    1 m, as grid maps in that literature usually are (we could not check [28, 29]). With one RFD
+    implementation for all three maps, the 700 x 700 cm map is 20 x 20 too, 35 cm cells (a cell
+    holds the 20 cm robot). On our 0.25 m grid of the 20 x 20 m map (80 x 80 cells) flat RFD's
+    20 drops rarely reach the goal at all; on the 1 m grid they do, at lengths near the paper's
+    32.68 m (see ``tests/test_rfdpso_profile.py``). On a grid this coarse the straight segment
+    between two free cell centres can pass an obstacle corner closer than the robot radius (the
+    inflation tests cell centres only): ``rfd`` with ``grid = 20`` collides in some runs of
+    ``rfd-pso-700``.
+
 Planners
 --------
 ``astar``, ``dijkstra``
@@ -51,7 +71,17 @@ Planners
     the pulled path needs more than K corners, K is raised to that number for this robot (the
     ``waypoints`` metric reports the K used). The PSO keeps its best point, so whenever the
     seed is collision-free the planned path is collision-free and no longer than the RFD path.
-    ``rfd`` and ``rfd-pso`` run with the same seed plan identical RFD paths.
+    ``rfd`` and ``rfd-pso`` run with the same seed (and ``grid``) plan identical RFD paths.
+
+    Profile ``paper`` (the paper's seeding, section 4.3: "one of the particles in the PSO
+    algorithm starts from this RFD channel") seeds the RFD path itself, sampled at K points
+    evenly along its length (``shorten = false``), with ``K = 28``: a particle that holds the
+    RFD path has one waypoint per interior cell of it, and a grid path of the paper's RFD length
+    (32.68 m) between opposite corner cells of the 20 x 20 grid of 1 m cells (the start and goal
+    of our reconstruction) has 29 moves (20 straight and 9 diagonal, 32.73 m), so 28 interior
+    cells. The paper gives no K. With the 8 waypoints of profile ``hybridnav`` the sampled seed
+    cuts the RFD path's corners through obstacles, and on ``rfd-pso-20m`` the plan failed in 3
+    of 6 seeds (0-5); K = 16, 20, 24, 25, 28 and 30 reached in all 6.
 
 A planned path is always ``start, ..., goal`` (grid paths: the start, the centres of the cells
 between the start cell and the goal cell, the goal). A robot for which no path is found (goal
@@ -143,10 +173,12 @@ log = logging.getLogger(__name__)
 # --------------------------------------------------------------------------------------------
 
 TRACKING: dict[str, Param] = {
-    "speed": Param(1.0, "tracking speed, grid cells per second", lo=0.0, lo_open=True),
-    "lookahead": Param(0.5, "pure-pursuit carrot distance along the path, grid cells", lo=0.0, lo_open=True),
-    "margin": Param(0.25, "clearance kept beyond the robot radius when planning, grid cells",
-                    lo=0.0),
+    "speed": Param(1.0, "tracking speed, cells of the scenario's grid per second", lo=0.0,
+                   lo_open=True),
+    "lookahead": Param(0.5, "pure-pursuit carrot distance along the path, cells of the "
+                            "scenario's grid", lo=0.0, lo_open=True),
+    "margin": Param(0.25, "clearance kept beyond the robot radius when planning, cells of the "
+                          "scenario's grid (whatever `grid` is)", lo=0.0),
     "stuck_window": Param(10.0, "seconds without leaving a small disk that count as stuck "
                                 "(0: off)", lo=0.0),
     "stuck_radius": Param(0.1, "that disk's radius, as a fraction of the distance covered at "
@@ -161,18 +193,28 @@ class _Context:
     scenario: Any
     world: World          # the static obstacle model (map cells included)
     cell: float           # the length unit
-    grids: dict[float, OccupancyGrid] = field(default_factory=dict)
+    grids: dict[tuple[float, int], OccupancyGrid] = field(default_factory=dict)
 
-    def grid(self, inflate: float) -> OccupancyGrid:
+    def grid(self, inflate: float, cells: int = 0) -> OccupancyGrid:
         """``build_grid(scenario, inflate=inflate)``, with the cells whose centre is closer than
-        ``inflate`` to the workspace boundary blocked too."""
-        if inflate not in self.grids:
-            g = build_grid(self.scenario, inflate=inflate)
-            cells = np.argwhere(np.ones(g.shape, dtype=bool))[:, ::-1]
-            near = self.world.border_clearance(g.to_world(cells)) < inflate
-            self.grids[inflate] = OccupancyGrid(g.occ | near.reshape(g.shape), g.resolution,
-                                                g.origin, g.source)
-        return self.grids[inflate]
+        ``inflate`` to the workspace boundary blocked too.
+
+        ``cells > 0`` rasterizes at ``cells`` cells across the workspace's shorter side instead
+        of the scenario's ``[grid] resolution`` (the planners' ``grid`` parameter); a scenario
+        with a ``[grid] map`` keeps the map's own cells (the map is the obstacle model)."""
+        key = (inflate, cells)
+        if key not in self.grids:
+            resolution = None
+            mapped = self.scenario.grid is not None and self.scenario.grid.map is not None
+            if cells and not mapped:
+                xmin, xmax, ymin, ymax = self.world.workspace
+                resolution = min(xmax - xmin, ymax - ymin) / cells
+            g = build_grid(self.scenario, resolution=resolution, inflate=inflate)
+            centres = np.argwhere(np.ones(g.shape, dtype=bool))[:, ::-1]
+            near = self.world.border_clearance(g.to_world(centres)) < inflate
+            self.grids[key] = OccupancyGrid(g.occ | near.reshape(g.shape), g.resolution,
+                                            g.origin, g.source)
+        return self.grids[key]
 
 
 class PathPlanner(Planner):
@@ -318,6 +360,11 @@ def _cells_to_path(robot, points: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 GRID: dict[str, Param] = {
+    "grid": Param(0, "planning grid: cells across the workspace's shorter side (0: the "
+                     "scenario's [grid] resolution; a [grid] map keeps its own cells); the "
+                     "RFD-PSO paper's maps are 20 x 20 cells, so profile 'paper' of rfd and "
+                     "rfd-pso sets 20: 1 m cells on rfd-pso-20m, 35 cm on rfd-pso-700",
+                  lo=0),
     "diagonal": Param(True, "8-connected octile moves (false: 4-connected)"),
     "corner_cutting": Param(False, "allow a diagonal move past a blocked orthogonal cell"),
     "shorten": Param(False, "pull the grid path tight before tracking (drop the corners a "
@@ -342,7 +389,7 @@ class AStarPlanner(PathPlanner):
                      heuristic=v["heuristic"])
 
     def plan(self, ctx, robot, rngs):
-        grid = ctx.grid(self._clearance(ctx, robot))
+        grid = ctx.grid(self._clearance(ctx, robot), self.values["grid"])
         ends = _grid_endpoints(grid, robot)
         if isinstance(ends, PlannedPath):
             return ends
@@ -378,7 +425,9 @@ RFD: dict[str, Param] = {
 }
 
 SWARM: dict[str, Param] = {
-    "waypoints": Param(8, "PSO: intermediate waypoints K of a path", lo=1),
+    "waypoints": Param(8, "PSO: intermediate waypoints K of a path (profile 'paper': 28, one "
+                          "per interior cell of an RFD path of the paper's 32.68 m on its 20 x "
+                          "20 grid; the paper gives no K)", lo=1),
     "particles": Param(50, "PSO: swarm size", lo=2),
     "iterations": Param(100, "PSO: iterations", lo=1),
     "w": Param(0.5, "PSO: inertia weight (RFD-PSO Table 1)", lo=0.0),
@@ -398,12 +447,27 @@ class RFDPlanner(PathPlanner):
     description = "river formation dynamics on the inflated grid, pure-pursuit tracking"
     stochastic = True
     parameters: ClassVar[dict[str, Param]] = {**GRID, **RFD, **TRACKING}
-    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"slope": 0.0}}
-    paper_notes = "paper: flat initial terrain (standard RFD)"
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"slope": 0.0, "grid": 20}}
+    paper_notes = ("paper: flat initial terrain (standard RFD) on the paper's 20 x 20 grid (1 m "
+                   "cells on rfd-pso-20m, 35 cm on rfd-pso-700; see the module docstring)")
+    paper_deviations = (
+        "grid: the paper does not state its grids; 20 x 20 is our reading (its alley map is 20 x "
+        "20 cells, its 20 x 20 m map that of the ant-colony papers it compares with, by our "
+        "reading a 20 x 20 grid of 1 m cells), and the "
+        "grid's inflation tests cell centres only, so on 35 cm cells a path can clip an "
+        "obstacle corner (collisions in some rfd-pso-700 runs)",
+        "RFD details the paper does not give, ours (see hybridnav.planners.path.rfd_core): "
+        "erosion coefficient E = 0.5 (N - 1), erosion of flat and uphill steps at gradient "
+        "0.01, omega = 1e-3, delta = 1e-7 (uphill weights capped at omega), dead-end deposit, "
+        "a 300-iteration cap and 60 iterations' patience",
+        "the path is the best drop's cell path from start to goal (cell centres), tracked by "
+        "pure pursuit at 1 cell/s (the scenario's cells) by the robot's go-to-point controller; "
+        "the paper gives the planned length only",
+    )
 
     def rfd_path(self, ctx, robot, rng) -> PlannedPath:
         v = self.values
-        grid = ctx.grid(self._clearance(ctx, robot))
+        grid = ctx.grid(self._clearance(ctx, robot), self.values["grid"])
         ends = _grid_endpoints(grid, robot)
         if isinstance(ends, PlannedPath):
             return ends
@@ -434,8 +498,24 @@ class PSOPathPlanner(PathPlanner):
                    "Table 1 parameters), pure-pursuit tracking")
     stochastic = True
     parameters: ClassVar[dict[str, Param]] = {**SWARM, **TRACKING}
-    profiles: ClassVar[dict[str, dict[str, Any]]] = {"paper": {"iterations": 50}}
-    paper_notes = "paper (RFD-PSO's PSO baseline): 50 iterations (Figs. 7 and 10)"
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {
+        "paper": {"iterations": 50, "waypoints": 28}}
+    paper_notes = ("paper (RFD-PSO's PSO baseline): 50 iterations (Figs. 7 and 10), K = 28 "
+                   "waypoints as rfd-pso's paper profile (the hybrid is this PSO with one "
+                   "seeded particle); unseeded, its 56-dimensional swarm ends on a colliding "
+                   "path in every run of rfdpso-table3 (K = 8 reached in 2-3 of 10)")
+    paper_deviations = (
+        "waypoints: K = 28 is ours (the paper gives no K; rfd-pso's paper profile explains it)",
+        "cost: length plus one workspace diagonal per colliding segment (penalty = 1); the "
+        "paper's cost function is not given beyond 'distance'",
+        "velocity limit (vmax = 0.2 of the workspace) and the swarm size (50) are ours; the "
+        "paper gives only w = 0.5, c1 = c2 = 0.75 (Table 1) and 50 iterations",
+        "a plan whose best path still collides fails (stuck); the paper reports a length for "
+        "each map",
+        "iterations: 50 on every map; Table 4 gives 100 repetitions on the alley map",
+        "the path is tracked by pure pursuit by the robot's go-to-point controller; the paper "
+        "gives the planned length only",
+    )
 
     def seed_particle(self, ctx, robot, rngs) -> tuple[NDArray | None, PlannedPath | None]:
         """The waypoints of a seeded particle and the plan they come from (plain PSO: none)."""
@@ -516,14 +596,27 @@ class RFDPSOPlanner(PSOPathPlanner, RFDPlanner):
                                "paper seeds the RFD path itself: false samples it at K points)"),
         **RFD, **SWARM, **TRACKING}
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
-        "paper": {"slope": 0.0, "iterations": 50, "shorten": False}}
-    paper_notes = ("paper: flat RFD terrain, 50 PSO iterations (Figs. 7-11), the seed particle "
-                   "is the RFD path sampled at K points (no shortening)")
+        "paper": {"slope": 0.0, "iterations": 50, "shorten": False, "grid": 20,
+                  "waypoints": 28}}
+    paper_notes = ("paper: flat RFD terrain on the paper's 20 x 20 grid (1 m cells on "
+                   "rfd-pso-20m, 35 cm on rfd-pso-700), 50 PSO iterations (Figs. 7-11), the "
+                   "seed particle is the RFD path sampled at K = 28 points (no shortening)")
     paper_deviations = (
-        "grid: the scenario's grid (rfd-pso-20m: 0.25 m cells, 80 x 80), where the paper's maps "
-        "in this literature are about 20 x 20 cells; flat RFD rarely finds the goal on the finer "
-        "grid",
-        "waypoints: K = 8 intermediate waypoints per particle; the paper does not give K",
+        "grid: 20 x 20 cells is our reading, the paper does not state its grids (see rfd); "
+        "the RFD stage's details (E, omega, delta, deposit, stop rules) are ours as in rfd",
+        "waypoints: K = 28 is ours, one per interior cell of an RFD path of the paper's 32.68 m "
+        "between opposite corners of the 20 x 20 grid; the paper gives no K",
+        "seed: the RFD path sampled at K points evenly along its length; the paper does not say "
+        "how a cell path becomes a particle",
+        "PSO cost, velocity limit and swarm size are ours as in pso (penalty = 1 diagonal per "
+        "colliding segment, vmax = 0.2, 50 particles); a plan whose best path still collides "
+        "fails (stuck)",
+        "iterations: 50 on every map; Table 4 gives 100 repetitions on the alley map",
+        "repetitions: hybridnav reproduce runs each planner several times per map (seeded) and "
+        "reports means over the reached runs; the paper gives one length per map ('lengths of "
+        "the shortest paths') and no number of runs",
+        "the path is tracked by pure pursuit by the robot's go-to-point controller; the paper "
+        "gives the planned length only",
     )
 
     def seed_particle(self, ctx, robot, rngs):

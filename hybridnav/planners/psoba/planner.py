@@ -236,6 +236,24 @@ class PSOBAPlanner(Planner):
                    "c1, c2 are not given. In both profiles the PSO barely matters: the fitness "
                    "has no obstacle term, so the best bat is a full step towards the goal whatever "
                    "(alpha, gamma) are (pso-ba-dynamic: seeds 0 and 1 give paths 5e-4 apart)")
+    paper_deviations = (
+        "values the paper does not give: PSO 5 particles x 5 iterations with c1 = c2 = 1.49618, "
+        "12 bats x 12 iterations per bat run, step = 3, ds = 1.5 and sr = 6 robot radii, speed "
+        "1 robot radius per second (the paper places one path point per iteration)",
+        "fitness: the normalised distance maps [0, ST] affinely onto [floor, 1] (the paper keeps "
+        "it 'in the range [0.3, 1.0]'), ST is raised to |robot - goal| + step when larger, and "
+        "the angle is not clipped to 90 degrees",
+        "the goal is the next path point without a search when it is within the step disk and "
+        "the move to it is feasible",
+        "moving circles are swept over the next step / speed seconds when planning (the paper "
+        "moves them between iterations)",
+        "wall following: the choice of side (the paper leaves it open), of the wall followed, "
+        "the 15-degree turns away from it and the leaving rule's corridor are ours; the "
+        "room-boundary reversal (Figs. 10-11) and the memory (Figs. 13-14; kept for memory = "
+        "120 s) are our reading of the paper's figures",
+        "stop rules the paper does not have: `patience` s without a possible move, "
+        "`stuck_window` s inside a small disk",
+    )
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)

@@ -117,6 +117,16 @@ class StepPlanner(Planner):
         "obstacle, a robot or the border; the papers judge a step by its fitness (eqs. 10, 13)",
         "stop rules the papers do not have: `patience` s without a feasible step, `stall_steps` "
         "steps without getting closer to the goal, `stuck_window` s inside a small disk",
+        "candidate filter: a candidate step closer than `reach` to the robot (the goal excepted) "
+        "or whose disk of the robot radius plus `margin` meets an obstacle or another robot is "
+        "refused before its fitness is computed; the papers' fitness has no such bound",
+        "re-checks: while an obstacle or robot is within `eps` (6 robot radii) the current move "
+        "is re-checked with the rollout, every control cycle near a moving one and every "
+        "`horizon` / 2 s near a static one, and a new step is planned only when the move is no "
+        "longer feasible; the papers do not re-check a move",
+        "line segments (walls, the edges of rectangles and polygons): the exact point-to-segment "
+        "distance in the fitness's line term, where the papers' minimum distance technique "
+        "takes the nearest of points sampled on each segment",
         "the tractor-trailer's xi follows a first-order filter (model option xi_law='filter'); "
         "the papers' printed law (xi_law='paper') makes the robot circle (see the model's "
         "documentation)",

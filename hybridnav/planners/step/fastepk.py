@@ -65,7 +65,14 @@ class FAStepKinematic(StepPlanner):
                    "no goal among the fireflies' starting points")
     paper_deviations = StepPlanner.paper_deviations + (
         "search window: the fireflies search a square of `window` = 10 robot radii around the "
-        "robot; the paper does not bound the search",)
+        "robot; the paper does not bound the search",
+        "obstacle in the protective region: the robot keeps driving straight to the goal while "
+        "that move's rollout is feasible and places a firefly step only when it is not; the "
+        "paper switches to firefly steps whenever an obstacle is within eps (eq. 11)",
+        "values the paper leaves out: eps = 6 robot radii (no value given), the absorption "
+        "coefficient gamma = 100 relative to the search box diagonal and 30 generations "
+        "(blank in Table 1), and a_lines = a for line segments (the paper gives no line "
+        "weight)",)
 
     def optimize(self, f, lower, upper, rng, init, memory):
         v = self.values
