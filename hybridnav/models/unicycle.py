@@ -113,6 +113,11 @@ class Unicycle(Model):
                           q["k_rho"] * cs.sin(e) * cs.cos(e) - q["k_alpha"] * e)
         return cs.vertcat(rho, e), zdot, ("rho", "e")
 
+    def body_rates(self, u, p):
+        """``v = (vl + vr) / 2``, ``omega = (vr - vl) / L``."""
+        q = self.p_dict(p)
+        return cs.vertcat((u[0] + u[1]) / 2, (u[1] - u[0]) / q["L"])
+
     def open_loop(self, x, u, p):
         q = self.p_dict(p)
         v = (u[0] + u[1]) / 2
