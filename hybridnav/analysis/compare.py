@@ -474,7 +474,12 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
     for metric, label in (("path_length", "path length [{units}] (reached)"),
                           ("time_to_goal", "time to goal [s] (reached)"),
                           ("compute_time", "compute time [s]"),
-                          ("success_rate", "success rate")):
+                          ("success_rate", "success rate"),
+                          ("min_clearance", "smallest clearance per run [{units}]"),
+                          ("control_effort", "control effort (reached)")):
+        if metric == "control_effort" and not np.isfinite(
+                summary.get("control_effort_mean", pd.Series(dtype=float)).astype(float)).any():
+            continue                       # no robot model with body rates: no effort
         save_figure(_bars(summary, metric, label), folder / f"compare_{metric}.png")
         names.append(f"compare_{metric}.png")
     for scenario, paths in _paths_by_scenario(table).items():
