@@ -365,11 +365,11 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for row in protocol.rows:
             u = units_of.get(row.scenario, "")
-            for level in _sweep_values(protocol):
-                cells = [_where(protocol, row, level), f"`{row.scenario}`"]
+            for value in _sweep_values(protocol):
+                cells = [_where(protocol, row, value), f"`{row.scenario}`"]
                 for p in protocol.planners:
                     cells += [_paper_cell(row.paper.get(p), u),
-                              _cell(ours(summary, _at_level(protocol, p, view, level),
+                              _cell(ours(summary, _at_level(protocol, p, view, value),
                                          row.scenario), u)]
                 lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
