@@ -11,6 +11,11 @@ planner's nearest obstacle point is the nearest return (per obstacle for APF). T
 from a generator of its own seeded from the run's seed (:func:`sensor_rng`), so a run is
 reproducible and the planner's other random draws are not shifted. The lengths are in the
 scenario's units (the LDS-01's are metres) and are not scaled with the robot.
+
+What still uses the exact geometry with the lidar on: the collision and clearance checks of the
+simulation (the truth the metrics report), the escape-circle safety filter (``safety_margin``),
+and PBPF's offline gain search (its lockstep runs), which sees the map; HAPF has no sensor (its
+field is solved on the known map).
 """
 
 from __future__ import annotations
