@@ -109,6 +109,10 @@ METRICS: dict[str, Metric] = {
     "path_length": _NUMBER0, "smoothness": _NUMBER0, "compute_time": _NUMBER0,
     "time_to_goal": Metric("number", null=True, lo=0.0),
     "min_clearance": Metric("number", null=True),
+    # the closed loop's (hybridnav.planners.simulate): sum over control cycles of
+    # (v^2 + omega^2) dt, the commanded linear speed and turn rate held each cycle; models that
+    # give their body rates only (the unicycle)
+    "control_effort": _NUMBER0,
     # planners that plan before they move (step, path, pso-ba)
     "planning_time": _NUMBER0,
     # step planners

@@ -31,7 +31,8 @@ def test_scenarios_lists_every_builtin_with_its_description(capsys):
     assert [line.split()[0] for line in out] == names
     for expected in ("fastep-s1", "fastep-s2", "fastep-s3", "aco-three-robots", "aco-local-minimum",
                      "tractor-trailer-1", "tractor-trailer-3", "effc-train-1", "effc-train-2",
-                     "effc-env-a", "effc-env-b", "rfd-pso-700", "pso-ba-dynamic", "arena"):
+                     "effc-env-a", "effc-env-b", "rfd-pso-700", "pso-ba-dynamic", "arena",
+                     "turtlebot-office"):
         assert expected in names
 
 

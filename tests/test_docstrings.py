@@ -199,6 +199,8 @@ EXEMPT = {
     "hybridnav.planners.field.base.FieldPlanner.trace": "signal names are free",
     "hybridnav.models.base.Model": "abstract; every registered model is called above",
     "hybridnav.planners.base.Planner": "abstract; every registered planner is called above",
+    "hybridnav.planners.field.base.FieldPlanner": "abstract; every registered planner is "
+                                                  "called above",
     "hybridnav.tuner.optimizers.base.Optimizer": "abstract; every registered optimizer is "
                                                  "called above",
 }

@@ -174,7 +174,7 @@ def test_a_model_declares_its_settings_once():
     cls = models.MODELS["unicycle"]
     assert set(cls.parameters) == set(cls.defaults) | set(cls.option_defaults)
     assert cls.option_choices == {"controller": ("go_to_point", "heading")}
-    assert cls.infinite_ok == frozenset({"wheel_max"})
+    assert cls.infinite_ok == frozenset({"wheel_max", "v_max", "omega_max"})
     m = models.get("unicycle", k_rho=0.7)
     assert m.values["k_rho"] == 0.7 and m.params is m.values   # old name, one version
     assert list(m.param_names) == list(cls.defaults)

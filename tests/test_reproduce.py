@@ -31,8 +31,10 @@ def test_the_protocols_the_issue_names_exist_and_name_real_things():
         assert len(labels) == len(set(labels))
         for label, name, params in variants(p):
             planners.get(name, **params)          # every variant is a valid planner
-        for c in p.claims:
-            assert c.a in p.planners and (not c.b or c.b in p.planners)
+        ablations = {label for label, _, _ in p.ablations}
+        for c in p.claims:             # a planner of the protocol, or an ablation's label
+            assert c.a in set(p.planners) | ablations
+            assert not c.b or c.b in set(p.planners) | ablations
 
 
 def test_claims_checked_on_the_papers_own_numbers():
@@ -51,7 +53,7 @@ def test_claims_checked_on_the_papers_own_numbers():
 
 def test_bad_requests_are_refused_before_any_work(tmp_path):
     with pytest.raises(HybridnavError, match="reproduce: unknown protocol 'table9'; expected one "
-                                             "of: aco-table5, effc-table3"):
+                                             "of: aco-table5, effc-ga, effc-table3"):
         reproduce("table9", tmp_path)
     with pytest.raises(HybridnavError, match=r"reproduce fastep-table2: --scenarios: expected "
                                              r"some of fastep-s1, fastep-s2, fastep-s3, got "
@@ -73,7 +75,8 @@ def test_list_from_the_cli(capsys):
                                             ("aco-table5", "aco-scenario-4"),
                                             ("rfdpso-table3", "rfd-pso-700"),
                                             ("effc-table3", "effc-env-b"),
-                                            ("psoba-fig15", "pso-ba-dynamic")])
+                                            ("psoba-fig15", "pso-ba-dynamic"),
+                                            ("effc-turtlebot", "turtlebot-office")])
 def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     out = tmp_path / name
     assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "-o", str(out)]) == 0

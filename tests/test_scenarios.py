@@ -113,7 +113,7 @@ def test_list_scenarios():
                 "tractor-trailer-1", "tractor-trailer-3", "effc-train-1", "effc-train-2", "effc-env-a",
                 "effc-env-b", "rfd-pso-700", "rfd-pso-20m", "pso-ba-dynamic", "arena",
                 "aco-scenario-4", "aco-case-study-2", "tractor-trailer-2", "fastep-case-study-2",
-                "aco-s2", "aco-case-study-1"}
+                "aco-s2", "aco-case-study-1", "turtlebot-office"}
     assert expected <= set(names)
     for n, desc in items:
         assert desc, n

@@ -35,17 +35,21 @@ __all__ = ["RUN_COLUMNS", "PlannerSpec", "compare", "parse_planner", "planner_sp
            "summarize_runs", "write_comparison"]
 
 #: the columns of ``runs.csv``; ``planner`` is the variant's label, ``planner_name`` the registry
-#: name (appended last so that the older columns keep their positions)
+#: name, ``control_effort`` the robot's (empty for models without body rates; see
+#: :func:`hybridnav.planners.simulate.simulate`); later columns are appended so that the older
+#: ones keep their positions
 RUN_COLUMNS = ["planner", "scenario", "run", "seed", "robot", "outcome", "path_length",
-               "time_to_goal", "smoothness", "min_clearance", "compute_time", "planner_name"]
+               "time_to_goal", "smoothness", "min_clearance", "compute_time", "planner_name",
+               "control_effort"]
 #: summarized metrics; ``time_with_planning`` is derived per run: ``time_to_goal`` plus the
 #: robot's planning computation ``compute_time`` (the time a paper means when "generation of each
 #: point takes time", FAStep-Kinematic Sec. VIII)
 METRICS = ["path_length", "time_to_goal", "smoothness", "min_clearance", "compute_time",
-           "time_with_planning"]
+           "time_with_planning", "control_effort"]
 SYNTAX = "NAME, NAME@LABEL or NAME@LABEL:key=value[:key=value...]"
 #: metrics summarized over the robots that reached their goal only
-REACHED_ONLY = ("path_length", "time_to_goal", "smoothness", "time_with_planning")
+REACHED_ONLY = ("path_length", "time_to_goal", "smoothness", "time_with_planning",
+                "control_effort")
 #: metrics compared between planners with a Mann-Whitney U test (``<metric>_p_vs_<label>``)
 TESTED = ("path_length", "time_to_goal", "time_with_planning")
 
@@ -246,7 +250,7 @@ def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] |
         s = r.summary()
         rows.append({"planner": task.label, "scenario": scenario.name, "run": task.run,
                      "seed": task.seed, "robot": r.name, **{k: s[k] for k in RUN_COLUMNS[5:11]},
-                     "planner_name": task.planner})
+                     "planner_name": task.planner, "control_effort": s.get("control_effort")})
     paths = ({r.name: np.asarray(r.states)[:, :2].copy() for r in result.robots}
              if task.run == 0 else None)
     return rows, paths, convergence_rows(result, task.label, task.run)
@@ -386,9 +390,9 @@ def compare(
 def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
     """Per planner x scenario: runs, success rate, and the statistics of every metric.
 
-    ``path_length``, ``time_to_goal`` and ``smoothness`` are summarized over the robots that
-    reached their goal (a failed run has no meaningful length); clearance and compute time over
-    all robots. Per metric: mean, std, min, max, median and the 95 % confidence interval of the
+    ``path_length``, ``time_to_goal``, ``smoothness`` and ``control_effort`` are summarized over
+    the robots that reached their goal (a failed run has no meaningful length, and its effort is
+    that of an unfinished task); clearance and compute time over all robots. Per metric: mean, std, min, max, median and the 95 % confidence interval of the
     mean (Student's t; ``ci95_lo``, ``ci95_hi``; NaN below two values). ``best_path_length`` and
     ``best_time_to_goal`` are the shortest reached run's length and its own time (``worst_*``:
     the longest), as papers report best and worst cases. For every other planner on the same
@@ -470,7 +474,12 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
     for metric, label in (("path_length", "path length [{units}] (reached)"),
                           ("time_to_goal", "time to goal [s] (reached)"),
                           ("compute_time", "compute time [s]"),
-                          ("success_rate", "success rate")):
+                          ("success_rate", "success rate"),
+                          ("min_clearance", "smallest clearance per run [{units}]"),
+                          ("control_effort", "control effort (reached)")):
+        if metric == "control_effort" and not np.isfinite(
+                summary.get("control_effort_mean", pd.Series(dtype=float)).astype(float)).any():
+            continue                       # no robot model with body rates: no effort
         save_figure(_bars(summary, metric, label), folder / f"compare_{metric}.png")
         names.append(f"compare_{metric}.png")
     for scenario, paths in _paths_by_scenario(table).items():

@@ -235,6 +235,35 @@ class Model(ABC):
         """Derivatives of the controller states (empty for models without any)."""
         return cs.SX(0, 1)
 
+    def body_rates(self, u, p) -> cs.SX | None:
+        """The commanded linear speed and turn rate ``(v, omega)`` of the inputs ``u`` (CasADi
+        expressions in ``u`` and ``p``), what the control-effort metric integrates; None (the
+        default): the model does not say, and its runs have no such metric."""
+        return None
+
+    def commanded_rates(self, X, targets) -> np.ndarray | None:
+        """The commanded ``(v, omega)`` of a batch ``(N, 2)``: the controller's input at the
+        states ``X`` for ``targets`` (what a zero-order-hold controller holds over the coming
+        cycle; for a continuous one its value at the cycle's start), through
+        :meth:`body_rates`; None when the model has none."""
+        X, targets = self._check_batch(X, targets)
+        cache = self.__dict__.setdefault("_rates_fn", {})
+        fn = cache.get("one")
+        if fn is None:
+            s = self.sym
+            rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
+            fn = None if rates is None else cs.Function("rates", [s.x, s.target, s.p], [rates])
+            cache["one"] = fn
+        if fn is None:
+            return None
+        n = len(X)
+        if n == 0:
+            return np.zeros((0, 2))
+        batch = cache.get(n)
+        if batch is None:
+            batch = cache[n] = fn.map(n)
+        return np.asarray(batch(X.T, targets.T, self.p_value())).reshape(2, n).T
+
     def _validate_params(self) -> None:
         """Check what one declaration cannot say, e.g. relations between values (subclasses
         raise :class:`HybridnavError`)."""

@@ -17,6 +17,13 @@ Controllers (option ``controller``):
     point (the EFFC planner passes ``position + force``). Each control cycle the heading turns by
     ``clip(wrap(psi - theta), -max_turn, max_turn)`` (``max_turn = pi/4`` by default): the input
     ``omega`` is that angle divided by ``dt`` and held for the cycle.
+
+Body-rate limits (both controllers; ``inf``, the default, is none and changes no result): the
+commanded linear speed is saturated to ``|v| <= v_max`` and the turn rate to
+``|omega| <= omega_max`` before they become wheel speeds, as a robot's motor driver does (a
+TurtleBot3 Burger: ``v_max = 0.22`` m/s, ``omega_max = 2.84`` rad/s; the ``turtlebot-office``
+scenario sets them). With ``dt = 0.1`` the heading controller's ``max_turn = pi/4`` per cycle asks
+for up to 7.85 rad/s, so ``omega_max = 2.84`` binds whenever the heading error exceeds 0.284 rad.
 """
 
 from __future__ import annotations
@@ -29,6 +36,11 @@ from hybridnav.models.base import Model, wrap_angle
 from hybridnav.params import Param
 
 __all__ = ["Unicycle"]
+
+
+def _clip(x, limit):
+    """``x`` saturated to ``[-limit, limit]`` (exactly ``x`` for ``limit = inf``)."""
+    return cs.fmin(cs.fmax(x, -limit), limit)
 
 
 class Unicycle(Model):
@@ -56,6 +68,10 @@ class Unicycle(Model):
         "speed": Param(0.1, "heading: constant forward speed", lo=0.0, lo_open=True),
         "max_turn": Param(math.pi / 4, "heading: largest heading change per control cycle (rad)",
                           lo=0.0, lo_open=True),
+        "v_max": Param(math.inf, "largest commanded linear speed |v| (inf: none; TurtleBot3 "
+                   "Burger: 0.22 m/s)", lo=0.0, lo_open=True, allow_inf=True),
+        "omega_max": Param(math.inf, "largest commanded turn rate |omega| (rad/s; inf: none; "
+                       "TurtleBot3 Burger: 2.84)", lo=0.0, lo_open=True, allow_inf=True),
         "controller": Param("go_to_point", "go_to_point (continuous) or heading (constant speed, "
                             "held each cycle)", choices=("go_to_point", "heading")),
     }
@@ -97,6 +113,11 @@ class Unicycle(Model):
                           q["k_rho"] * cs.sin(e) * cs.cos(e) - q["k_alpha"] * e)
         return cs.vertcat(rho, e), zdot, ("rho", "e")
 
+    def body_rates(self, u, p):
+        """``v = (vl + vr) / 2``, ``omega = (vr - vl) / L``."""
+        q = self.p_dict(p)
+        return cs.vertcat((u[0] + u[1]) / 2, (u[1] - u[0]) / q["L"])
+
     def open_loop(self, x, u, p):
         q = self.p_dict(p)
         v = (u[0] + u[1]) / 2
@@ -108,12 +129,13 @@ class Unicycle(Model):
         dx, dy = target[0] - x[0], target[1] - x[1]
         e = wrap_angle(cs.atan2(dy, dx) - x[2])
         if self.options["controller"] == "heading":
-            v = q["speed"]
-            omega = cs.fmin(cs.fmax(e, -q["max_turn"]), q["max_turn"]) / self.dt
+            v = cs.fmin(q["speed"], q["v_max"])
+            omega = _clip(cs.fmin(cs.fmax(e, -q["max_turn"]), q["max_turn"]) / self.dt,
+                          q["omega_max"])
             return cs.vertcat(v - omega * q["L"] / 2, v + omega * q["L"] / 2)
         rho = cs.sqrt(dx**2 + dy**2)
-        v = q["k_rho"] * rho * cs.cos(e)
-        omega = q["k_alpha"] * e
+        v = _clip(q["k_rho"] * rho * cs.cos(e), q["v_max"])
+        omega = _clip(q["k_alpha"] * e, q["omega_max"])
         vl, vr = v - omega * q["L"] / 2, v + omega * q["L"] / 2
         scale = cs.fmax(1, cs.fmax(cs.fabs(vl), cs.fabs(vr)) / q["wheel_max"])
         return cs.vertcat(vl / scale, vr / scale)

@@ -14,6 +14,13 @@ it (one batched call per model group), then checks, at the new time:
   oscillation);
 * ``timeout``: still going at ``max_time``.
 
+A robot whose model gives its commanded body rates (:meth:`hybridnav.models.Model.body_rates`:
+the unicycle's linear speed ``v`` and turn rate ``omega``) gets the metric ``control_effort``,
+``sum_k (v_k^2 + omega_k^2) dt`` over its control cycles (units^2/s plus rad^2/s, with ``v_k``,
+``omega_k`` the commands at the start of cycle ``k``: what a zero-order-hold controller holds over
+the cycle, after the model's saturation): the paper's "control effort signal" is the angular
+velocity, and the linear part counts a robot that drives longer.
+
 A robot that ends keeps its last state. The loop has a fixed step budget, so it always ends.
 """
 
@@ -27,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridnav.models.base import Model
 from hybridnav.results import RobotResult
 
 __all__ = ["Simulation", "model_groups", "simulate"]
@@ -141,6 +149,7 @@ def simulate(
     hist_x = [[x.copy()] for x in X]
     min_clear = np.full(n, np.inf)
     compute = np.zeros(n)
+    effort = np.zeros(n)                 # control effort, for models that give body rates
     _update_clearance(sim, world, 0.0, min_clear, np.ones(n, dtype=bool))
     for k in range(steps):
         if not sim.active.any():
@@ -155,6 +164,10 @@ def simulate(
                 continue
             Xg = np.array([sim.X[i] for i in idx])
             Tg = np.where(np.isfinite(T[idx]), T[idx], Xg[:, :2])
+            rates = model.commanded_rates(Xg, Tg)
+            if rates is not None:
+                on = sim.active[idx]
+                effort[idx[on]] += np.sum(rates[on] ** 2, axis=1) * dt
             Xn = model.step(Xg, Tg)
             for j, i in enumerate(idx):
                 if sim.active[i]:
@@ -194,8 +207,14 @@ def simulate(
             states=np.array(hist_x[i]), state_names=m.state_names,
             time_to_goal=sim.time_to_goal[i], min_clearance=float(min_clear[i]),
             compute_time=float(compute[i]),
+            metrics=({"control_effort": float(effort[i])} if _has_rates(m) else {}),
         ))
     return results, sim
+
+
+def _has_rates(model) -> bool:
+    """Whether a model says its commanded body rates (so its runs have a control effort)."""
+    return type(model).body_rates is not Model.body_rates
 
 
 def _update_clearance(sim: Simulation, world, t: float, min_clear: np.ndarray,

@@ -284,7 +284,7 @@ def layout_sensitivity(protocol: Protocol, summary: pd.DataFrame, *, count: int 
 
     from hybridnav.analysis.compare import PlannerSpec, compare
     from hybridnav.reproduce.report import row_verdict
-    from hybridnav.reproduce.variants import label_for, variants
+    from hybridnav.reproduce.variants import label_for, levels, variants
     from hybridnav.world import load_scenario, save_scenario
 
     failing = failing_rows(protocol, summary)
@@ -292,9 +292,10 @@ def layout_sensitivity(protocol: Protocol, summary: pd.DataFrame, *, count: int 
     if not failing or count < 1:
         return pd.DataFrame(columns=columns), pd.DataFrame()
     rows = {row.label: row for row in protocol.rows}
-    wanted = {label_for(protocol, name, profile)
-              for i, _ in failing for name in (protocol.claims[i].a, protocol.claims[i].b) if name
-              for profile in ("paper", "hybridnav")}
+    wanted = {swept for i, _ in failing for name in (protocol.claims[i].a,
+                                                       protocol.claims[i].b) if name
+              for profile in ("paper", "hybridnav")
+              for _, swept in levels(protocol, name, label_for(protocol, name, profile))}
     specs = [PlannerSpec(label, name, params) for label, name, params in variants(protocol)
              if label in wanted]
     tmp = None

@@ -79,6 +79,9 @@ class Protocol:
     #: where the paper contradicts itself (its tables, text and conclusion), each with which
     #: version the protocol uses and why; the report lists them before the results
     conflicts: tuple[str, ...] = ()
+    #: ``(parameter, values)``: every variant whose planner declares ``parameter`` runs once per
+    #: value, labelled ``LABEL/parameter=value`` (e.g. sensor noise levels); the others run once
+    sweep: tuple[str, tuple[Any, ...]] | None = None
 
 
 FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic)"
@@ -241,4 +244,48 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "reconstruction (start, goals and the robots from the text; the obstacles ours). "
                "PSO-BA's swarm barely matters here: its fitness has no obstacle term, so other "
                "seeds give almost the same paths.")),
+    Protocol(
+        name="effc-turtlebot", paper=EFFC,
+        source="Section 4, the real-robot experiment (TurtleBot3, Figs. 17-19; no table), as a "
+               "simulation stand-in",
+        planners=("effc", "hapf", "apf"),
+        rows=(Row("office (Fig. 17)", "turtlebot-office", {"effc": Value()}),),
+        runs=10,
+        settings={"effc": {"speed": 0.22, "sensor": "lidar"},
+                  "apf": {"speed": 0.22, "sensor": "lidar"},
+                  "hapf": {"speed": 0.22}},
+        ablations=(("effc/tuned", "effc", {"fis": "effc-tuned"}),),
+        sweep=("sensor_noise", (0.0, 0.01, 0.03, 0.05)),
+        claims=(Claim("EFFC drives the TurtleBot3 to the goal without a collision in an office "
+                      "setting (Sec. 4: the real-time implementation 'validated the "
+                      "effectiveness of the approach in practical scenarios')", "reaches",
+                      "effc"),
+                Claim("The GA-tuned EFFC reaches the goal without a collision whatever the "
+                      "range noise (abstract: the GA is to 'enhance adaptability and robustness "
+                      "to sensor uncertainties')", "reaches", "effc/tuned"),
+                Claim("EFFC's path is shorter than HAPF's (the paper's simulated comparison, "
+                      "Table 3 and the conclusion, carried over to the office)", "shorter",
+                      "effc", "hapf")),
+        notes=("A simulation stand-in for the paper's real TurtleBot3 run, which it shows only "
+               "as a photo, a trajectory and a control-effort plot (Figs. 17-19): no layout, "
+               "speed, sensor model or number. The office map is ours (`turtlebot-office`: two "
+               "rooms, a corridor, 0.8 m doorways, furniture). The robot is a unicycle with a "
+               "TurtleBot3 Burger's radius (0.105 m) and limits, v <= 0.22 m/s and omega <= "
+               "2.84 rad/s, saturated in the model; the planners drive at 0.22 m/s (its top "
+               "speed; the paper gives none for this run), and the turn-rate limit binds "
+               "wherever the heading controller asks for more than 0.284 rad per 0.1 s cycle. "
+               "The settings above are ours, not the paper's. "
+               "EFFC and APF find their nearest obstacle with a simulated LDS-01 (`sensor = "
+               "lidar`: 360 beams 1 degree apart from the robot's centre, returns within "
+               "0.12-3.5 m, one scan per 0.1 s cycle, Gaussian range noise of standard "
+               "deviation `sensor_noise` (m) drawn from the run's seed); HAPF plans on the "
+               "known map, so it has no sensor and runs once. What differs from the real "
+               "experiment: perfect localization and odometry (no SLAM, no wheel slip), no "
+               "motor or scan latency, no dynamics beyond the saturation (0.22 m/s and "
+               "2.84 rad/s are applied separately, not as the wheels' joint limit), "
+               "independent noise per beam and scan (no bias, no dropouts but at the range "
+               "limits), walls and furniture as ideal shapes. Control effort is the sum over "
+               "control cycles of (v^2 + omega^2) dt of the commands (the paper's Figs. 16 "
+               "and 19 plot the angular velocity). The paper gives no numbers for this run, "
+               "so its claims are the text's qualitative ones.")),
 )}

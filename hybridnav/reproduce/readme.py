@@ -189,7 +189,8 @@ def render(folder: str | Path) -> str:
     from hybridnav.reproduce.layouts import sensitivity_section
     from hybridnav.reproduce.report import (check_claims, claims_section, conflicts_section,
                                             has_profiles, literature_line, profile_sections,
-                                            variants_section)
+                                            safety_section, variants_section)
+    from hybridnav.reproduce.variants import levels
 
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
@@ -204,10 +205,12 @@ def render(folder: str | Path) -> str:
             "report.md).")
     lines = [how, ""]
     lines += conflicts_section(protocol, level=4)
+    lines += safety_section(protocol, summary, level=4)
     lines += profile_sections(protocol, summary, level=4)
     if protocol.ablations:
         lines += variants_section(protocol, summary, level=4,
-                                  only=[label for label, _, _ in protocol.ablations])
+                                  only=[lb for label, _, _ in protocol.ablations
+                                        for _, lb in levels(protocol, label, label)])
     lines += literature_line(protocol)
     lines += claims_section(check_claims(protocol, summary), level=4,
                             profiles=has_profiles(protocol))

@@ -22,7 +22,7 @@ import pandas as pd
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
-from hybridnav.reproduce.variants import label_for
+from hybridnav.reproduce.variants import label_for, levels
 
 __all__ = ["ALPHA", "ASTAR_SLACK", "MOST_REACHED", "astar_bound", "bounds_section", "check_claims",
            "claims_section", "conflicts_section", "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
@@ -126,6 +126,23 @@ def _label(protocol: Protocol, planner: str, view: str) -> str:
     return label_for(protocol, planner, "paper" if view == "paper profile" else "hybridnav")
 
 
+def _levels(protocol: Protocol, planner: str, view: str) -> list[tuple[Any, str]]:
+    """``(sweep value, label)`` of ``planner``'s variants in ``view`` (one, value None, unless
+    the protocol sweeps a parameter the planner has)."""
+    return levels(protocol, planner, _label(protocol, planner, view))
+
+
+def _at_level(protocol: Protocol, planner: str, view: str, level: Any) -> str:
+    """The label of ``planner``'s variant in ``view`` at sweep value ``level`` (its only one
+    when it is not swept)."""
+    return next(lb for v, lb in _levels(protocol, planner, view) if v is None or v == level)
+
+
+def _where(protocol: Protocol, row: Row, level: Any) -> str:
+    """A row's label, with the sweep value when there is one."""
+    return row.label if level is None else f"{row.label}, {protocol.sweep[0]} = {level:g}"
+
+
 def _rows(protocol: Protocol, claim: Claim) -> list[Row]:
     return [r for r in protocol.rows if not claim.rows or r.label in claim.rows]
 
@@ -169,7 +186,9 @@ def _column(claim: Claim) -> str:
 
 def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, view: str,
                 row: Row) -> tuple[bool | None, str]:
-    """One row's verdict on a claim and the numbers it rests on.
+    """One row's verdict on a claim and the numbers it rests on (for a protocol with a
+    :attr:`Protocol.sweep`, every swept value of ``a`` against ``b`` at the same value, or its
+    only one: the row holds when every value holds and fails when one fails).
 
     Parameters
     ----------
@@ -185,19 +204,35 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
     Returns
     -------
     (bool or None, str)
-        holds / does not hold / not shown, and the detail.
+        holds / does not hold / not shown, and the detail (``<row>: <numbers>`` per value).
     """
     if view == "paper":
-        va, vb = row.paper.get(claim.a), row.paper.get(claim.b)
-    else:
-        va = ours(summary, _label(protocol, claim.a, view), row.scenario)
-        vb = ours(summary, _label(protocol, claim.b, view), row.scenario) if claim.b else None
-    if claim.kind in ("shorter", "faster"):
-        return _compare_row(protocol, claim, view, va, vb)
-    share = _reached(va)
-    if share is None:
-        return None, "no number"
-    return (share == 1.0 if claim.kind == "reaches" else share == 0.0), f"reached {share:.0%}"
+        cases = [(row.label, row.paper.get(claim.a), row.paper.get(claim.b), "")]
+    else:                       # per sweep value of a (b at the same value, or its only one)
+        cases = []
+        for level, la in _levels(protocol, claim.a, view):
+            lb = _at_level(protocol, claim.b, view, level) if claim.b else ""
+            cases.append((_where(protocol, row, level), ours(summary, la, row.scenario),
+                          ours(summary, lb, row.scenario) if claim.b else None, lb))
+    verdicts, parts = [], []
+    for where, va, vb, lb in cases:
+        if claim.kind in ("shorter", "faster"):
+            verdict, part = _compare_row(protocol, claim, view, va, vb, lb)
+        else:
+            share = _reached(va)
+            verdict, part = ((None, "no number") if share is None else
+                             (share == 1.0 if claim.kind == "reaches" else share == 0.0,
+                              f"reached {share:.0%}"))
+        verdicts.append(verdict)
+        parts.append(f"{where}: {part}")
+    return _combined(verdicts), "; ".join(parts)
+
+
+def _combined(verdicts: list[bool | None]) -> bool | None:
+    """Does not hold if one part does not, holds if every part holds, else not shown."""
+    if any(v is False for v in verdicts):
+        return False
+    return True if verdicts and all(v is True for v in verdicts) else None
 
 
 def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
@@ -206,19 +241,15 @@ def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
     for row in _rows(protocol, claim):
         verdict, part = row_verdict(protocol, claim, summary, view, row)
         verdicts.append(verdict)
-        parts.append(f"{row.label}: {part}")
-    if any(v is False for v in verdicts):
-        holds: bool | None = False
-    elif verdicts and all(v is True for v in verdicts):
-        holds = True
-    else:
-        holds = None
-    return holds, "; ".join(parts)
+        parts.append(part)
+    return _combined(verdicts), "; ".join(parts)
 
 
-def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb) -> tuple[bool | None, str]:
+def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: str = ""
+                 ) -> tuple[bool | None, str]:
     """One row of a ``shorter`` / ``faster`` claim. The paper's numbers (one value per method)
-    are compared as printed; ours need significance and runs that reached (see :data:`ALPHA`)."""
+    are compared as printed; ours need significance and runs that reached (see :data:`ALPHA`);
+    ``label_b``: the variant of ``b`` compared (its p-value column)."""
     col = _column(claim)
     a, b = _metric(va, col), _metric(vb, col)
     if view == "paper":
@@ -239,7 +270,7 @@ def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb) -> tuple[b
     if ra <= MOST_REACHED or rb <= MOST_REACHED:
         nums = f"{_fmt(a) if a is not None else '-'} vs {_fmt(b) if b is not None else '-'}"
         return None, f"{nums}, {reach}: not most runs on both sides"
-    key = f"{col}_p_vs_{_label(protocol, claim.b, view)}"
+    key = f"{col}_p_vs_{label_b or _label(protocol, claim.b, view)}"
     p = va.get(key, math.nan)
     p = math.nan if p is None else float(p)
     if a is None or b is None or not math.isfinite(p):
@@ -361,11 +392,13 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for row in protocol.rows:
             u = units_of.get(row.scenario, "")
-            cells = [row.label, f"`{row.scenario}`"]
-            for p in protocol.planners:
-                cells += [_paper_cell(row.paper.get(p), u),
-                          _cell(ours(summary, _label(protocol, p, view), row.scenario), u)]
-            lines.append("| " + " | ".join(cells) + " |")
+            for value in _sweep_values(protocol):
+                cells = [_where(protocol, row, value), f"`{row.scenario}`"]
+                for p in protocol.planners:
+                    cells += [_paper_cell(row.paper.get(p), u),
+                              _cell(ours(summary, _at_level(protocol, p, view, value),
+                                         row.scenario), u)]
+                lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
         if protocol.enhancement:
             a, b = protocol.enhancement
@@ -388,6 +421,54 @@ def profile_sections(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
                 lines.append("| " + " | ".join(cells) + " |")
             lines.append("")
     return lines
+
+
+def _sweep_values(protocol: Protocol) -> tuple:
+    """The protocol's sweep values (``(None,)`` without a sweep)."""
+    return protocol.sweep[1] if protocol.sweep else (None,)
+
+
+def _num(row: dict[str, Any], column: str, unit: str = "") -> str:
+    """A summary number to 4 significant digits (``-`` where the summary has none)."""
+    v = row.get(column)
+    if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return "-"
+    return f"{v:.4g}{unit}"
+
+
+def safety_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2) -> list[str]:
+    """Every variant's safety figures first, then its effort and convenience figures (markdown
+    lines; ``level``: of the heading): reached and failed runs by outcome, the smallest
+    footprint clearance of any run and its mean over the runs, the mean control effort and mean
+    time / length of the reached runs."""
+    units_of = _units(summary)
+    lines = [f"{'#' * level} Safety, effort, then time and length", "",
+             "Per variant: runs that reached, collided or failed otherwise; the footprint's "
+             "clearance to the nearest obstacle (smallest of any run, and the mean over the runs "
+             "of each run's smallest; negative: overlap); the control effort, sum of (v^2 + "
+             "omega^2) dt of the commanded linear speed and turn rate, mean over the reached "
+             "runs (`-`: a model without body rates, or a summary stored before it was "
+             "recorded); then mean time / length over the reached runs.", "",
+             "| variant | scenario | reached | collided | other failures | clearance: worst | "
+             "clearance: mean | control effort | time / length (reached) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for label in dict.fromkeys(summary["planner"]):
+        for row in protocol.rows:
+            r = ours(summary, label, row.scenario)
+            if r is None:
+                continue
+            u = units_of.get(row.scenario, "")
+            n = int(r["robots"])
+            k = int(round(r["success_rate"] * n))
+            others = [f"{o} {int(r[o])}" for o in ("out_of_bounds", "stuck", "timeout")
+                      if r.get(o)]
+            conv = (f"{r['time_to_goal_mean']:.1f} s / {r['path_length_mean']:.4g} {u}" if k
+                    else "-")
+            lines.append(f"| `{label}` | `{row.scenario}` | {k}/{n} | {int(r.get('collided', 0))}"
+                         f" | {', '.join(others) or '-'} | {_num(r, 'min_clearance_min', ' ' + u)}"
+                         f" | {_num(r, 'min_clearance_mean', ' ' + u)} | "
+                         f"{_num(r, 'control_effort_mean')} | {conv} |")
+    return lines + [""]
 
 
 def has_profiles(protocol: Protocol) -> bool:
@@ -502,6 +583,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     if protocol.notes:
         lines += [protocol.notes, ""]
     lines += conflicts_section(protocol)
+    lines += safety_section(protocol, summary)
     lines += ["Ours: mean time to goal / mean path length over the robots' runs that reached "
               "the goal (reached / robots x runs).", ""]
     lines += bounds_section(protocol, units_of)

@@ -23,6 +23,7 @@ import numpy as np
 from hybridnav.planners.base import Param
 from hybridnav.planners.field.base import COMMON, FieldPlanner
 from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field
+from hybridnav.planners.field.sensing import SENSOR, perceive
 from hybridnav.planners.simulate import Simulation
 
 __all__ = ["APF", "apf_force", "apf_lockstep"]
@@ -105,6 +106,7 @@ class APF(FieldPlanner):
         "force_tol": Param(1e-6, "a resultant force below this (relative to xi * sigma0) is a "
                                  "local minimum", lo=0.0),
         **COMMON,
+        **SENSOR,
     }
     # F_att ~ xi sigma0 (a length), F_rep ~ eta / rho^3: eta scales as length^4 so that the
     # field's directions are the same at any scale
@@ -118,7 +120,7 @@ class APF(FieldPlanner):
     def velocity(self, state, sim: Simulation, idx, P, goals):
         radius = np.array([sim.models[i].radius for i in idx])
         g = self.gains(state, idx)
-        F = apf_force(sim.scenario.world, P, goals, radius, sim.t, **g)
+        F = apf_force(perceive(sim, idx, P), P, goals, radius, sim.t, **g)
         scale = self.values["force_tol"] * np.asarray(g["xi"]) * np.asarray(g["sigma0"])
         self.trace(sim, idx, force=np.hypot(F[:, 0], F[:, 1]))
         small = np.hypot(F[:, 0], F[:, 1]) <= scale

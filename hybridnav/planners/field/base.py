@@ -20,6 +20,7 @@ import numpy as np
 
 from hybridnav.params import check_seed
 from hybridnav.planners.base import Param, Planner
+from hybridnav.planners.field.sensing import check_sensor, sensor_notes
 from hybridnav.planners.simulate import Simulation, model_groups, simulate
 from hybridnav.results import Result
 
@@ -54,6 +55,11 @@ class FieldPlanner(Planner):
     #: parameters whose defaults are lengths (exponent 1: speed, distances) or carry other
     #: powers of length (APF's repulsive gain: 4), scaled by ``scale ** exponent`` unless set
     scaled: ClassVar[dict[str, int]] = {"speed": 1, "safety_margin": 1}
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        if "sensor" in self.parameters:          # the planners that read a sensor (sensing.py)
+            check_sensor(self.name, self.values)
 
     def _warn_unfiltered(self, scenario, models) -> None:
         """A safety margin the filter cannot apply (robots without the constant-speed heading
@@ -197,7 +203,8 @@ class FieldPlanner(Planner):
         goal_r = np.array([r.goal_radius for r in scenario.robots])
         robots, sim = simulate(scenario, models, controller,
                                stuck_window=self.values["stuck_window"],
-                               stuck_radius=self.values["stuck_radius"] * goal_r)
+                               stuck_radius=self.values["stuck_radius"] * goal_r,
+                               notes=sensor_notes(self.values, seed))
         for r in robots:   # offline work (a field solve, a gain search) is part of the cost
             r.compute_time += prep / len(robots)
         extras = {f"signals_{name}": rec for name, rec in sim.notes.get("signals", {}).items()}

@@ -28,6 +28,7 @@ from hybridnav.errors import HybridnavError
 from hybridnav.planners.base import Param
 from hybridnav.planners.field.base import COMMON, FieldPlanner
 from hybridnav.planners.field.lockstep import LockstepResult, lockstep_field, prepare
+from hybridnav.planners.field.sensing import SENSOR, perceive
 from hybridnav.planners.simulate import Simulation
 
 __all__ = ["EFFC", "effc_clearance", "effc_inputs", "effc_inputs_from", "effc_force",
@@ -160,6 +161,7 @@ class EFFC(FieldPlanner):
                                    "or an exported .c file (compiled and called: software in "
                                    "the loop)"),
         **COMMON,
+        **SENSOR,
     }
 
     def __init__(self, **params: Any) -> None:
@@ -193,7 +195,7 @@ class EFFC(FieldPlanner):
 
     def velocity(self, state, sim: Simulation, idx, P, goals):
         radius = np.array([sim.models[i].radius for i in idx])
-        world = sim.scenario.world
+        world = perceive(sim, idx, P)
         if not world.obstacles:
             return effc_inputs(world, P, goals, radius, sim.t)[2]
         clear, near, _ = world.nearest(P, t=sim.t)
