@@ -314,8 +314,8 @@ def experiment_sections(experiment: Experiment, summary, verdicts, claims, meta,
              "mean length on the worlds every system of the set reached. `start` is "
              "`effc-5rule`, `deploy` our deploy job's `effc-tuned` (with its safety filter), "
              "`<profile>/seed<k>` the GA runs.", "",
-             "| set | system | collided | smallest clearance (m) | reached | mean length on "
-             "common worlds (m) |", "|---|---|---|---|---|---|"]
+             "| set | system | collided or left the workspace | smallest clearance (m) | "
+             "reached | mean length on common worlds (m) |", "|---|---|---|---|---|---|"]
     for _, r in summary.iterrows():
         clear = r["min_clearance_reached"]
         length = r["common_length"]
@@ -329,7 +329,7 @@ def experiment_sections(experiment: Experiment, summary, verdicts, claims, meta,
               "McNemar p; and `hybridnav tune`'s verdict against its start and `apf` "
               "(safety first).", "",
               "| GA run | training reached | held-out reached (start) | only tuned / only "
-              "start, p | collisions (start) | ready to deploy |", "|---|---|---|---|---|---|"]
+              "start, p | collided or left the workspace (start) | ready to deploy |", "|---|---|---|---|---|---|"]
     for _, r in verdicts.iterrows():
         lines.append(f"| `{r['system']}` | {r['training_reached']}/{r['training_worlds']} | "
                      f"{r['heldout_reached']}/{r['worlds']} ({r['start_reached']}) | "
