@@ -223,6 +223,8 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
             verdict, part = ((None, "no number") if share is None else
                              (share == 1.0 if claim.kind == "reaches" else share == 0.0,
                               f"reached {share:.0%}"))
+            if view == "paper" and share is not None:      # a statement, not a measured share
+                part = f"the paper states it ({va.outcome}; no runs counted)"
         verdicts.append(verdict)
         parts.append(f"{where}: {part}")
     return _combined(verdicts), "; ".join(parts)
