@@ -292,8 +292,8 @@ def experiment_claims(experiment: Experiment, verdicts) -> list[dict[str, Any]]:
                     if check is checks[0] else
                     f"{r['heldout_reached']} vs start {r['start_reached']} of {r['worlds']} "
                     f"(only tuned {r['only_tuned']}, only start {r['only_start']}, "
-                    f"p = {r['p_vs_start']:.2g}; collisions {r['collisions']} vs "
-                    f"{r['start_collisions']})")
+                    f"p = {r['p_vs_start']:.2g}; collided or left the workspace "
+                    f"{r['collisions']} vs {r['start_collisions']})")
                 for _, r in rs.iterrows())
         out.append(item)
     return out
