@@ -109,6 +109,8 @@ METRICS: dict[str, Metric] = {
     "path_length": _NUMBER0, "smoothness": _NUMBER0, "compute_time": _NUMBER0,
     "time_to_goal": Metric("number", null=True, lo=0.0),
     "min_clearance": Metric("number", null=True),
+    # the shared simulation, with more than one robot: the clearance to the other robots alone
+    "min_robot_clearance": Metric("number", null=True),
     # planners that plan before they move (step, path, pso-ba)
     "planning_time": _NUMBER0,
     # step planners
