@@ -140,7 +140,8 @@ def render(folder: str | Path) -> str:
     numbers beside ours per profile, and the paper's claims checked (as in its ``report.md``).
     """
     from hybridnav.reproduce.report import (check_claims, claims_section, conflicts_section,
-                                            has_profiles, literature_line, profile_sections,
+                                            extremes_section, has_profiles, literature_line,
+                                            profile_sections, separation_section,
                                             variants_section)
 
     name, summary, meta = load_stored(folder)
@@ -157,6 +158,8 @@ def render(folder: str | Path) -> str:
     lines = [how, ""]
     lines += conflicts_section(protocol, level=4)
     lines += profile_sections(protocol, summary, level=4)
+    lines += extremes_section(protocol, summary, level=4)
+    lines += separation_section(protocol, summary, level=4)
     if protocol.ablations:
         lines += variants_section(protocol, summary, level=4,
                                   only=[label for label, _, _ in protocol.ablations])
