@@ -546,6 +546,13 @@ def _run_cell(row: dict[str, Any] | None, side: str, units: str) -> str:
     return f"{t:.1f} s / {length:.4g} {units}"
 
 
+def _scenario_units(name: str) -> str:
+    """The length unit of a scenario (for a row our summary does not have)."""
+    from hybridnav.world import load_scenario
+
+    return load_scenario(name).units
+
+
 def extremes_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2) -> list[str]:
     """The paper's best and worst runs (:attr:`Row.extremes`) beside ours, in every profile
     (markdown lines; none if the paper quotes none; ``level``: of the heading). Ours: the
@@ -565,7 +572,7 @@ def extremes_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2) 
              "longest reached path, each with its own time.", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in rows:
-        u = units_of.get(row.scenario, "")
+        u = units_of.get(row.scenario) or _scenario_units(row.scenario)
         for p in protocol.planners:
             best, worst = row.extremes.get(p, (None, None))
             cells = [row.label, f"`{p}`", _paper_cell(best, u), _paper_cell(worst, u)]
