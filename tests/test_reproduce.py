@@ -345,7 +345,7 @@ def test_a_collision_free_claim_needs_every_robot_to_arrive_untouched():
     wall = _case_study_summary(success_rate=59 / 60, collided=1)      # an obstacle, not a robot
     assert verdict(wall)[1] is False and "collided 1 (0 with a robot)" in verdict(wall)[2]
     stuck = _case_study_summary(success_rate=59 / 60, stuck=1)
-    assert verdict(stuck)[1] is False and "reached 59/60, collided 0" in verdict(stuck)[2]
+    assert verdict(stuck)[1] is False and "reached 59/60 (stuck 1), collided 0" in verdict(stuck)[2]
     assert verdict(EMPTY)[1:] == (None, "case study 2 (Fig. 5): no number")
     text = "\n".join(__import__("hybridnav.reproduce.report", fromlist=["x"]).separation_section(
         p, crash))

@@ -289,7 +289,11 @@ def _collision_free_row(value: Value | dict[str, Any] | None) -> tuple[bool | No
     contacts = _finite(value.get("robot_contacts"))
     gap = _finite(value.get("min_robot_clearance_min"))
     units = value.get("units") if isinstance(value.get("units"), str) else ""
-    part = f"reached {k}/{n}, collided {collided}"
+    others = [f"{o} {int(_finite(value.get(o)) or 0)}" for o in ("stuck", "timeout",
+                                                                 "out_of_bounds")
+              if _finite(value.get(o))]
+    part = f"reached {k}/{n}" + (f" ({', '.join(others)})" if others else "") + \
+        f", collided {collided}"
     if contacts is not None and (contacts or gap is not None):
         part += f" ({int(contacts)} with a robot)"
     if gap is not None:
