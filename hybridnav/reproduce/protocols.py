@@ -89,6 +89,9 @@ class Protocol:
     #: where the paper contradicts itself (its tables, text and conclusion), each with which
     #: version the protocol uses and why; the report lists them before the results
     conflicts: tuple[str, ...] = ()
+    #: what the paper ran, in words, where ``runs`` is not its number (a paper that shows one run
+    #: as a figure: ``runs`` is ours, chosen to see how typical that run is)
+    paper_runs: str = ""
 
 
 FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic)"
@@ -223,7 +226,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "PSO-BA's swarm barely matters here: its fitness has no obstacle term, so other "
                "seeds give almost the same paths.")),
     Protocol(
-        name="fastep-case-studies", paper=FASTEP,
+        name="fastep-case-studies", paper_runs="one run, Fig. 5", paper=FASTEP,
         source="Section VII-B, case study 2 (Fig. 5: two point masses avoiding each other)",
         planners=("fastep-kinematic",),
         rows=(Row("case study 2 (Fig. 5)", "fastep-case-study-2",
@@ -238,7 +241,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "1's parameters are FAStep-Kinematic's defaults. The layout is a reconstruction "
                "(the circles of tractor-trailer-1).")),
     Protocol(
-        name="aco-case-studies", paper=ACOK,
+        name="aco-case-studies", paper_runs="one run, Fig. 3", paper=ACOK,
         source="case study 2 (Figs. 3-4: three point masses avoiding each other)",
         planners=("aco-kinematic",),
         rows=(Row("case study 2 (Fig. 3)", "aco-case-study-2", {"aco-kinematic": Value()}),),
@@ -251,7 +254,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "holds. Table 1's weights (a = b = c = 0.18, d = 0.01, the case studies' "
                "parameters) are ACO-Kinematic's defaults. The layout is a reconstruction.")),
     Protocol(
-        name="aco-tractor-trailers", paper=ACOK,
+        name="aco-tractor-trailers", paper_runs="one run per case, a figure each", paper=ACOK,
         source="the tractor-trailer application: Figs. 6-7 (one robot), Table 2 and Figs. 8-11 "
                "(three robots), Table 3's tractor-trailer weights",
         planners=("aco-kinematic",),

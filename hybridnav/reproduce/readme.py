@@ -147,7 +147,7 @@ def render(folder: str | Path) -> str:
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
     how = (f"Measured by `hybridnav reproduce {name}` with hybridnav {meta['version']}: "
-           f"{meta['runs']} run(s) per planner and scenario (the paper: {protocol.runs}), "
+           f"{meta['runs']} run(s) per planner and scenario (the paper: {protocol.paper_runs or protocol.runs}), "
            f"seed {meta['seed']}")
     if meta.get("elapsed_s") is not None:
         how += (f", {meta['elapsed_s'] / 60:.1f} min with {meta.get('workers', 1)} worker(s) "

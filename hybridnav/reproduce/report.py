@@ -660,7 +660,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     units_of = _units(summary)
     lines = [f"# `{protocol.name}`: {protocol.paper}", "",
              f"Reproduces {protocol.source}. hybridnav {version}; {runs} run(s) per planner and "
-             f"scenario (the paper: {protocol.runs}), seed {seed}. Every planner with profiles "
+             f"scenario (the paper: {protocol.paper_runs or protocol.runs}), seed {seed}. Every planner with profiles "
              "ran twice: `profile=paper` (the paper's settings and rules, see `hybridnav "
              "planners`) and the default `profile=hybridnav`.", ""]
     if protocol.settings:
