@@ -113,6 +113,8 @@ METRICS: dict[str, Metric] = {
     # (v^2 + omega^2) dt, the commanded linear speed and turn rate held each cycle; models that
     # give their body rates only (the unicycle)
     "control_effort": _NUMBER0,
+    # the shared simulation, with more than one robot: the clearance to the other robots alone
+    "min_robot_clearance": Metric("number", null=True),
     # planners that plan before they move (step, path, pso-ba)
     "planning_time": _NUMBER0,
     # step planners

@@ -77,7 +77,8 @@ def test_variants_of_one_planner_match_running_it_directly(tmp_path):
     variants = {"effc": {}, "fast": {"speed": 0.2}, "slow": {"speed": 0.05, "max_turn": 0.5}}
     table, summary = compare(["effc", "effc@fast:speed=0.2", ("slow", "effc", variants["slow"])],
                              ["effc-train-1"], 2, seed=3)
-    assert list(table.columns) == RUN_COLUMNS and RUN_COLUMNS[11:] == ["planner_name", "control_effort"]
+    assert list(table.columns) == RUN_COLUMNS and RUN_COLUMNS[11:] == [
+        "planner_name", "control_effort", "min_robot_clearance"]
     assert list(dict.fromkeys(table.planner)) == ["effc", "fast", "slow"]
     assert set(table.planner_name) == {"effc"}
     assert list(summary.planner) == ["effc", "fast", "slow"]

@@ -136,6 +136,35 @@ def test_simulate_outcomes_collided_out_of_bounds_timeout():
     assert r.outcome == "stuck"
 
 
+def test_simulate_tells_a_robot_contact_from_an_obstacle_contact():
+    """min_robot_clearance: the clearance to the other robots alone, so that a collided robot
+    that touched a robot (< 0) is told from one that hit an obstacle; none with one robot."""
+    def two(obstacles=(), goal_b=(0.0, 0.0), start_b=(3.0, 0.0)):
+        robots = [{"name": "A", "model": "point_mass", "start": [0.0, 0.0], "goal": [3.0, 0.0],
+                   "goal_radius": 0.1, "radius": 0.1},
+                  {"name": "B", "model": "point_mass", "start": list(start_b),
+                   "goal": list(goal_b), "goal_radius": 0.1, "radius": 0.1}]
+        return scenario_from_dict({
+            "name": "t2", "dt": 0.1, "max_time": 200.0, "units": "m",
+            "workspace": {"xmin": -1.0, "xmax": 4.0, "ymin": -2.0, "ymax": 2.0},
+            "obstacles": list(obstacles), "robots": robots})
+
+    straight = lambda sim: sim.goals()                           # noqa: E731 ignores everything
+    s = two()                                                    # head-on
+    (a, b), _ = simulate(s, [s.model(r) for r in s.robots], straight)
+    assert a.outcome == b.outcome == "collided"
+    assert a.metrics["min_robot_clearance"] < 0 and b.metrics["min_robot_clearance"] < 0
+    s = two([{"type": "circle", "center": [1.5, 0.0], "radius": 0.3}], goal_b=(3.0, 1.5),
+            start_b=(0.0, 1.5))                                 # side by side, A hits the circle
+    (a, b), _ = simulate(s, [s.model(r) for r in s.robots], straight, stuck_window=0)
+    assert a.outcome == "collided" and a.min_clearance < 0
+    assert a.metrics["min_robot_clearance"] == pytest.approx(1.3)       # 1.5 apart, radii 0.1
+    assert b.outcome == "reached" and b.metrics["min_robot_clearance"] == pytest.approx(1.3)
+    one = small_scenario()
+    (r,), _ = simulate(one, [one.model(one.robots[0])], straight)
+    assert "min_robot_clearance" not in r.metrics
+
+
 def test_planner_parameters_are_validated():
     with pytest.raises(HybridnavError, match="planner apf: unknown parameter 'rh0'"):
         planners.get("apf", rh0=1.0)

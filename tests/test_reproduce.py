@@ -11,7 +11,7 @@ import pytest
 
 from hybridnav import HybridnavError
 from hybridnav.cli import main
-from hybridnav.reproduce import PROTOCOLS, reproduce, variants
+from hybridnav.reproduce import PROTOCOLS, Claim, Value, reproduce, variants
 from hybridnav.reproduce.report import check_claims
 
 EMPTY = pd.DataFrame(columns=["planner", "scenario", "robots", "success_rate", "units"])
@@ -21,12 +21,12 @@ def test_the_protocols_the_issue_names_exist_and_name_real_things():
     from hybridnav import planners
     from hybridnav.world import load_scenario
 
-    assert {"fastep-table2", "aco-table5", "rfdpso-table3", "effc-table3",
-            "psoba-fig15"} <= set(PROTOCOLS)
+    assert {"fastep-table2", "aco-table5", "rfdpso-table3", "effc-table3", "psoba-fig15",
+            "fastep-case-studies", "aco-case-studies", "aco-tractor-trailers"} <= set(PROTOCOLS)
     for p in PROTOCOLS.values():
         for row in p.rows:
             load_scenario(row.scenario)
-            assert set(row.paper) <= set(p.planners)
+            assert set(row.paper) <= set(p.planners) and set(row.extremes) <= set(p.planners)
         labels = [label for label, _, _ in variants(p)]
         assert len(labels) == len(set(labels))
         for label, name, params in variants(p):
@@ -48,12 +48,18 @@ def test_claims_checked_on_the_papers_own_numbers():
     assert "700 x 700 cm: 628.9 vs 596.7" in rfd[0]["paper detail"]
     assert "20 x 20 m: 29.58 vs 32.68" in rfd[0]["paper detail"]
     aco = check_claims(PROTOCOLS["aco-table5"], EMPTY)
-    assert [c["paper"] for c in aco] == [True, True, True, True]
+    assert [c["paper"] for c in aco] == [True, True, True, True, True]
+    worst = aco[-1]          # the text under Table 5: worst 58.29 cm in 210.57 s, LbCS's one run
+    assert worst["paper detail"] == ("scenario 1: aco-kinematic worst 210.57 s / 58.29 vs lbcs "
+                                     "(its one value) 251.02 s / 58.57")
+    for name in ("fastep-case-studies", "aco-case-studies", "aco-tractor-trailers"):
+        assert all(c["paper"] is True for c in check_claims(PROTOCOLS[name], EMPTY)), name
 
 
 def test_bad_requests_are_refused_before_any_work(tmp_path):
     with pytest.raises(HybridnavError, match="reproduce: unknown protocol 'table9'; expected one "
-                                             "of: aco-table5, effc-ga, effc-table3"):
+                                             "of: aco-case-studies, aco-table5, "
+                                             "aco-tractor-trailers, effc-ga, effc-table3"):
         reproduce("table9", tmp_path)
     with pytest.raises(HybridnavError, match=r"reproduce fastep-table2: --scenarios: expected "
                                              r"some of fastep-s1, fastep-s2, fastep-s3, got "
@@ -76,10 +82,14 @@ def test_list_from_the_cli(capsys):
                                             ("rfdpso-table3", "rfd-pso-700"),
                                             ("effc-table3", "effc-env-b"),
                                             ("psoba-fig15", "pso-ba-dynamic"),
-                                            ("effc-turtlebot", "turtlebot-office")])
+                                            ("effc-turtlebot", "turtlebot-office"),
+                                            ("fastep-case-studies", "fastep-case-study-2"),
+                                            ("aco-case-studies", "aco-case-study-2"),
+                                            ("aco-tractor-trailers", "tractor-trailer-3")])
 def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     out = tmp_path / name
-    assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "-o", str(out)]) == 0
+    assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "--layouts", "0",
+                 "-o", str(out)]) == 0              # (layout sensitivity: tests/test_layouts.py)
     text = (out / "report.md").read_text()
     assert "## The paper's claims" in text and "## Our runs" in text
     from hybridnav.reproduce.report import has_profiles
@@ -93,6 +103,10 @@ def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
         verdicts = re.findall(r"(does not hold|holds|not shown)", line)
         assert len(verdicts) == 3, line
     assert (out / f"paths_{scenario}.png").exists()
+    from hybridnav.world import load_scenario
+    many = len(load_scenario(scenario).robots) > 1      # how the robots kept apart is reported
+    assert ("## Robots avoiding each other" in text) == many
+    assert summary["min_robot_clearance_min"].notna().all() == many
 
 
 def test_paper_lengths_that_our_layouts_cannot_have_are_known():
@@ -314,3 +328,110 @@ def test_update_readme_from_the_cli(tmp_path, capsys):
     assert main(["reproduce", "--update-readme", "--readme", str(readme), "--reports",
                  str(tmp_path / "none")]) == 2
     assert "summary.csv: expected a stored run" in capsys.readouterr().err
+
+
+def _case_study_summary(**changes):
+    """A hand-built summary of fastep-case-studies: 30 runs of two robots, all reached."""
+    row = {"scenario": "fastep-case-study-2", "robots": 60, "units": "cm", "success_rate": 1.0,
+           "collided": 0, "stuck": 0, "robot_contacts": 0, "min_robot_clearance_min": 0.25,
+           "min_robot_clearance_mean": 4.4, "min_clearance_min": 0.25}
+    return pd.DataFrame([{"planner": "fastep-kinematic/paper", **row},
+                         {"planner": "fastep-kinematic", **row, **changes}])
+
+
+def test_a_collision_free_claim_needs_every_robot_to_arrive_untouched():
+    """collision-free: holds when every robot of every run reached and none collided; a robot
+    that touched another robot (or an obstacle), or one that did not arrive, and it does not
+    hold; a row that did not run is not shown."""
+    p = PROTOCOLS["fastep-case-studies"]
+
+    def verdict(summary):
+        (c,) = check_claims(p, summary)
+        return c["paper profile"], c["hybridnav profile"], c["hybridnav profile detail"]
+
+    assert verdict(_case_study_summary()) == (
+        True, True, "case study 2 (Fig. 5): reached 60/60, collided 0 (0 with a robot), closest "
+                    "robots 0.25 cm")
+    crash = _case_study_summary(success_rate=58 / 60, collided=2, robot_contacts=2,
+                                min_robot_clearance_min=-0.01)
+    paper, ours, detail = verdict(crash)
+    assert paper is True and ours is False
+    assert detail == ("case study 2 (Fig. 5): reached 58/60, collided 2 (2 with a robot), closest "
+                      "robots -0.01 cm")
+    wall = _case_study_summary(success_rate=59 / 60, collided=1)      # an obstacle, not a robot
+    assert verdict(wall)[1] is False and "collided 1 (0 with a robot)" in verdict(wall)[2]
+    stuck = _case_study_summary(success_rate=59 / 60, stuck=1)
+    assert verdict(stuck)[1] is False and "reached 59/60 (stuck 1), collided 0" in verdict(stuck)[2]
+    assert verdict(EMPTY)[1:] == (None, "case study 2 (Fig. 5): no number")
+    text = "\n".join(__import__("hybridnav.reproduce.report", fromlist=["x"]).separation_section(
+        p, crash))
+    assert "| case study 2 (Fig. 5) | `fastep-kinematic` | 58/60 | 2 (2 with a robot) | -0.01 cm" \
+        in text
+
+
+def test_a_worst_case_claim_compares_the_worst_runs():
+    """worst-case: each planner's longest reached path with that run's own time; the first
+    planner's must be shorter and faster. A run that did not reach is the worst of all."""
+    p = PROTOCOLS["aco-table5"]
+    base = {"scenario": "fastep-s1", "robots": 30, "units": "cm", "success_rate": 1.0}
+    lbcs = {**base, "worst_path_length": 57.8, "worst_time_to_goal": 44.4}
+
+    def verdict(aco, other=lbcs):
+        rows = [{"planner": "aco-kinematic/paper", **base, "worst_path_length": 56.0,
+                 "worst_time_to_goal": 40.0}, {"planner": "aco-kinematic", **aco},
+                {"planner": "lbcs", **other}]
+        c = next(c for c in check_claims(p, pd.DataFrame(rows)) if c["text"].startswith(
+            "In scenario 1"))
+        return c["hybridnav profile"], c["hybridnav profile detail"]
+
+    assert verdict({**base, "worst_path_length": 56.1, "worst_time_to_goal": 40.0}) == (
+        True, "scenario 1: worst 40 s / 56.1 vs 44.4 s / 57.8")
+    assert verdict({**base, "worst_path_length": 56.1, "worst_time_to_goal": 46.9}) == (
+        False, "scenario 1: worst 46.9 s / 56.1 vs 44.4 s / 57.8")     # shorter, not faster
+    failed = {**base, "success_rate": 29 / 30, "worst_path_length": 56.1,
+              "worst_time_to_goal": 40.0}
+    assert verdict(failed) == (False, "scenario 1: aco-kinematic has runs that did not reach "
+                                      "(reached 29/30 vs 30/30)")
+    assert verdict({**base, "worst_path_length": 60.0, "worst_time_to_goal": 50.0},
+                   {**lbcs, "success_rate": 0.0}) == (
+        True, "scenario 1: lbcs has runs that did not reach (reached 30/30 vs 0/30)")
+    assert verdict(failed, {**lbcs, "success_rate": 0.5})[0] is None
+    assert verdict(base)[0] is None                   # a summary without worst runs
+    with pytest.raises(ValueError, match="worst-case claim compares the worst run's simulated"):
+        Claim("x", "worst-case", "a", "b", time="with planning")
+
+
+def test_the_papers_best_and_worst_runs_stand_beside_ours():
+    """aco-table5: the text under Table 5 quotes ACO-Kinematic's best and worst run of every
+    scenario; the report sets our shortest and longest reached run beside them."""
+    from hybridnav.reproduce.report import extremes_section
+
+    p = PROTOCOLS["aco-table5"]
+    got = {row.label: row.extremes["aco-kinematic"] for row in p.rows if row.extremes}
+    assert got == {"scenario 1": (Value(201.4, 57.81), Value(210.57, 58.29)),
+                   "scenario 2": (Value(138.14, 64.5), Value(101.28, 66.28)),
+                   "scenario 3": (Value(230.02, 62.99), Value(238.05, 68.06))}
+    row = {"scenario": "fastep-s1", "robots": 30, "units": "cm", "success_rate": 1.0,
+           "best_path_length": 56.07, "best_time_to_goal": 47.3, "worst_path_length": 56.1,
+           "worst_time_to_goal": 46.9}
+    summary = pd.DataFrame([{"planner": lb, **row} for lb in
+                            ("aco-kinematic/paper", "aco-kinematic", "lbcs")])
+    text = "\n".join(extremes_section(p, summary))
+    assert ("| scenario 1 | `aco-kinematic` | 201.4 s / 57.81 cm | 210.57 s / 58.29 cm | "
+            "47.3 s / 56.07 cm | 46.9 s / 56.1 cm | 47.3 s / 56.07 cm | 46.9 s / 56.1 cm |") in text
+    assert "| scenario 2 | `aco-kinematic` | 138.14 s / 64.5 cm | 101.28 s / 66.28 cm | - |" in text
+    assert extremes_section(PROTOCOLS["effc-table3"], summary) == []
+
+
+def test_the_tractor_trailer_target_has_table_2_and_table_3():
+    """ACO-Kinematic's Table 2 starts and goals in both three-robot layouts, and Table 3's
+    tractor-trailer weights on every ACO-Kinematic variant."""
+    from hybridnav.world import load_scenario
+
+    table2 = [((5.0, 45.0), (45.0, 5.0)), ((5.0, 25.0), (45.0, 25.0)), ((5.0, 5.0), (45.0, 45.0))]
+    for name in ("tractor-trailer-3", "aco-three-robots"):
+        s = load_scenario(name)
+        assert [(tuple(r.start), tuple(r.goal)) for r in s.robots] == table2, name
+    assert {r.model for r in load_scenario("tractor-trailer-3").robots} == {"tractor_trailer"}
+    for _, name, params in variants(PROTOCOLS["aco-tractor-trailers"]):
+        assert name == "aco-kinematic" and params["a"] == 0.02 and params["c"] == 0.18

@@ -36,16 +36,17 @@ __all__ = ["RUN_COLUMNS", "PlannerSpec", "compare", "parse_planner", "planner_sp
 
 #: the columns of ``runs.csv``; ``planner`` is the variant's label, ``planner_name`` the registry
 #: name, ``control_effort`` the robot's (empty for models without body rates; see
-#: :func:`hybridnav.planners.simulate.simulate`); later columns are appended so that the older
-#: ones keep their positions
+#: :func:`hybridnav.planners.simulate.simulate`), ``min_robot_clearance`` the clearance to the
+#: other robots alone (empty with one robot); later columns are appended so that the older ones
+#: keep their positions
 RUN_COLUMNS = ["planner", "scenario", "run", "seed", "robot", "outcome", "path_length",
                "time_to_goal", "smoothness", "min_clearance", "compute_time", "planner_name",
-               "control_effort"]
+               "control_effort", "min_robot_clearance"]
 #: summarized metrics; ``time_with_planning`` is derived per run: ``time_to_goal`` plus the
 #: robot's planning computation ``compute_time`` (the time a paper means when "generation of each
 #: point takes time", FAStep-Kinematic Sec. VIII)
 METRICS = ["path_length", "time_to_goal", "smoothness", "min_clearance", "compute_time",
-           "time_with_planning", "control_effort"]
+           "time_with_planning", "control_effort", "min_robot_clearance"]
 SYNTAX = "NAME, NAME@LABEL or NAME@LABEL:key=value[:key=value...]"
 #: metrics summarized over the robots that reached their goal only
 REACHED_ONLY = ("path_length", "time_to_goal", "smoothness", "time_with_planning",
@@ -250,7 +251,8 @@ def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] |
         s = r.summary()
         rows.append({"planner": task.label, "scenario": scenario.name, "run": task.run,
                      "seed": task.seed, "robot": r.name, **{k: s[k] for k in RUN_COLUMNS[5:11]},
-                     "planner_name": task.planner, "control_effort": s.get("control_effort")})
+                     "planner_name": task.planner, "control_effort": s.get("control_effort"),
+                     "min_robot_clearance": s.get("min_robot_clearance")})
     paths = ({r.name: np.asarray(r.states)[:, :2].copy() for r in result.robots}
              if task.run == 0 else None)
     return rows, paths, convergence_rows(result, task.label, task.run)
@@ -400,12 +402,20 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
     Mann-Whitney U test's p-value (:func:`scipy.stats.mannwhitneyu`; NaN where either side has
     no reached run). ``units`` is the scenario's length unit where the table knows it
     (``table.attrs["units"]``, set by :func:`compare`).
+
+    With more than one robot, ``min_robot_clearance_*`` summarize the clearance to the other
+    robots alone (over all robots; ``_min`` is the closest any two came), and ``robot_contacts``
+    counts the robots that touched another robot (``min_robot_clearance < 0``; such a robot is
+    also counted in ``collided``, the simulation ending it there). A table without the column
+    (written before it existed) gives NaN there.
     """
     from scipy import stats
 
     units = table.attrs.get("units", {})
     table = table.assign(time_with_planning=table["time_to_goal"].astype(float)
                          + table["compute_time"].astype(float))
+    if "min_robot_clearance" not in table:
+        table = table.assign(min_robot_clearance=np.nan)
     out = []
     groups = {key: g for key, g in table.groupby(["planner", "scenario"], sort=False)}
     for (planner, scenario), g in groups.items():
@@ -414,6 +424,7 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
                                "success_rate": len(ok) / len(g)}
         for outcome in ("collided", "out_of_bounds", "stuck", "timeout"):
             row[outcome] = int((g["outcome"] == outcome).sum())
+        row["robot_contacts"] = int((g["min_robot_clearance"].astype(float) < 0).sum())
         for m in METRICS:
             vals = (ok if m in REACHED_ONLY else g)[m].astype(float).dropna()
             for stat in ("mean", "std", "min", "max", "median"):

@@ -5,7 +5,8 @@ the next waypoint, a point on a path); :func:`simulate` steps each robot's compi
 it (one batched call per model group), then checks, at the new time:
 
 * ``collided``: a footprint disk closer than 0 to an obstacle (moving ones at that time) or to
-  another robot's footprint;
+  another robot's footprint (``min_robot_clearance`` tells which: below 0 for a robot that
+  touched another robot);
 * ``out_of_bounds``: a footprint disk leaving the workspace;
 * ``reached``: within ``goal_radius`` of the goal (a ``goal_follow`` goal is the followed robot's
   current position);
@@ -124,6 +125,10 @@ def simulate(
     -------
     robots : list of RobotResult
         ``compute_time`` is the wall time of the loop shared among the robots active each cycle.
+        ``min_clearance`` is the smallest clearance to obstacles and other robots while the robot
+        moved; in a scenario with more than one robot, the metric ``min_robot_clearance`` is the
+        smallest clearance to the other robots' footprints alone (negative: it touched a robot,
+        whether that one was moving or had ended where it stands).
     sim : Simulation
         The final state (for planners that report more).
     """
@@ -148,9 +153,10 @@ def simulate(
     hist_t = [[0.0] for _ in range(n)]
     hist_x = [[x.copy()] for x in X]
     min_clear = np.full(n, np.inf)
+    min_robot = np.full(n, np.inf)
     compute = np.zeros(n)
     effort = np.zeros(n)                 # control effort, for models that give body rates
-    _update_clearance(sim, world, 0.0, min_clear, np.ones(n, dtype=bool))
+    _update_clearance(sim, world, 0.0, min_clear, np.ones(n, dtype=bool), min_robot)
     for k in range(steps):
         if not sim.active.any():
             break
@@ -180,7 +186,7 @@ def simulate(
             hist_t[i].append(sim.t)
             hist_x[i].append(sim.X[i].copy())
         # outcomes at the new time
-        hit, outside = _update_clearance(sim, world, sim.t, min_clear, moved)
+        hit, outside = _update_clearance(sim, world, sim.t, min_clear, moved, min_robot)
         goals = sim.goals()
         P = sim.positions
         for i in np.flatnonzero(moved):
@@ -207,7 +213,8 @@ def simulate(
             states=np.array(hist_x[i]), state_names=m.state_names,
             time_to_goal=sim.time_to_goal[i], min_clearance=float(min_clear[i]),
             compute_time=float(compute[i]),
-            metrics=({"control_effort": float(effort[i])} if _has_rates(m) else {}),
+            metrics={**({"control_effort": float(effort[i])} if _has_rates(m) else {}),
+                     **({"min_robot_clearance": float(min_robot[i])} if n > 1 else {})},
         ))
     return results, sim
 
@@ -218,8 +225,10 @@ def _has_rates(model) -> bool:
 
 
 def _update_clearance(sim: Simulation, world, t: float, min_clear: np.ndarray,
-                      which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Update the running minimum clearance; return (collided, out of bounds) per robot."""
+                      which: np.ndarray, min_robot: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Update the running minimum clearance (and ``min_robot``, the clearance to the other
+    robots alone); return (collided, out of bounds) per robot."""
     n = sim.n
     discs = [m.footprint(x[None]) for m, x in zip(sim.models, sim.X)]
     centers = [c[0] for c, _ in discs]
@@ -230,9 +239,14 @@ def _update_clearance(sim: Simulation, world, t: float, min_clear: np.ndarray,
         c, r = centers[i], radii[i]
         clear = world.clearance(c, t=t) - r if world.obstacles else np.full(len(r), np.inf)
         others = [j for j in range(n) if j != i]
+        robot_clear = np.inf
         for j in others:
             d = np.linalg.norm(c[:, None, :] - centers[j][None, :, :], axis=2)
-            clear = np.minimum(clear, (d - r[:, None] - radii[j][None, :]).min(axis=1))
+            gap = (d - r[:, None] - radii[j][None, :]).min(axis=1)
+            clear = np.minimum(clear, gap)
+            robot_clear = min(robot_clear, float(gap.min()))
+        if min_robot is not None:
+            min_robot[i] = min(min_robot[i], robot_clear)
         cmin = float(np.min(clear))
         min_clear[i] = min(min_clear[i], cmin)
         hit[i] = cmin < 0

@@ -27,18 +27,25 @@ class Value:
 
 @dataclass(frozen=True)
 class Row:
-    """One row of a paper's table: its label there, our scenario, the paper's values by planner."""
+    """One row of a paper's table: its label there, our scenario, the paper's values by planner
+    and, where the paper quotes them, its best and worst runs by planner (``extremes``:
+    ``{planner: (best, worst)}``, each the run's time and length; the report sets our best and
+    worst run beside them, the shortest and the longest reached path with its own time)."""
 
     label: str
     scenario: str
     paper: dict[str, Value]
+    extremes: dict[str, tuple[Value, Value]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class Claim:
     """A paper's claim about two planners (``kind``: ``shorter`` or ``faster``: ``a`` beats ``b``
-    in mean length / time on every listed row) or one (``reaches``: every run of ``a`` reaches
-    its goal; ``stuck``: none does). ``rows``: the row labels it covers (empty: all).
+    in mean length / time on every listed row; ``worst-case``: ``a``'s worst run beats ``b``'s in
+    length and in time) or one (``reaches``: every run of ``a`` reaches its goal; ``stuck``: none
+    does; ``collision-free``: every robot of every run reaches its goal and none collides, with an
+    obstacle or another robot). :mod:`hybridnav.reproduce.report` defines each precisely.
+    ``rows``: the row labels it covers (empty: all).
     ``time``: which time a ``faster`` claim means, as the paper defines it: ``"simulated"`` (the
     robot's travel time) or ``"with planning"`` (travel plus the planner's computation).
     ``time_source``: where the paper says so."""
@@ -55,6 +62,9 @@ class Claim:
         if self.time not in ("simulated", "with planning"):
             raise ValueError(f"claim {self.text!r}: time: expected 'simulated' or "
                              f"'with planning', got {self.time!r}")
+        if self.kind == "worst-case" and self.time != "simulated":
+            raise ValueError(f"claim {self.text!r}: a worst-case claim compares the worst run's "
+                             "simulated time (the summary keeps no other)")
 
 
 @dataclass(frozen=True)
@@ -82,6 +92,9 @@ class Protocol:
     #: ``(parameter, values)``: every variant whose planner declares ``parameter`` runs once per
     #: value, labelled ``LABEL/parameter=value`` (e.g. sensor noise levels); the others run once
     sweep: tuple[str, tuple[Any, ...]] | None = None
+    #: what the paper ran, in words, where ``runs`` is not its number (a paper that shows one run
+    #: as a figure: ``runs`` is ours, chosen to see how typical that run is)
+    paper_runs: str = ""
 
 
 FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic)"
@@ -113,11 +126,14 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
         name="aco-table5", paper=ACOK, source="Tables 3-5 and scenario 4 (Figs. 18-19)",
         planners=("aco-kinematic", "lbcs"),
         rows=(Row("scenario 1", "fastep-s1", {"lbcs": Value(251.02, 58.57),
-                                              "aco-kinematic": Value(208.72, 57.98)}),
+                                              "aco-kinematic": Value(208.72, 57.98)},
+                  extremes={"aco-kinematic": (Value(201.4, 57.81), Value(210.57, 58.29))}),
               Row("scenario 2", "aco-s2", {"lbcs": Value(309.44, 66.3),
-                                              "aco-kinematic": Value(124.99, 65.35)}),
+                                              "aco-kinematic": Value(124.99, 65.35)},
+                  extremes={"aco-kinematic": (Value(138.14, 64.5), Value(101.28, 66.28))}),
               Row("scenario 3", "tractor-trailer-1", {"lbcs": Value(240.92, 68.34),
-                                                      "aco-kinematic": Value(195.79, 66.27)}),
+                                                      "aco-kinematic": Value(195.79, 66.27)},
+                  extremes={"aco-kinematic": (Value(230.02, 62.99), Value(238.05, 68.06))}),
               Row("scenario 4", "aco-scenario-4", {"lbcs": Value(outcome="stuck"),
                                                    "aco-kinematic": Value()})),
         runs=30,
@@ -129,11 +145,15 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                 Claim("LbCS is trapped in the local minimum of scenario 4", "stuck", "lbcs",
                       rows=("scenario 4",)),
                 Claim("ACO-Kinematic reaches the goal of scenario 4", "reaches", "aco-kinematic",
-                      rows=("scenario 4",))),
+                      rows=("scenario 4",)),
+                Claim("In scenario 1, ACO-Kinematic's worst-case path length and time are better "
+                      "than LbCS's", "worst-case", "aco-kinematic", "lbcs", ("scenario 1",))),
         enhancement=("aco-kinematic", "lbcs"),
         notes=("Table 3's weights (a = 0.02, c = 0.05) are set for ACO-Kinematic; LbCS is "
-               "deterministic (the paper ran it once). Scenario 4's cup is our reconstruction "
-               "(aco-scenario-4); the other layouts reconstruct the paper's figures.")),
+               "deterministic (the paper ran it once, so its one run is its best and its worst). "
+               "Scenario 4's cup is our reconstruction (aco-scenario-4); the other layouts "
+               "reconstruct the paper's figures. The best and worst runs are the paper's text "
+               "under Table 5 (the shortest and the longest path, each with its own time).")),
     Protocol(
         name="rfdpso-table3", paper=RFDPSO, source="Table 2 (700 x 700 cm map), Table 3 "
                                                    "(20 x 20 m map), Table 4 (20 x 20 alley "
@@ -288,4 +308,66 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
                "control cycles of (v^2 + omega^2) dt of the commands (the paper's Figs. 16 "
                "and 19 plot the angular velocity). The paper gives no numbers for this run, "
                "so its claims are the text's qualitative ones.")),
+    Protocol(
+        name="fastep-case-studies", paper_runs="one run, Fig. 5", paper=FASTEP,
+        source="Section VII-B, case study 2 (Fig. 5: two point masses avoiding each other)",
+        planners=("fastep-kinematic",),
+        rows=(Row("case study 2 (Fig. 5)", "fastep-case-study-2",
+                  {"fastep-kinematic": Value()}),),
+        runs=30,
+        claims=(Claim("Both robots reach their targets, avoiding the obstacles and each other "
+                      "(each is a moving obstacle to the other)", "collision-free",
+                      "fastep-kinematic"),),
+        notes=("The paper shows one run (Fig. 5) and gives no numbers: R1 (5, 5) -> (45, 45) "
+               "and R2 (45, 45) -> (5, 5) head-on, the two \"avoid collision at point (30, 22)\". "
+               "We run it 30 times, as the paper's Table 2, to see how often that holds. Table "
+               "1's parameters are FAStep-Kinematic's defaults. The layout is a reconstruction "
+               "(the circles of tractor-trailer-1).")),
+    Protocol(
+        name="aco-case-studies", paper_runs="one run, Fig. 3", paper=ACOK,
+        source="case study 2 (Figs. 3-4: three point masses avoiding each other)",
+        planners=("aco-kinematic",),
+        rows=(Row("case study 2 (Fig. 3)", "aco-case-study-2", {"aco-kinematic": Value()}),),
+        runs=30,
+        claims=(Claim("The three robots reach their targets, avoiding all obstacles and each "
+                      "other", "collision-free", "aco-kinematic"),),
+        notes=("The paper shows one run (Figs. 3-4) and gives no numbers: R1 (5, 45) -> "
+               "(45, 5), R2 (5, 5) -> (45, 45), R3 (45, 25) -> (5, 25) among circles and "
+               "rectangles. We run it 30 times, as the paper's Table 5, to see how often that "
+               "holds. Table 1's weights (a = b = c = 0.18, d = 0.01, the case studies' "
+               "parameters) are ACO-Kinematic's defaults. The layout is a reconstruction.")),
+    Protocol(
+        name="aco-tractor-trailers", paper_runs="one run per case, a figure each", paper=ACOK,
+        source="the tractor-trailer application: Figs. 6-7 (one robot), Table 2 and Figs. 8-11 "
+               "(three robots), Table 3's tractor-trailer weights",
+        planners=("aco-kinematic",),
+        rows=(Row("Fig. 6", "tractor-trailer-2", {"aco-kinematic": Value()}),
+              Row("Fig. 7", "tractor-trailer-1", {"aco-kinematic": Value()}),
+              Row("Table 2 (Figs. 8-11)", "tractor-trailer-3", {"aco-kinematic": Value()})),
+        runs=5,
+        settings={"aco-kinematic": {"a": 0.02, "c": 0.18}},
+        claims=(Claim("One tractor-trailer reaches its target avoiding the obstacles (Figs. 6-7)",
+                      "collision-free", "aco-kinematic", rows=("Fig. 6", "Fig. 7")),
+                Claim("The three tractor-trailers reach their targets, avoiding the obstacles "
+                      "and each other (Figs. 8-11)", "collision-free", "aco-kinematic",
+                      rows=("Table 2 (Figs. 8-11)",))),
+        notes=("The paper shows one run per case (a figure each) and gives no numbers; we run "
+               "5 (a tractor-trailer step rolls the model out for every candidate, and 5 runs "
+               "show whether the figure's run is typical). Table 3's tractor-trailer weights "
+               "(a = 0.02, c = 0.18) are set for ACO-Kinematic. Figs. 6-7: (5, 5) -> (45, 45) "
+               "and (5, 45) -> (45, 5); Table 2: R1 (5, 45) -> (45, 5), R2 (5, 25) -> (45, 25), "
+               "R3 (5, 5) -> (45, 45) (our TT1-TT3). The layouts are reconstructions "
+               "(tractor-trailer-1 is also Table 5's scenario 3). That R1 stops and waits for R3 "
+               "(Fig. 8) is a behaviour of one run that the summary does not measure: see the "
+               "run-0 paths figure."),
+        conflicts=("The text says Fig. 8 shows R1 avoiding R3 by stopping and waiting for R3 to "
+                   "pass; the captions of Figs. 8-9 say R3 avoids R1. The claim checked here "
+                   "(every robot reaches, none touches an obstacle or another robot) is the "
+                   "same either way.",
+                   "The text says Fig. 10 shows R2 and R3 avoiding each other; its caption says "
+                   "R1 avoids R2. The same claim either way.",
+                   "Table 1 gives a = 0.18 as the parameters \"used in the three case studies\" "
+                   "(the tractor-trailer application is the third); Table 3 gives the "
+                   "tractor-trailer a = 0.02, c = 0.18. We use Table 3, the paper's tuned "
+                   "tractor-trailer values.")),
 )}

@@ -188,14 +188,15 @@ def render(folder: str | Path) -> str:
     """
     from hybridnav.reproduce.layouts import sensitivity_section
     from hybridnav.reproduce.report import (check_claims, claims_section, conflicts_section,
-                                            has_profiles, literature_line, profile_sections,
-                                            safety_section, variants_section)
+                                            extremes_section, has_profiles, literature_line,
+                                            profile_sections, safety_section,
+                                            separation_section, variants_section)
     from hybridnav.reproduce.variants import levels
 
     name, summary, meta = load_stored(folder)
     protocol = PROTOCOLS[name]
     how = (f"Measured by `hybridnav reproduce {name}` with hybridnav {meta['version']}: "
-           f"{meta['runs']} run(s) per planner and scenario (the paper: {protocol.runs}), "
+           f"{meta['runs']} run(s) per planner and scenario (the paper: {protocol.paper_runs or protocol.runs}), "
            f"seed {meta['seed']}")
     if meta.get("elapsed_s") is not None:
         how += (f", {meta['elapsed_s'] / 60:.1f} min with {meta.get('workers', 1)} worker(s) "
@@ -207,6 +208,8 @@ def render(folder: str | Path) -> str:
     lines += conflicts_section(protocol, level=4)
     lines += safety_section(protocol, summary, level=4)
     lines += profile_sections(protocol, summary, level=4)
+    lines += extremes_section(protocol, summary, level=4)
+    lines += separation_section(protocol, summary, level=4)
     if protocol.ablations:
         lines += variants_section(protocol, summary, level=4,
                                   only=[lb for label, _, _ in protocol.ablations

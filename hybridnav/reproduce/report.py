@@ -8,6 +8,23 @@ runs (``summary.csv``) gives p < :data:`ALPHA` with ``a`` ahead — the opposite
 is "does not hold", so is ``a`` reaching in no run where ``b`` reaches, and anything else "not
 shown". A ``faster`` claim uses the time its paper means (:attr:`Claim.time`: the simulated
 travel time, or travel plus planning computation), and the report says which.
+
+Two more kinds, judged without a significance test (see :data:`CLAIM_RULES`):
+
+``collision-free`` (one planner, ``a``)
+    In ours it holds on a row when every robot of every run reached its goal and none collided
+    (``success_rate == 1``, ``collided == 0`` and ``robot_contacts == 0``: no robot's clearance
+    to another robot, ``min_robot_clearance``, went below 0); anything else does not hold. The
+    detail gives the closest two robots came (``min_robot_clearance_min``). In the paper's
+    numbers it holds where the paper's value is an arrival (a figure showing the robots reach).
+``worst-case`` (``a`` against ``b``)
+    Each planner's worst run is its longest reached path, with that run's own simulated time
+    (``worst_path_length``, ``worst_time_to_goal`` in ``summary.csv``), as papers pair "the
+    worst-case path length and time". It holds on a row when ``a``'s worst run is both shorter
+    and faster than ``b``'s; a run that did not reach is worse than any that did, so when only
+    ``b`` has one it holds, when only ``a`` has one it does not, and when both have one it is
+    not shown. In the paper's numbers ``a``'s worst run is :attr:`Row.extremes`, ``b``'s the
+    same or, where the paper gives none (a planner it ran once), its printed value.
 """
 
 from __future__ import annotations
@@ -24,9 +41,11 @@ from hybridnav.fileio import atomic_write_text
 from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for, levels
 
-__all__ = ["ALPHA", "ASTAR_SLACK", "MOST_REACHED", "astar_bound", "bounds_section", "check_claims",
-           "claims_section", "conflicts_section", "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
-           "profile_sections", "row_verdict", "straight_line_bound", "variants_section", "write_report"]
+__all__ = ["ALPHA", "ASTAR_SLACK", "CLAIM_RULES", "MOST_REACHED", "astar_bound", "bounds_section",
+           "check_claims", "claims_section", "conflicts_section", "extremes_section",
+           "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
+           "profile_sections", "row_verdict", "separation_section", "straight_line_bound",
+           "variants_section", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
 
@@ -218,6 +237,10 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
     for where, va, vb, lb in cases:
         if claim.kind in ("shorter", "faster"):
             verdict, part = _compare_row(protocol, claim, view, va, vb, lb)
+        elif claim.kind == "collision-free":
+            verdict, part = _collision_free_row(va)
+        elif claim.kind == "worst-case":
+            verdict, part = _worst_case_row(claim, row, view, va, vb)
         else:
             share = _reached(va)
             verdict, part = ((None, "no number") if share is None else
@@ -282,6 +305,88 @@ def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: s
     return a < b, f"{a:.4g} vs {b:.4g}, p = {p:.2g}"
 
 
+#: how the claims judged without a significance test are judged (the claims table says so)
+CLAIM_RULES = {
+    "collision-free": ("A \"no collision\" claim holds in ours only when every robot of every run "
+                       "reached its goal and none touched an obstacle or another robot; "
+                       "anything else does not hold."),
+    "worst-case": ("A worst-case claim compares each planner's worst run (its longest reached "
+                   "path, with that run's own time): it holds when the first planner's is both "
+                   "shorter and faster; a run that did not reach is worse than any that did "
+                   "(only the second planner has one: holds; only the first: does not hold; "
+                   "both: not shown)."),
+}
+
+
+def _finite(x: Any) -> float | None:
+    """``x`` as a float, None if missing or not finite."""
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _collision_free_row(value: Value | dict[str, Any] | None) -> tuple[bool | None, str]:
+    """One row of a ``collision-free`` claim (see the module docstring)."""
+    if value is None:
+        return None, "no number"
+    if isinstance(value, Value):
+        ok = value.outcome == "reached"
+        return ok, "every robot reached, no collision" if ok else value.outcome
+    n = int(value["robots"])
+    k = int(round(float(value["success_rate"]) * n))
+    collided = int(_finite(value.get("collided")) or 0)
+    contacts = _finite(value.get("robot_contacts"))
+    gap = _finite(value.get("min_robot_clearance_min"))
+    units = value.get("units") if isinstance(value.get("units"), str) else ""
+    others = [f"{o} {int(_finite(value.get(o)) or 0)}" for o in ("stuck", "timeout",
+                                                                 "out_of_bounds")
+              if _finite(value.get(o))]
+    part = f"reached {k}/{n}" + (f" ({', '.join(others)})" if others else "") + \
+        f", collided {collided}"
+    if contacts is not None and (contacts or gap is not None):
+        part += f" ({int(contacts)} with a robot)"
+    if gap is not None:
+        part += f", closest robots {_fmt(gap)} {units}".rstrip()
+    return k == n and collided == 0 and not contacts, part
+
+
+def _worst_case_row(claim: Claim, row: Row, view: str, va, vb) -> tuple[bool | None, str]:
+    """One row of a ``worst-case`` claim (see the module docstring)."""
+    if view == "paper":
+        ea, eb = row.extremes.get(claim.a), row.extremes.get(claim.b)
+        wa = ea[1] if ea else None
+        wb = eb[1] if eb else vb
+        if wa is None or wb is None or None in (wa.length, wa.time) \
+                or (wb.outcome == "reached" and None in (wb.length, wb.time)):
+            return None, "no number"
+        if wb.outcome != "reached":
+            return True, f"{claim.a} worst {wa.time:g} s / {wa.length:g}, {claim.b} {wb.outcome}"
+        what = "worst" if eb else "its one value"
+        return (wa.length < wb.length and wa.time < wb.time,
+                f"{claim.a} worst {wa.time:g} s / {wa.length:g} vs {claim.b} ({what}) "
+                f"{wb.time:g} s / {wb.length:g}")
+    if va is None or vb is None:
+        return None, "no number"
+    na, nb = int(va["robots"]), int(vb["robots"])
+    ka = int(round(float(va["success_rate"]) * na))
+    kb = int(round(float(vb["success_rate"]) * nb))
+    reach = f"reached {ka}/{na} vs {kb}/{nb}"
+    if ka < na and kb < nb:
+        return None, f"both have runs that did not reach ({reach})"
+    if ka < na:
+        return False, f"{claim.a} has runs that did not reach ({reach})"
+    if kb < nb:
+        return True, f"{claim.b} has runs that did not reach ({reach})"
+    la, ta = _finite(va.get("worst_path_length")), _finite(va.get("worst_time_to_goal"))
+    lb, tb = _finite(vb.get("worst_path_length")), _finite(vb.get("worst_time_to_goal"))
+    if None in (la, ta, lb, tb):
+        return None, "no worst run in this summary (run it again)"
+    return (la < lb and ta < tb,
+            f"worst {ta:.4g} s / {la:.4g} vs {tb:.4g} s / {lb:.4g}")
+
+
 def check_claims(protocol: Protocol, summary: pd.DataFrame) -> list[dict[str, Any]]:
     """Each claim's verdict in the paper's own numbers and in ours for both profiles.
 
@@ -299,7 +404,8 @@ def check_claims(protocol: Protocol, summary: pd.DataFrame) -> list[dict[str, An
     """
     out = []
     for claim in protocol.claims:
-        item: dict[str, Any] = {"text": claim.text, "measure": _measure(claim)}
+        item: dict[str, Any] = {"text": claim.text, "measure": _measure(claim),
+                                "kind": claim.kind}
         for view in VIEWS:
             item[view], item[f"{view} detail"] = _check(protocol, claim, summary, view)
         out.append(item)
@@ -315,6 +421,12 @@ def _measure(claim: Claim) -> str:
                 else "simulated travel time")
         return f"mean {what} of the reached runs" + (
             f" (the paper's time: {claim.time_source})" if claim.time_source else "")
+    if claim.kind == "collision-free":
+        return ("robots x runs that reached, collisions (with an obstacle or another robot) and "
+                "the closest two robots came")
+    if claim.kind == "worst-case":
+        return ("each planner's worst run: its longest reached path and that run's simulated "
+                "travel time")
     return "share of runs that reached" if claim.kind == "reaches" else "share of runs stuck"
 
 
@@ -493,6 +605,10 @@ def claims_section(claims: Sequence[dict[str, Any]], level: int = 2,
             f"two-sided Mann-Whitney U test of the reached runs gives p < {ALPHA:g} in its "
             "favour; significant the other way, or the first planner reaching in no run where "
             "the second does, is \"does not hold\"; anything else is \"not shown\".")
+    kinds = list(dict.fromkeys(c.get("kind") for c in claims))
+    if all(k in CLAIM_RULES for k in kinds):     # no claim the significance rule judges
+        rule = "In the paper's numbers a claim is judged as printed."
+    rule += "".join(f" {CLAIM_RULES[k]}" for k in kinds if k in CLAIM_RULES)
     return [f"{'#' * level} The paper's claims", "", rule, "", head,
             "|---" * (len(views) + 2) + "|"] + [
         f"| {c['text']} | {c.get('measure', '')} | "
@@ -523,6 +639,86 @@ def variants_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2,
                          f"{_fmt(r['path_length_ci95_hi'])}] | {_fmt(r['best_path_length'])} {u}"
                          f", {_fmt(r['best_time_to_goal'])} s |")
     return lines + [""]
+
+
+def _run_cell(row: dict[str, Any] | None, side: str, units: str) -> str:
+    """Our best or worst run (``side``) of a summary row: its time and length."""
+    if row is None:
+        return "-"
+    length, t = _finite(row.get(f"{side}_path_length")), _finite(row.get(f"{side}_time_to_goal"))
+    if length is None or t is None:
+        return "none reached" if not row["success_rate"] > 0 else "-"
+    return f"{t:.1f} s / {length:.4g} {units}"
+
+
+def _scenario_units(name: str) -> str:
+    """The length unit of a scenario (for a row our summary does not have)."""
+    from hybridnav.world import load_scenario
+
+    return load_scenario(name).units
+
+
+def extremes_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2) -> list[str]:
+    """The paper's best and worst runs (:attr:`Row.extremes`) beside ours, in every profile
+    (markdown lines; none if the paper quotes none; ``level``: of the heading). Ours: the
+    shortest and the longest reached path, each with its own time."""
+    rows = [row for row in protocol.rows if row.extremes]
+    if not rows:
+        return []
+    units_of = _units(summary)
+    views = ("paper profile", "hybridnav profile") if has_profiles(protocol) else \
+        ("hybridnav profile",)
+    head = ["row", "planner", "paper: best", "paper: worst"]
+    for view in views:
+        name = "ours" if len(views) == 1 else f"ours, `profile={view.split()[0]}`"
+        head += [f"{name}: best", f"{name}: worst"]
+    lines = [f"{'#' * level} Best and worst runs", "",
+             "The paper's best and worst runs (time / length) beside ours: the shortest and the "
+             "longest reached path, each with its own time.", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for row in rows:
+        u = units_of.get(row.scenario) or _scenario_units(row.scenario)
+        for p in protocol.planners:
+            best, worst = row.extremes.get(p, (None, None))
+            cells = [row.label, f"`{p}`", _paper_cell(best, u), _paper_cell(worst, u)]
+            for view in views:
+                r = ours(summary, _label(protocol, p, view), row.scenario)
+                cells += [_run_cell(r, "best", u), _run_cell(r, "worst", u)]
+            lines.append("| " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
+def separation_section(protocol: Protocol, summary: pd.DataFrame, level: int = 2) -> list[str]:
+    """How the robots of the multi-robot rows kept apart: per variant, the robots that reached,
+    collided (with a robot among them) and the closest any two came (markdown lines; none
+    without a multi-robot row or a summary that recorded it; ``level``: of the heading)."""
+    if "min_robot_clearance_min" not in summary:
+        return []
+    units_of = _units(summary)
+    lines: list[str] = []
+    for row in protocol.rows:
+        sel = summary[summary["scenario"] == row.scenario]
+        for _, r in sel.iterrows():
+            gap = _finite(r.get("min_robot_clearance_min"))
+            if gap is None:
+                continue
+            u = units_of.get(row.scenario, "")
+            n = int(r["robots"])
+            k = int(round(float(r["success_rate"]) * n))
+            contacts = int(_finite(r.get("robot_contacts")) or 0)
+            lines.append(f"| {row.label} | `{r['planner']}` | {k}/{n} | "
+                         f"{int(_finite(r.get('collided')) or 0)} ({contacts} with a robot) | "
+                         f"{_fmt(gap)} {u} | {_fmt(float(r['min_robot_clearance_mean']))} {u} | "
+                         f"{_fmt(float(r['min_clearance_min']))} {u} |")
+    if not lines:
+        return []
+    return [f"{'#' * level} Robots avoiding each other", "",
+            "Per variant over every robot of every run: how many reached, how many collided "
+            "(and of those, how many touched another robot), the closest two robots' footprints "
+            "came (clearance, below 0 a contact), each robot's closest approach to another "
+            "robot on average, and the smallest clearance to anything (obstacles too).", "",
+            "| row | variant | reached | collided | closest robots | mean closest | "
+            "closest to anything |", "|---|---|---|---|---|---|---|"] + lines + [""]
 
 
 def conflicts_section(protocol: Protocol, level: int = 2) -> list[str]:
@@ -572,7 +768,7 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     units_of = _units(summary)
     lines = [f"# `{protocol.name}`: {protocol.paper}", "",
              f"Reproduces {protocol.source}. hybridnav {version}; {runs} run(s) per planner and "
-             f"scenario (the paper: {protocol.runs}), seed {seed}. " + (
+             f"scenario (the paper: {protocol.paper_runs or protocol.runs}), seed {seed}. " + (
                  "Every planner with profiles ran twice: `profile=paper` (the paper's settings "
                  "and rules, see `hybridnav planners`) and the default `profile=hybridnav`."
                  if has_profiles(protocol) else
@@ -590,6 +786,8 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
               "the goal (reached / robots x runs).", ""]
     lines += bounds_section(protocol, units_of)
     lines += profile_sections(protocol, summary)
+    lines += extremes_section(protocol, summary)
+    lines += separation_section(protocol, summary)
     lines += claims_section(claims, profiles=has_profiles(protocol))
     lines += sensitivity_section(protocol, layouts, summary, runs=layout_runs,
                                  profiles=has_profiles(protocol))
