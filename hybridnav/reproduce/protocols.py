@@ -256,7 +256,7 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
         runs=1,
         claims=(Claim("Both robots reach their targets without a collision (robot 1 its fixed "
                       "goal, robot 2 the moving robot 1) among static and moving obstacles",
-                      "reaches", "pso-ba"),),
+                      "collision-free", "pso-ba"),),
         notes=("The paper shows one sample run and gives no table: robot 2 meets robot 1 at its "
                "88th iteration (one path point per iteration), and at iteration 51 it prints "
                "distance 89, smoothness 196, fitness 0.441. Its step length is not given, so "
