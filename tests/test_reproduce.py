@@ -435,3 +435,58 @@ def test_the_tractor_trailer_target_has_table_2_and_table_3():
     assert {r.model for r in load_scenario("tractor-trailer-3").robots} == {"tractor_trailer"}
     for _, name, params in variants(PROTOCOLS["aco-tractor-trailers"]):
         assert name == "aco-kinematic" and params["a"] == 0.02 and params["c"] == 0.18
+
+
+def test_a_readme_block_renders_only_its_own_targets_run(tmp_path):
+    """A stored run of another protocol in a block's folder is refused, not shown under the
+    block's name."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, update_readme
+
+    root = Path(__file__).resolve().parents[1]
+    shutil.copytree(root / STORE / "fastep-table2", tmp_path / "store" / "effc-table3")
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:effc-table3 -->\nold\n<!-- /reproduce:effc-table3 -->\n")
+    with pytest.raises(HybridnavError, match=r"effc-table3/comparison.json: protocol: expected "
+                                             r"effc-table3 \(README's block\), got "
+                                             "fastep-table2"):
+        update_readme(readme, tmp_path / "store")
+    assert "old" in readme.read_text()
+
+
+@pytest.mark.parametrize("column", ["time_to_goal_mean", "units", "best_path_length"])
+def test_a_stored_summary_without_a_column_the_report_reads_is_a_named_error(tmp_path, capsys,
+                                                                            column):
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "store" / "fastep-table2"
+    shutil.copytree(root / STORE / "fastep-table2", folder)
+    summary = pd.read_csv(folder / "summary.csv")
+    summary.drop(columns=[column]).to_csv(folder / "summary.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:fastep-table2 -->\n<!-- /reproduce:fastep-table2 -->\n")
+    assert main(["reproduce", "--update-readme", "--reports", str(tmp_path / "store"),
+                 "--readme", str(readme)]) == 2
+    err = capsys.readouterr().err
+    assert f"summary.csv: {column}: missing column" in err and "Traceback" not in err
+
+
+def test_a_failed_claim_without_the_other_planners_number_is_still_judged():
+    """``a`` reached none where ``b`` reached, in a summary without ``b``'s time column: does
+    not hold (formerly a TypeError formatting the missing number)."""
+    protocol = PROTOCOLS["fastep-table2"]
+    rows = []
+    for planner, rate in (("fastep-kinematic", 0.0), ("aco-kinematic", 1.0)):
+        rows.append({"planner": planner, "scenario": "fastep-s1", "robots": 5,
+                     "success_rate": rate, "units": "cm", "path_length_mean": 50.0})
+    from hybridnav.reproduce.report import row_verdict
+
+    verdict, detail = row_verdict(protocol, protocol.claims[1], pd.DataFrame(rows),
+                                  "hybridnav profile", protocol.rows[0])
+    assert verdict is False and "aco-kinematic -" in detail

@@ -130,6 +130,11 @@ def load_layouts(folder: str | Path, protocol) -> pd.DataFrame | None:
     return table
 
 
+#: the metric columns the README block and the report read (``summarize_runs`` writes them all)
+_READ_COLUMNS = ("units", "path_length_mean", "time_to_goal_mean", "path_length_median",
+                 "path_length_ci95_lo", "path_length_ci95_hi", "best_path_length",
+                 "best_time_to_goal", "min_clearance_min", "min_clearance_mean")
+
 #: Columns of a stored summary that hold text; every other column holds numbers (or is empty)
 _TEXT_COLUMNS = ("planner", "scenario", "units")
 
@@ -138,7 +143,8 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
     """A stored ``summary.csv`` as :func:`hybridnav.analysis.compare.summarize` writes it: the
     key columns, numbers where numbers belong, a row for every scenario of the protocol."""
     need = ("planner", "scenario", "robots", "success_rate")
-    for col in need:
+    for col in need + _READ_COLUMNS + (("min_robot_clearance_mean",)
+                                       if "min_robot_clearance_min" in summary.columns else ()):
         if col not in summary.columns:
             raise HybridnavError(f"{path}: {col}: missing column (expected the columns "
                                  f"{', '.join(need)} and the metrics of a reproduction's "
@@ -276,14 +282,21 @@ def update_readme(readme: str | Path, store: str | Path) -> list[str]:
     found = blocks(text, str(readme))
     if not found:
         raise HybridnavError(f"{readme}: expected <!-- reproduce:NAME --> blocks, found none")
-    from hybridnav.reproduce.tuning import (EXPERIMENTS, render_experiment,
+    from hybridnav.reproduce.tuning import (EXPERIMENTS, load_experiment, render_experiment,
                                             rewrite_experiment_report)
 
-    for name in found:
+    for name in found:                       # every stored run checked before anything is written
         need = "experiment.json" if name in EXPERIMENTS else "summary.csv"
         if not (Path(store) / name / need).exists():
             raise HybridnavError(f"{Path(store) / name}: {need}: expected a stored run of "
                                  f"`hybridnav reproduce {name}` for README's block")
+        stored = (load_experiment(Path(store) / name)[0].name if name in EXPERIMENTS
+                  else load_stored(Path(store) / name)[0])
+        if stored != name:                   # another target's run in this block's folder
+            key = "experiment.json: experiment" if name in EXPERIMENTS else \
+                "comparison.json: protocol"
+            raise HybridnavError(f"{Path(store) / name}/{key}: expected {name} (README's "
+                                 f"block), got {stored}")
 
     for name in found:
         (rewrite_experiment_report if name in EXPERIMENTS else rewrite_report)(

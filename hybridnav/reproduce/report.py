@@ -291,7 +291,8 @@ def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: s
     na, nb = int(va["robots"]), int(vb["robots"])
     reach = f"reached {round(ra * na)}/{na} vs {round(rb * nb)}/{nb}"
     if ra == 0.0 and rb > 0.0:
-        return False, f"{claim.a} reached none, {claim.b} {b:.4g} ({reach})"
+        shown = _fmt(b) if b is not None else "-"      # a summary without the column
+        return False, f"{claim.a} reached none, {claim.b} {shown} ({reach})"
     if ra <= MOST_REACHED or rb <= MOST_REACHED:
         nums = f"{_fmt(a) if a is not None else '-'} vs {_fmt(b) if b is not None else '-'}"
         return None, f"{nums}, {reach}: not most runs on both sides"
