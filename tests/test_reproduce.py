@@ -217,11 +217,17 @@ def test_update_readme_rewrites_the_blocks_and_refuses_a_missing_run(tmp_path):
 
     from hybridnav.reproduce.readme import STORE, update_readme
 
+    import shutil
+
     root = Path(__file__).resolve().parents[1]
     readme = tmp_path / "README.md"
     readme.write_text("intro\n<!-- reproduce:psoba-fig15 -->\nold numbers\n"
                       "<!-- /reproduce:psoba-fig15 -->\nend\n")
-    assert update_readme(readme, root / STORE) == ["psoba-fig15"]
+    # a copy: update_readme rewrites the stored run's report.md too (not the repository's)
+    shutil.copytree(root / STORE / "psoba-fig15", tmp_path / "copy" / "psoba-fig15")
+    before = (root / STORE / "psoba-fig15" / "report.md").read_bytes()
+    assert update_readme(readme, tmp_path / "copy") == ["psoba-fig15"]
+    assert (root / STORE / "psoba-fig15" / "report.md").read_bytes() == before
     text = readme.read_text()
     assert "old numbers" not in text and text.startswith("intro\n") and text.endswith("end\n")
     assert "Measured by `hybridnav reproduce psoba-fig15`" in text
