@@ -166,3 +166,59 @@ def test_bad_layout_counts_and_stored_verdicts_are_named_errors(tmp_path, capsys
         (tmp_path / "layouts.csv").write_text(bad)
         with pytest.raises(HybridnavError, match=r"layouts\.csv: " + what.replace("(", r"\(")):
             load_layouts(tmp_path, protocol)
+
+
+def _box(o):
+    if "center" in o:
+        c = np.asarray(o["center"])
+        return c - o["radius"], c + o["radius"]
+    if "min" in o:
+        return np.asarray(o["min"]), np.asarray(o["max"])
+    P = np.asarray(o["points"] if "points" in o else [o["a"], o["b"]])
+    return P.min(axis=0), P.max(axis=0)
+
+
+@pytest.mark.parametrize("name", ["turtlebot-office", "pso-ba-dynamic", "rfd-pso-20m"])
+def test_jittered_obstacles_stay_inside_the_workspace_and_walls_stay_whole(name):
+    """An office's outer walls and the room walls attached to them do not move (moving a piece
+    of a wall opens a doorway the layout does not have, or pushes it out of the workspace), and
+    no jittered obstacle leaves the workspace (formerly: every obstacle of the office moved by
+    up to 0.27 m, its 0.1 m outer walls partly out of the workspace and room walls detached)."""
+    base = load_scenario(name)
+    xmin, xmax, ymin, ymax = base.world.workspace
+    d0 = scenario_to_dict(base)["obstacles"]
+    jitters = [lay for tag, lay in perturbed_layouts(base, 20, seed=0) if "jitter" in tag]
+    assert jitters
+    for lay in jitters:
+        for a, b in zip(d0, scenario_to_dict(lay)["obstacles"]):
+            lo, hi = _box(b)
+            assert lo[0] >= xmin and lo[1] >= ymin and hi[0] <= xmax and hi[1] <= ymax, \
+                (lay.name, b)
+            lo0, hi0 = _box(a)
+            touches_edge = lo0[0] <= xmin or lo0[1] <= ymin or hi0[0] >= xmax or hi0[1] >= ymax
+            if touches_edge:
+                assert a == b, (lay.name, a, b)
+    if name == "turtlebot-office":            # every wall piece stays, the furniture moves
+        moved = {i for lay in jitters
+                 for i, (a, b) in enumerate(zip(d0, scenario_to_dict(lay)["obstacles"]))
+                 if a != b}
+        walls = {i for i, o in enumerate(d0) if o["type"] == "rectangle"}
+        assert not moved & walls and moved == set(range(len(d0))) - walls
+
+
+def test_a_heading_left_out_is_mirrored_too():
+    """A unicycle without ``initial.theta`` starts at heading 0 (east); mirrored about the
+    vertical line it must start facing west (formerly it kept heading 0: not a mirror image)."""
+    from hybridnav.world import scenario_from_dict
+
+    data = scenario_to_dict(load_scenario("effc-env-a"))
+    data["robots"][0]["initial"] = {}
+    base = scenario_from_dict(data)
+    layouts = dict(perturbed_layouts(base, 2))
+    t = layouts["mirror-x"].robots[0].initial.get("theta", 0.0)
+    assert (math.cos(t), math.sin(t)) == pytest.approx((-1.0, 0.0))
+    t = layouts["mirror-y"].robots[0].initial.get("theta", 0.0)
+    assert (math.cos(t), math.sin(t)) == pytest.approx((1.0, 0.0))
+    # a point mass has no heading: nothing is added
+    assert dict(perturbed_layouts(load_scenario("fastep-s1"), 1))["mirror-x"].robots[0] \
+        .initial == {}
