@@ -496,3 +496,33 @@ def test_a_failed_claim_without_the_other_planners_number_is_still_judged():
     verdict, detail = row_verdict(protocol, protocol.claims[1], pd.DataFrame(rows),
                                   "hybridnav profile", protocol.rows[0])
     assert verdict is False and "aco-kinematic -" in detail
+
+
+def test_a_stuck_claim_needs_runs_that_were_trapped_not_runs_that_crashed():
+    """'LbCS is trapped in the local minimum': reaching in no run is not being trapped when the
+    runs collided (formerly any share of 0 reached held)."""
+    from hybridnav.reproduce.report import row_verdict
+
+    protocol = PROTOCOLS["aco-table5"]
+    claim = next(c for c in protocol.claims if c.kind == "stuck")
+    row = next(r for r in protocol.rows if r.label in claim.rows)
+
+    def verdict(**counts):
+        base = {"planner": "lbcs", "scenario": row.scenario, "robots": 30, "units": "m",
+                "success_rate": 0.0, "stuck": 0, "timeout": 0, "collided": 0,
+                "out_of_bounds": 0}
+        return row_verdict(protocol, claim, pd.DataFrame([{**base, **counts}]),
+                           "hybridnav profile", row)
+
+    assert verdict(stuck=30)[0] is True
+    assert verdict(stuck=20, timeout=10)[0] is True
+    crashed = verdict(collided=30)
+    assert crashed[0] is False and "stuck 0/30, reached 0, collided 30" in crashed[1]
+    assert verdict(stuck=29, collided=1)[0] is False
+    assert verdict(stuck=29, success_rate=1 / 30)[0] is False
+    # the paper's numbers: its outcome must be "stuck", not any failure
+    assert row_verdict(protocol, claim, None, "paper", row)[0] is True
+    import dataclasses
+
+    other = dataclasses.replace(row, paper={**row.paper, "lbcs": Value(outcome="collided")})
+    assert row_verdict(protocol, claim, None, "paper", other)[0] is False
