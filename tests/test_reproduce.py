@@ -526,3 +526,29 @@ def test_a_stuck_claim_needs_runs_that_were_trapped_not_runs_that_crashed():
 
     other = dataclasses.replace(row, paper={**row.paper, "lbcs": Value(outcome="collided")})
     assert row_verdict(protocol, claim, None, "paper", other)[0] is False
+
+
+def test_a_claim_whose_second_planner_alone_is_swept_is_judged_at_every_value():
+    """HAPF (no sensor, run once) against EFFC (swept over the lidar noise): every noise level
+    is a case, each with the p-value column of EFFC at that level (formerly StopIteration)."""
+    import dataclasses
+
+    from hybridnav.reproduce.report import row_verdict
+
+    base = PROTOCOLS["effc-turtlebot"]
+    protocol = dataclasses.replace(base, claims=(Claim("HAPF is shorter", "shorter", "hapf",
+                                                       "effc"),))
+    values = base.sweep[1]
+    rows = [{"planner": "hapf", "scenario": "turtlebot-office", "robots": 10, "units": "m",
+             "success_rate": 1.0, "path_length_mean": 5.0,
+             **{f"path_length_p_vs_effc/sensor_noise={v:g}": (0.01 if v != values[-1] else 0.5)
+                for v in values}}]
+    rows += [{"planner": f"effc/sensor_noise={v:g}", "scenario": "turtlebot-office",
+              "robots": 10, "units": "m", "success_rate": 1.0, "path_length_mean": 6.0}
+             for v in values]
+    verdict, detail = row_verdict(protocol, protocol.claims[0], pd.DataFrame(rows),
+                                  "hybridnav profile", protocol.rows[0])
+    assert verdict is None                     # the last level is not significant
+    assert detail.count("sensor_noise = ") == len(values)
+    assert f"sensor_noise = {values[-1]:g}: 5 vs 6, p = 0.5 >= 0.05" in detail
+    assert f"sensor_noise = {values[0]:g}: 5 vs 6, p = 0.01" in detail

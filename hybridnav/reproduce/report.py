@@ -228,9 +228,15 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
     if view == "paper":
         cases = [(row.label, row.paper.get(claim.a), row.paper.get(claim.b), "")]
     else:                       # per sweep value of a (b at the same value, or its only one)
+        levels_a = _levels(protocol, claim.a, view)
+        levels_b = _levels(protocol, claim.b, view) if claim.b else [(None, "")]
+        if levels_a[0][0] is None and levels_b[0][0] is not None:
+            pairs = [(level, levels_a[0][1], lb) for level, lb in levels_b]   # only b swept
+        else:
+            pairs = [(level, la, _at_level(protocol, claim.b, view, level) if claim.b else "")
+                     for level, la in levels_a]
         cases = []
-        for level, la in _levels(protocol, claim.a, view):
-            lb = _at_level(protocol, claim.b, view, level) if claim.b else ""
+        for level, la, lb in pairs:
             cases.append((_where(protocol, row, level), ours(summary, la, row.scenario),
                           ours(summary, lb, row.scenario) if claim.b else None, lb))
     verdicts, parts = [], []
