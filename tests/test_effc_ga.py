@@ -206,3 +206,25 @@ def test_the_stored_experiment_renders_and_without_its_timing(tmp_path):
     (folder / "experiment.json").write_text(_json_edit(elapsed_s=None)(
         (folder / "experiment.json").read_text()))
     assert " min with " not in tuning.render_experiment(folder).splitlines()[0]
+
+
+@pytest.mark.parametrize("name", ["effc-ga", "effc-table3"])
+@pytest.mark.parametrize("runs", [math.nan, math.inf, -math.inf, 2.5, True, "3", 0])
+def test_hostile_runs_are_named_errors_before_any_work(tmp_path, name, runs):
+    """NaN and inf used to escape as ValueError / OverflowError from int()."""
+    with pytest.raises(HybridnavError, match="--runs: expected a positive integer"):
+        reproduce(name, tmp_path, runs=runs)
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("layouts", [math.nan, math.inf, -1, 101, 1.5, True])
+def test_hostile_layout_counts_are_named_errors(tmp_path, layouts):
+    with pytest.raises(HybridnavError, match=r"--layouts: expected an integer in \[0, 100\]"):
+        reproduce("effc-table3", tmp_path, layouts=layouts)
+
+
+def test_layouts_with_effc_ga_are_refused_not_ignored(tmp_path, capsys):
+    with pytest.raises(HybridnavError, match="effc-ga: --layouts: this target judges"):
+        reproduce("effc-ga", tmp_path, layouts=2)
+    assert main(["reproduce", "effc-ga", "--layouts", "0", "-o", str(tmp_path)]) == 2
+    assert "--layouts: this target judges generated world sets" in capsys.readouterr().err

@@ -176,9 +176,9 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
     from hybridnav.tuner.run import run_job
 
     experiment = EXPERIMENTS[name]
-    n = experiment.runs if runs is None else runs
-    if isinstance(n, bool) or int(n) != n or n < 1:
-        raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
+    from hybridnav.reproduce import _check_count
+
+    n = experiment.runs if runs is None else _check_count("--runs", runs, 1)
     out = Path(out)
     tic = time.perf_counter()
     worlds = _worlds(experiment, seed)       # fail on a bad set before any tuning
