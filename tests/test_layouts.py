@@ -222,3 +222,31 @@ def test_a_heading_left_out_is_mirrored_too():
     # a point mass has no heading: nothing is added
     assert dict(perturbed_layouts(load_scenario("fastep-s1"), 1))["mirror-x"].robots[0] \
         .initial == {}
+
+
+def test_stored_verdicts_must_be_layouts_of_the_rows_they_name(tmp_path):
+    """A layout tag that is none of the family (a README marker smuggled into the block), a
+    scenario that is not the row's, a row the claim does not cover, or the same layout twice
+    (counted twice in the share) is refused."""
+    protocol = PROTOCOLS["effc-table3"]
+    head = "claim,text,row,scenario,layout,view,verdict,detail\n"
+    good = "0,t,environment (a),effc-env-a,mirror-x,hybridnav profile,False,d\n"
+    (tmp_path / "layouts.csv").write_text(head + good + good.replace("mirror-x", "jitter-12"))
+    assert load_layouts(tmp_path, protocol)["layout"].tolist() == ["mirror-x", "jitter-12"]
+    for rows, what in (
+            (good.replace("mirror-x", '"a | b\n<!-- /reproduce:effc-table3 -->"'),
+             "layout: expected mirror-x, mirror-y, start\\+, start- or jitter-<k>"),
+            (good.replace("mirror-x", "jitter-0"), "layout: expected"),
+            (good.replace(",effc-env-a,", ",effc-env-b,"),
+             r"scenario: expected effc-env-a \(the scenario of row 'environment \(a\)'\)"),
+            (good + good.replace(",False,", ",True,"),
+             "layout: expected one verdict per claim, row, layout and view")):
+        (tmp_path / "layouts.csv").write_text(head + rows)
+        with pytest.raises(HybridnavError, match=r"layouts\.csv: " + what):
+            load_layouts(tmp_path, protocol)
+    aco = PROTOCOLS["aco-table5"]
+    stuck = next(i for i, c in enumerate(aco.claims) if c.kind == "stuck")
+    (tmp_path / "layouts.csv").write_text(
+        head + f"{stuck},t,scenario 1,fastep-s1,mirror-x,hybridnav profile,True,d\n")
+    with pytest.raises(HybridnavError, match=r"row: expected a row of claim \d \(scenario 4\)"):
+        load_layouts(tmp_path, aco)

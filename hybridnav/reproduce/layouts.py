@@ -51,7 +51,7 @@ if TYPE_CHECKING:                            # the command line imports this mod
 
     from hybridnav.world import Scenario
 
-__all__ = ["JITTER", "LAYOUTS", "LAYOUT_FILE", "LAYOUT_RUNS", "MAX_LAYOUTS", "TRIES", "failing_rows", "layout_sensitivity",
+__all__ = ["JITTER", "LAYOUTS", "LAYOUT_FILE", "LAYOUT_RUNS", "LAYOUT_TAG", "MAX_LAYOUTS", "TRIES", "failing_rows", "layout_sensitivity",
            "perturbed_layouts", "sensitivity_section"]
 
 #: perturbed layouts per row (the CLI's ``--layouts``; 0: no sensitivity runs)
@@ -62,8 +62,10 @@ MAX_LAYOUTS = 100
 LAYOUT_RUNS = 5
 #: how far starts and obstacles move, as a fraction of the start-goal distance
 JITTER = 0.05
+#: a perturbed layout's tag
+LAYOUT_TAG = re.compile(r"mirror-[xy]|start[+-]|jitter-[1-9]\d*")
 #: the file name of a written layout: ``<scenario>.<tag>.toml``
-LAYOUT_FILE = re.compile(r"[\w-]+\.(mirror-[xy]|start[+-]|jitter-\d+)\.toml")
+LAYOUT_FILE = re.compile(rf"[\w-]+\.({LAYOUT_TAG.pattern})\.toml")
 #: draws per jittered layout before it is given up
 TRIES = 20
 

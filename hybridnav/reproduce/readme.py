@@ -125,6 +125,28 @@ def load_layouts(folder: str | Path, protocol) -> pd.DataFrame | None:
             i = int(bad.to_numpy().nonzero()[0][0])
             raise HybridnavError(f"{path}: {col}: expected {what}, got "
                                  f"{short_repr(table[col].iloc[i])} in row {i + 2}")
+    from hybridnav.reproduce.layouts import LAYOUT_TAG
+
+    scenario_of = {row.label: row.scenario for row in protocol.rows}
+    seen: set[tuple[str, ...]] = set()
+    for i, r in enumerate(table.itertuples(index=False)):
+        where = f"in row {i + 2}"
+        if not LAYOUT_TAG.fullmatch(r.layout):
+            raise HybridnavError(f"{path}: layout: expected mirror-x, mirror-y, start+, start- "
+                                 f"or jitter-<k>, got {short_repr(r.layout)} {where}")
+        if r.scenario != scenario_of[r.row]:
+            raise HybridnavError(f"{path}: scenario: expected {scenario_of[r.row]} (the scenario "
+                                 f"of row {r.row!r}), got {short_repr(r.scenario)} {where}")
+        claim = protocol.claims[int(r.claim)]
+        if claim.rows and r.row not in claim.rows:
+            raise HybridnavError(f"{path}: row: expected a row of claim {r.claim} "
+                                 f"({', '.join(claim.rows)}), got {short_repr(r.row)} {where}")
+        key = (r.claim, r.row, r.layout, r.view)
+        if key in seen:                     # counted twice, the share of layouts would be off
+            raise HybridnavError(f"{path}: layout: expected one verdict per claim, row, layout "
+                                 f"and view, got {r.layout!r} of claim {r.claim}, {r.row!r}, "
+                                 f"{r.view!r} again {where}")
+        seen.add(key)
     table["claim"] = table["claim"].astype(int)
     table["verdict"] = table["verdict"].map(_VERDICTS).astype(object)
     return table
