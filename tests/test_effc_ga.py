@@ -186,6 +186,13 @@ def _json_edit(**changes):
      "heldout_summary.csv: ci_low: missing column"),
     ("heldout_summary.csv", lambda t: t.replace("training,start,2,2,", "training,start,2,x,"),
      "heldout_summary.csv: reached: expected a count, got 'x' in row 2"),
+    # text shown in README's tables: no closing marker smuggled into the block
+    ("verdicts.csv", lambda t: t.replace("NOT ready", "| <!-- /reproduce:effc-ga -->", 1),
+     "verdicts.csv: headline: expected one line of text without '\\|' or markup"),
+    ("heldout_summary.csv", lambda t: t.replace("training,start", "training,<!-- x -->", 1),
+     "heldout_summary.csv: system: expected start, deploy, apf or <profile>/seed<k>"),
+    ("heldout_summary.csv", lambda t: t.replace("training,start", "trainin,start", 1),
+     "heldout_summary.csv: set: expected one of the sets training, comparison, held-out"),
 ])
 def test_a_damaged_stored_experiment_is_a_named_error(tmp_path, capsys, file, edit, message):
     folder, readme = _stored_copy(tmp_path)

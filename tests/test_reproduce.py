@@ -552,3 +552,29 @@ def test_a_claim_whose_second_planner_alone_is_swept_is_judged_at_every_value():
     assert detail.count("sensor_noise = ") == len(values)
     assert f"sensor_noise = {values[-1]:g}: 5 vs 6, p = 0.5 >= 0.05" in detail
     assert f"sensor_noise = {values[0]:g}: 5 vs 6, p = 0.01" in detail
+
+
+@pytest.mark.parametrize("column, value, message", [
+    ("units", "m |\n<!-- /reproduce:psoba-fig15 -->", "units: expected a length unit"),
+    ("planner", "evil <!-- reproduce:x -->", "planner: expected one of the protocol's variants"),
+])
+def test_stored_summary_text_cannot_break_the_readme(tmp_path, capsys, column, value, message):
+    """Text of summary.csv shown in README (units, variant labels) is checked: a README marker in
+    it used to be written into the block, breaking every later --update-readme."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "store" / "psoba-fig15"
+    shutil.copytree(root / STORE / "psoba-fig15", folder)
+    summary = pd.read_csv(folder / "summary.csv")
+    summary.loc[0, column] = value
+    summary.to_csv(folder / "summary.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:psoba-fig15 -->\nold\n<!-- /reproduce:psoba-fig15 -->\n")
+    assert main(["reproduce", "--update-readme", "--reports", str(tmp_path / "store"),
+                 "--readme", str(readme)]) == 2
+    assert f"summary.csv: {message}" in capsys.readouterr().err
+    assert readme.read_text().count("reproduce:") == 2

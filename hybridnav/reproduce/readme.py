@@ -157,6 +157,9 @@ _READ_COLUMNS = ("units", "path_length_mean", "time_to_goal_mean", "path_length_
                  "path_length_ci95_lo", "path_length_ci95_hi", "best_path_length",
                  "best_time_to_goal", "min_clearance_min", "min_clearance_mean")
 
+#: a stored summary's length unit (text the README shows: no markup)
+_UNITS = re.compile(r"[^\W\d_]{0,16}")
+
 #: Columns of a stored summary that hold text; every other column holds numbers (or is empty)
 _TEXT_COLUMNS = ("planner", "scenario", "units")
 
@@ -203,6 +206,19 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
         row = int((~(np.isfinite(robots) & (robots >= 0))).argmax())
         raise HybridnavError(f"{path}: robots: expected a count, got "
                              f"{short_repr(float(robots.iloc[row]))} in row {row + 2}")
+    from hybridnav.reproduce.variants import variants
+
+    labels = [label for label, _, _ in variants(protocol)]
+    for col, ok, what in (
+            ("planner", lambda v: v in labels,
+             f"one of the protocol's variants ({', '.join(labels)})"),
+            ("units", lambda v: v == "nan" or _UNITS.fullmatch(v) is not None,
+             "a length unit (letters, at most 16)")):
+        bad = ~summary[col].map(ok)
+        if bad.any():
+            row = int(bad.argmax())
+            raise HybridnavError(f"{path}: {col}: expected {what}, got "
+                                 f"{short_repr(summary[col].iloc[row])} in row {row + 2}")
     missing = [r.scenario for r in protocol.rows if r.scenario not in set(summary["scenario"])]
     if missing:
         raise HybridnavError(f"{path}: scenario: expected rows for the protocol's "

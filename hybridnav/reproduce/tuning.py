@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -374,6 +375,8 @@ _META = {"version": ("", "package version"), "runs": (1, "GA runs per profile"),
 _SUMMARY_TEXT = ("set", "system")
 _SUMMARY_COUNTS = ("worlds", "reached", "collided", "out_of_bounds")
 _SUMMARY_REALS = ("ci_low", "ci_high", "min_clearance_reached", "common_length")
+#: text a stored table may put into a README table cell: one line, no cell bar, no markup
+_PLAIN = re.compile(r"[^|<>`\n\r]*")
 #: the columns of a stored ``verdicts.csv``
 _VERDICT_COUNTS = ("training_reached", "training_worlds", "heldout_reached", "start_reached",
                    "worlds", "only_tuned", "only_start", "collisions", "start_collisions")
@@ -492,6 +495,16 @@ def load_experiment(folder: str | Path):
     spath = folder / "heldout_summary.csv"
     summary = _csv(spath, "held-out summary")
     _columns(spath, summary, _SUMMARY_TEXT, _SUMMARY_COUNTS, _SUMMARY_REALS)
+    systems = re.compile("|".join([*map(re.escape, experiment.beside), "apf",
+                                   *(rf"{re.escape(p)}/seed\d+" for p in experiment.profiles)]))
+    for col, ok, what in (("set", lambda v: v in experiment.sets,
+                           f"one of the sets {', '.join(experiment.sets)}"),
+                          ("system", lambda v: systems.fullmatch(v) is not None,
+                           "start, deploy, apf or <profile>/seed<k>")):
+        for i, v in enumerate(summary[col]):
+            if not ok(v):
+                raise HybridnavError(f"{spath}: {col}: expected {what}, got {short_repr(v)} in "
+                                     f"row {i + 2}")
     for i, (k, n) in enumerate(zip(summary["reached"], summary["worlds"])):
         if k > n:
             raise HybridnavError(f"{spath}: reached: expected at most worlds ({n}), got {k} in "
@@ -527,6 +540,9 @@ def load_experiment(folder: str | Path):
             raise HybridnavError(f"{vpath}: p_vs_start: expected the exact McNemar p of "
                                  f"only_tuned and only_start ({p:.6g}), got "
                                  f"{short_repr(r['p_vs_start'])} {row}")
+        if not _PLAIN.fullmatch(r["headline"]):     # shown in a table row of README
+            raise HybridnavError(f"{vpath}: headline: expected one line of text without '|' "
+                                 f"or markup, got {short_repr(r['headline'])} {row}")
         if r["ready"] not in ("True", "False"):
             raise HybridnavError(f"{vpath}: ready: expected True or False, got "
                                  f"{short_repr(r['ready'])} {row}")
