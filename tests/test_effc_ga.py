@@ -156,11 +156,15 @@ def _json_edit(**changes):
 @pytest.mark.parametrize("file, edit, message", [
     ("experiment.json", lambda t: "{not json", "experiment.json: expected the experiment.json"),
     ("experiment.json", lambda t: "[]", "experiment.json: expected a JSON object, got list"),
-    ("experiment.json", _json_edit(version=None), "experiment.json: version: expected a string"),
+    ("experiment.json", _json_edit(version=None), "experiment.json: version: expected a version number, got None"),
     ("experiment.json", _json_edit(elapsed_s="x"), "experiment.json: elapsed_s: expected"),
     ("experiment.json", _json_edit(runs=0), "experiment.json: runs: expected"),
     ("experiment.json", _json_edit(sets=5), "experiment.json: sets: expected a table"),
     ("experiment.json", _json_edit(workers=[1]), "experiment.json: workers: expected"),
+    ("experiment.json", _json_edit(load="1\n<!-- /reproduce:effc-ga -->"),
+     "experiment.json: load: expected a worker count or one line of plain text"),
+    ("experiment.json", _json_edit(version="1 <!-- x -->"),
+     "experiment.json: version: expected a version number"),
     ("verdicts.csv", lambda t: "", "verdicts.csv: expected the GA runs' verdicts"),
     ("verdicts.csv", lambda t: t.splitlines()[0] + "\n", "verdicts.csv: expected a row per"),
     ("verdicts.csv", lambda t: t.replace("p_vs_start", "pv"), "verdicts.csv: p_vs_start: "

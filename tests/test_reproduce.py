@@ -578,3 +578,24 @@ def test_stored_summary_text_cannot_break_the_readme(tmp_path, capsys, column, v
                  "--readme", str(readme)]) == 2
     assert f"summary.csv: {message}" in capsys.readouterr().err
     assert readme.read_text().count("reproduce:") == 2
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("load", "1\n<!-- /reproduce:psoba-fig15 -->", "load: expected a worker count or one line"),
+    ("workers", True, "workers: expected a worker count"),
+    ("version", "0.2 <!-- reproduce:x -->", "version: expected a version number"),
+])
+def test_stored_settings_shown_in_the_readme_are_plain_text(tmp_path, key, value, message):
+    import json
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, render
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "psoba-fig15"
+    shutil.copytree(root / STORE / "psoba-fig15", folder)
+    meta = json.loads((folder / "comparison.json").read_text())
+    (folder / "comparison.json").write_text(json.dumps({**meta, key: value}))
+    with pytest.raises(HybridnavError, match=f"comparison.json: {message}"):
+        render(folder)

@@ -24,7 +24,7 @@ from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.params import Param, short_repr
 from hybridnav.reproduce.protocols import PROTOCOLS
 
-__all__ = ["STORE", "blocks", "load_layouts", "load_stored", "render", "rewrite_report",
+__all__ = ["STORE", "blocks", "check_shown", "load_layouts", "load_stored", "render", "rewrite_report",
            "update_readme"]
 
 #: where the full runs are kept, relative to the repository's root
@@ -35,7 +35,8 @@ _BLOCK = re.compile(r"<!-- reproduce:(?P<name>[\w-]+) -->\r?\n(?P<body>.*?)"
 _OPEN = re.compile(r"<!-- reproduce:([\w-]+) -->")
 
 #: the keys of a stored run's comparison.json that the README and the report read
-_STORED = {"version": Param("", "package version"), "runs": Param(1, "runs", lo=1),
+_STORED = {"version": Param("", "package version", pattern=r"[\w.+-]{1,64}",
+                           expected="a version number"), "runs": Param(1, "runs", lo=1),
            "seed": Param(0, "base seed"), "elapsed_s": Param(0.0, "wall time (s)", lo=0.0),
            "scenarios": Param([], "the protocol's scenarios"),
            "layout_runs": Param(0, "runs per planner and perturbed layout", lo=0)}
@@ -71,6 +72,7 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     for key, param in _STORED.items():
         if key in meta or key not in _OPTIONAL:
             meta[key] = param.check(key, meta.get(key), f"{meta_path}: ")
+    check_shown(meta_path, meta)
     rows = [row.scenario for row in PROTOCOLS[name].rows]
     if meta["scenarios"] != rows:
         raise HybridnavError(f"{meta_path}: scenarios: expected the protocol's "
@@ -84,6 +86,20 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
         raise HybridnavError(f"{path}: expected the summary of a reproduction (a CSV table): "
                              f"{short_repr(str(exc), 200)}") from None
     return name, _check_summary(path, summary, PROTOCOLS[name]), meta
+
+
+def check_shown(path: Path, meta: dict) -> None:
+    """The free-form keys of a stored run's settings that README shows (``workers``: a count or
+    ``dask ADDRESS``; ``load``: the load averages): one line of plain text each."""
+    for key in ("workers", "load"):
+        if key not in meta:
+            continue
+        v = meta[key]
+        ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 1) or (
+            isinstance(v, str) and re.fullmatch(r"[^|<>`\n\r]{0,200}", v) is not None)
+        if not ok:
+            raise HybridnavError(f"{path}: {key}: expected a worker count or one line of plain "
+                                 f"text, got {short_repr(v)}")
 
 
 _VERDICTS = {"True": True, "False": False, "": None}

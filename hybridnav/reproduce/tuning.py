@@ -458,6 +458,7 @@ def load_experiment(folder: str | Path):
 
     from hybridnav.fileio import read_text_file
     from hybridnav.params import Param, short_repr
+    from hybridnav.reproduce.readme import check_shown
 
     folder = Path(folder)
     path = folder / "experiment.json"
@@ -479,18 +480,16 @@ def load_experiment(folder: str | Path):
         if key == "elapsed_s" and key not in meta:
             continue                            # optional: the timing is then left out
         lo = 1 if key == "runs" else 0 if key != "version" else None
-        meta[key] = Param(default, doc, lo=lo).check(key, meta.get(key), f"{path}: ")
+        extra = {"pattern": r"[\w.+-]{1,64}", "expected": "a version number"} \
+            if key == "version" else {}
+        meta[key] = Param(default, doc, lo=lo, **extra).check(key, meta.get(key), f"{path}: ")
     sets = meta.get("sets")
     if not isinstance(sets, dict) or not sets or not all(
             isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) and v >= 0
             for k, v in sets.items()):
         raise HybridnavError(f"{path}: sets: expected a table of world counts by set, got "
                              f"{short_repr(sets)}")
-    for key in ("workers", "load"):
-        if key in meta and (not isinstance(meta[key], (str, int))
-                            or isinstance(meta[key], bool)):
-            raise HybridnavError(f"{path}: {key}: expected a number or text, got "
-                                 f"{short_repr(meta[key])}")
+    check_shown(path, meta)
 
     spath = folder / "heldout_summary.csv"
     summary = _csv(spath, "held-out summary")
