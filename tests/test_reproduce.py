@@ -599,3 +599,29 @@ def test_stored_settings_shown_in_the_readme_are_plain_text(tmp_path, key, value
     (folder / "comparison.json").write_text(json.dumps({**meta, key: value}))
     with pytest.raises(HybridnavError, match=f"comparison.json: {message}"):
         render(folder)
+
+
+@pytest.mark.parametrize("column, value", [("collided", None), ("stuck", None),
+                                           ("robot_contacts", None), ("collided", 999),
+                                           ("timeout", -1), ("out_of_bounds", 1.5)])
+def test_stored_outcome_counts_must_be_counts(tmp_path, capsys, column, value):
+    """An empty or impossible outcome count (formerly a ValueError from int(nan) in the safety
+    table, or a count above the robots run) is a named error."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "store" / "aco-case-studies"
+    shutil.copytree(root / STORE / "aco-case-studies", folder)
+    summary = pd.read_csv(folder / "summary.csv")
+    summary[column] = summary[column].astype(object)
+    summary.loc[0, column] = value
+    summary.to_csv(folder / "summary.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:aco-case-studies -->\n<!-- /reproduce:aco-case-studies -->\n")
+    assert main(["reproduce", "--update-readme", "--reports", str(tmp_path / "store"),
+                 "--readme", str(readme)]) == 2
+    err = capsys.readouterr().err
+    assert f"summary.csv: {column}: expected a count of at most the row's robots" in err

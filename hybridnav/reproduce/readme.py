@@ -169,9 +169,12 @@ def load_layouts(folder: str | Path, protocol) -> pd.DataFrame | None:
 
 
 #: the metric columns the README block and the report read (``summarize_runs`` writes them all)
-_READ_COLUMNS = ("units", "path_length_mean", "time_to_goal_mean", "path_length_median",
+_READ_COLUMNS = ("units", "collided", "stuck", "timeout", "out_of_bounds", "path_length_mean", "time_to_goal_mean", "path_length_median",
                  "path_length_ci95_lo", "path_length_ci95_hi", "best_path_length",
                  "best_time_to_goal", "min_clearance_min", "min_clearance_mean")
+
+#: outcome counts of a stored summary (robots x runs; ``robot_contacts`` where recorded)
+_COUNT_COLUMNS = ("collided", "stuck", "timeout", "out_of_bounds", "robot_contacts")
 
 #: a stored summary's length unit (text the README shows: no markup)
 _UNITS = re.compile(r"[^\W\d_]{0,16}")
@@ -219,9 +222,20 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
                              f"{short_repr(float(rate.iloc[row]))} in row {row + 2}")
     robots = summary["robots"]
     if not (np.isfinite(robots) & (robots >= 0) & (robots == np.round(robots))).all():
-        row = int((~(np.isfinite(robots) & (robots >= 0))).argmax())
+        row = int((~(np.isfinite(robots) & (robots >= 0) & (robots == np.round(robots))))
+                  .argmax())
         raise HybridnavError(f"{path}: robots: expected a count, got "
                              f"{short_repr(float(robots.iloc[row]))} in row {row + 2}")
+    for col in _COUNT_COLUMNS:               # outcome counts: of the row's robots
+        if col not in summary.columns:
+            continue
+        v = summary[col]
+        ok = np.isfinite(v) & (v >= 0) & (v == np.round(v)) & (v <= robots)
+        if not ok.all():
+            row = int((~ok).argmax())
+            raise HybridnavError(f"{path}: {col}: expected a count of at most the row's robots "
+                                 f"({int(robots.iloc[row])}), got "
+                                 f"{short_repr(float(v.iloc[row]))} in row {row + 2}")
     from hybridnav.reproduce.variants import variants
 
     labels = [label for label, _, _ in variants(protocol)]
