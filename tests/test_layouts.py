@@ -143,6 +143,7 @@ def test_reproduce_writes_the_layout_table_and_the_readme_renders_it(tmp_path, c
     # --layouts 0: no table, and the earlier run's verdicts are gone
     reproduce("effc-table3", out, runs=1, layouts=0, scenarios=["effc-env-a"])
     assert not (out / "layouts.csv").exists()
+    assert not list((out / "layouts").glob("*.toml"))        # nor the earlier layouts
     assert "## Layout sensitivity" not in (out / "report.md").read_text()
 
 

@@ -161,6 +161,12 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
     else:                                    # an earlier run's verdicts are not this run's
         for stale in ("layouts.csv", "layouts_summary.csv"):
             (out / stale).unlink(missing_ok=True)
+        from hybridnav.reproduce.layouts import LAYOUT_FILE
+
+        if (out / "layouts").is_dir():       # nor its layouts (only names we write)
+            for old in (out / "layouts").glob("*.toml"):
+                if LAYOUT_FILE.fullmatch(old.name) and old.name.split(".")[0] in scenarios:
+                    old.unlink()
     claims = check_claims(protocol, summary)
     write_report(Path(out) / "report.md", protocol, summary, claims, runs=int(n), seed=seed,
                  version=__version__, files=files, layouts=verdicts, layout_runs=layout_runs)
