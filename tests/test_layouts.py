@@ -251,3 +251,29 @@ def test_stored_verdicts_must_be_layouts_of_the_rows_they_name(tmp_path):
         head + f"{stuck},t,scenario 1,fastep-s1,mirror-x,hybridnav profile,True,d\n")
     with pytest.raises(HybridnavError, match=r"row: expected a row of claim \d \(scenario 4\)"):
         load_layouts(tmp_path, aco)
+
+
+def test_stored_verdicts_need_the_runs_per_layout_beside_them(tmp_path):
+    """layouts.csv in a stored run whose comparison.json has no layout_runs (or 0) would render
+    "0 run(s) per planner and layout" beside verdicts: refused."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, render
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "effc-table3"
+    shutil.copytree(root / STORE / "effc-table3", folder)
+    (folder / "layouts.csv").write_text(
+        "claim,text,row,scenario,layout,view,verdict,detail\n"
+        "0,t,environment (a),effc-env-a,mirror-x,hybridnav profile,False,d\n")
+    meta = json.loads((folder / "comparison.json").read_text())
+    for runs in (None, 0):
+        (folder / "comparison.json").write_text(json.dumps(
+            {k: v for k, v in {**meta, "layout_runs": runs}.items() if v is not None}))
+        with pytest.raises(HybridnavError, match="comparison.json: layout_runs: expected the "
+                                                 "runs per planner and layout"):
+            render(folder)
+    (folder / "comparison.json").write_text(json.dumps({**meta, "layout_runs": 3}))
+    assert "(3 run(s) per planner and layout)" in render(folder)

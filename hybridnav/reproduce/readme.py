@@ -256,6 +256,17 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
     return summary
 
 
+def _stored_layouts(folder: Path, protocol, meta: dict) -> pd.DataFrame | None:
+    """:func:`load_layouts`, with the runs per layout its table states: a stored run with
+    layout verdicts has ``layout_runs >= 1`` in its ``comparison.json``."""
+    table = load_layouts(folder, protocol)
+    if table is not None and not meta.get("layout_runs", 0) >= 1:
+        raise HybridnavError(f"{Path(folder) / 'comparison.json'}: layout_runs: expected the "
+                             "runs per planner and layout (at least 1) beside layouts.csv, got "
+                             f"{short_repr(meta.get('layout_runs'))}")
+    return table
+
+
 def render(folder: str | Path) -> str:
     """The README block of the stored reproduction in ``folder``: how it was run, the paper's
     numbers beside ours per profile, and the paper's claims checked (as in its ``report.md``).
@@ -291,7 +302,7 @@ def render(folder: str | Path) -> str:
     lines += literature_line(protocol)
     lines += claims_section(check_claims(protocol, summary), level=4,
                             profiles=has_profiles(protocol))
-    lines += sensitivity_section(protocol, load_layouts(folder, protocol), summary,
+    lines += sensitivity_section(protocol, _stored_layouts(folder, protocol, meta), summary,
                                  runs=meta.get("layout_runs", 0), level=4,
                                  profiles=has_profiles(protocol))
     return "\n".join(lines)
@@ -309,7 +320,7 @@ def rewrite_report(folder: str | Path) -> Path:
     write_report(folder / "report.md", protocol, summary, check_claims(protocol, summary),
                  runs=meta["runs"], seed=meta["seed"], version=meta["version"],
                  files=[f.name for f in folder.iterdir()],
-                 layouts=load_layouts(folder, protocol),
+                 layouts=_stored_layouts(folder, protocol, meta),
                  layout_runs=meta.get("layout_runs", 0))
     return folder / "report.md"
 
