@@ -123,6 +123,8 @@ def test_effc_ga_runs_end_to_end_with_one_run(tmp_path, capsys, monkeypatch):
     assert head.index("collided") < head.index("reached") < head.index("length")
     for profile in ("paper", "intended"):
         assert (out / "tuning" / f"{profile}-seed4" / "fis.json").exists()
+    # what run_experiment writes is what load_experiment accepts (the README block renders)
+    assert "#### The paper's claims" in tuning.render_experiment(out)
 
 
 def _stored_copy(tmp_path):
