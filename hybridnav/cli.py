@@ -638,7 +638,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="runs per planner and scenario (default: the paper's number)")
     p.add_argument("--scenarios", help="comma-separated: only these of the protocol's scenarios")
     p.add_argument("--seed", type=_SEED, default=0, help="seed from which every run's seed derives")
-    p.add_argument("--layouts", type=_LAYOUTS, default=LAYOUTS,
+    p.add_argument("--layouts", type=_LAYOUTS, default=None,
                    help="perturbed layouts per row where a claim does not hold in our runs "
                         f"(layout sensitivity; default {LAYOUTS}, 0: none)")
     backend = p.add_mutually_exclusive_group()

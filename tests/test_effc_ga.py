@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import math
+import re
 
 import pandas as pd
 import pytest
@@ -122,3 +123,121 @@ def test_effc_ga_runs_end_to_end_with_one_run(tmp_path, capsys, monkeypatch):
     assert head.index("collided") < head.index("reached") < head.index("length")
     for profile in ("paper", "intended"):
         assert (out / "tuning" / f"{profile}-seed4" / "fis.json").exists()
+    # what run_experiment writes is what load_experiment accepts (the README block renders)
+    assert "#### The paper's claims" in tuning.render_experiment(out)
+
+
+def _stored_copy(tmp_path):
+    """A copy of the stored effc-ga run (without its GA runs' folders) and a README block."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    store = tmp_path / "store"
+    shutil.copytree(root / STORE / "effc-ga", store / "effc-ga",
+                    ignore=shutil.ignore_patterns("tuning"))
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:effc-ga -->\nold\n<!-- /reproduce:effc-ga -->\n")
+    return store / "effc-ga", readme
+
+
+def _json_edit(**changes):
+    def edit(text):
+        meta = json.loads(text)
+        for k, v in changes.items():
+            if v is None:
+                meta.pop(k, None)
+            else:
+                meta[k] = v
+        return json.dumps(meta)
+    return edit
+
+
+@pytest.mark.parametrize("file, edit, message", [
+    ("experiment.json", lambda t: "{not json", "experiment.json: expected the experiment.json"),
+    ("experiment.json", lambda t: "[]", "experiment.json: expected a JSON object, got list"),
+    ("experiment.json", _json_edit(version=None), "experiment.json: version: expected a version number, got None"),
+    ("experiment.json", _json_edit(elapsed_s="x"), "experiment.json: elapsed_s: expected"),
+    ("experiment.json", _json_edit(runs=0), "experiment.json: runs: expected"),
+    ("experiment.json", _json_edit(sets=5), "experiment.json: sets: expected a table"),
+    ("experiment.json", _json_edit(workers=[1]), "experiment.json: workers: expected"),
+    ("experiment.json", _json_edit(load="1\n<!-- /reproduce:effc-ga -->"),
+     "experiment.json: load: expected a worker count or one line of plain text"),
+    ("experiment.json", _json_edit(version="1 <!-- x -->"),
+     "experiment.json: version: expected a version number"),
+    ("verdicts.csv", lambda t: "", "verdicts.csv: expected the GA runs' verdicts"),
+    ("verdicts.csv", lambda t: t.splitlines()[0] + "\n", "verdicts.csv: expected a row per"),
+    ("verdicts.csv", lambda t: t.replace("p_vs_start", "pv"), "verdicts.csv: p_vs_start: "
+                                                              "missing column"),
+    ("verdicts.csv", lambda t: t.replace(",0.076812744140625,", ",abc,"),
+     "verdicts.csv: p_vs_start: expected a number"),
+    # a p-value that is not its own counts' McNemar p would make a claim hold on its own say
+    ("verdicts.csv", lambda t: t.replace(",0.076812744140625,", ",0.001,"),
+     r"verdicts.csv: p_vs_start: expected the exact McNemar p"),
+    ("verdicts.csv", lambda t: t.replace(",4,12,0.0768", ",40,12,0.0768"),
+     "verdicts.csv: only_tuned: expected the worlds only the tuned system reached"),
+    ("verdicts.csv", lambda t: t.replace("paper/seed0,paper", "paperseed0,paper"),
+     "verdicts.csv: system: expected <profile>/seed<k>"),
+    ("verdicts.csv", lambda t: t.replace("paper/seed0,paper", "other/seed0,other"),
+     "verdicts.csv: profile: expected one of paper, intended"),
+    ("verdicts.csv", lambda t: t.replace(",2,2,28,", ",2,2,2.5,"),
+     "verdicts.csv: heldout_reached: expected a count, got '2.5' in row 2"),
+    ("verdicts.csv", lambda t: t.replace(",False,", ",maybe,", 1),
+     "verdicts.csv: ready: expected True or False"),
+    ("heldout_summary.csv", lambda t: t.splitlines()[0] + "\n",
+     "heldout_summary.csv: expected a row per system"),
+    ("heldout_summary.csv", lambda t: t.replace("ci_low", "x"),
+     "heldout_summary.csv: ci_low: missing column"),
+    ("heldout_summary.csv", lambda t: t.replace("training,start,2,2,", "training,start,2,x,"),
+     "heldout_summary.csv: reached: expected a count, got 'x' in row 2"),
+    # text shown in README's tables: no closing marker smuggled into the block
+    ("verdicts.csv", lambda t: t.replace("NOT ready", "| <!-- /reproduce:effc-ga -->", 1),
+     "verdicts.csv: headline: expected one line of text without '\\|' or markup"),
+    ("heldout_summary.csv", lambda t: t.replace("training,start", "training,<!-- x -->", 1),
+     "heldout_summary.csv: system: expected start, deploy, apf or <profile>/seed<k>"),
+    ("heldout_summary.csv", lambda t: t.replace("training,start", "trainin,start", 1),
+     "heldout_summary.csv: set: expected one of the sets training, comparison, held-out"),
+])
+def test_a_damaged_stored_experiment_is_a_named_error(tmp_path, capsys, file, edit, message):
+    folder, readme = _stored_copy(tmp_path)
+    path = folder / file
+    path.write_text(edit(path.read_text()))
+    assert main(["reproduce", "--update-readme", "--reports", str(folder.parent),
+                 "--readme", str(readme)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hybridnav: error: ") and "Traceback" not in err
+    assert re.search(message, err), err
+    assert "old" in readme.read_text()                        # nothing rewritten
+
+
+def test_the_stored_experiment_renders_and_without_its_timing(tmp_path):
+    folder, readme = _stored_copy(tmp_path)
+    assert tuning.render_experiment(folder).startswith(
+        "Measured by `hybridnav reproduce effc-ga` with hybridnav")
+    (folder / "experiment.json").write_text(_json_edit(elapsed_s=None)(
+        (folder / "experiment.json").read_text()))
+    assert " min with " not in tuning.render_experiment(folder).splitlines()[0]
+
+
+@pytest.mark.parametrize("name", ["effc-ga", "effc-table3"])
+@pytest.mark.parametrize("runs", [math.nan, math.inf, -math.inf, 2.5, True, "3", 0])
+def test_hostile_runs_are_named_errors_before_any_work(tmp_path, name, runs):
+    """NaN and inf used to escape as ValueError / OverflowError from int()."""
+    with pytest.raises(HybridnavError, match="--runs: expected a positive integer"):
+        reproduce(name, tmp_path, runs=runs)
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("layouts", [math.nan, math.inf, -1, 101, 1.5, True])
+def test_hostile_layout_counts_are_named_errors(tmp_path, layouts):
+    with pytest.raises(HybridnavError, match=r"--layouts: expected an integer in \[0, 100\]"):
+        reproduce("effc-table3", tmp_path, layouts=layouts)
+
+
+def test_layouts_with_effc_ga_are_refused_not_ignored(tmp_path, capsys):
+    with pytest.raises(HybridnavError, match="effc-ga: --layouts: this target judges"):
+        reproduce("effc-ga", tmp_path, layouts=2)
+    assert main(["reproduce", "effc-ga", "--layouts", "0", "-o", str(tmp_path)]) == 2
+    assert "--layouts: this target judges generated world sets" in capsys.readouterr().err

@@ -143,6 +143,7 @@ def test_reproduce_writes_the_layout_table_and_the_readme_renders_it(tmp_path, c
     # --layouts 0: no table, and the earlier run's verdicts are gone
     reproduce("effc-table3", out, runs=1, layouts=0, scenarios=["effc-env-a"])
     assert not (out / "layouts.csv").exists()
+    assert not list((out / "layouts").glob("*.toml"))        # nor the earlier layouts
     assert "## Layout sensitivity" not in (out / "report.md").read_text()
 
 
@@ -166,3 +167,113 @@ def test_bad_layout_counts_and_stored_verdicts_are_named_errors(tmp_path, capsys
         (tmp_path / "layouts.csv").write_text(bad)
         with pytest.raises(HybridnavError, match=r"layouts\.csv: " + what.replace("(", r"\(")):
             load_layouts(tmp_path, protocol)
+
+
+def _box(o):
+    if "center" in o:
+        c = np.asarray(o["center"])
+        return c - o["radius"], c + o["radius"]
+    if "min" in o:
+        return np.asarray(o["min"]), np.asarray(o["max"])
+    P = np.asarray(o["points"] if "points" in o else [o["a"], o["b"]])
+    return P.min(axis=0), P.max(axis=0)
+
+
+@pytest.mark.parametrize("name", ["turtlebot-office", "pso-ba-dynamic", "rfd-pso-20m"])
+def test_jittered_obstacles_stay_inside_the_workspace_and_walls_stay_whole(name):
+    """An office's outer walls and the room walls attached to them do not move (moving a piece
+    of a wall opens a doorway the layout does not have, or pushes it out of the workspace), and
+    no jittered obstacle leaves the workspace (formerly: every obstacle of the office moved by
+    up to 0.27 m, its 0.1 m outer walls partly out of the workspace and room walls detached)."""
+    base = load_scenario(name)
+    xmin, xmax, ymin, ymax = base.world.workspace
+    d0 = scenario_to_dict(base)["obstacles"]
+    jitters = [lay for tag, lay in perturbed_layouts(base, 20, seed=0) if "jitter" in tag]
+    assert jitters
+    for lay in jitters:
+        for a, b in zip(d0, scenario_to_dict(lay)["obstacles"]):
+            lo, hi = _box(b)
+            assert lo[0] >= xmin and lo[1] >= ymin and hi[0] <= xmax and hi[1] <= ymax, \
+                (lay.name, b)
+            lo0, hi0 = _box(a)
+            touches_edge = lo0[0] <= xmin or lo0[1] <= ymin or hi0[0] >= xmax or hi0[1] >= ymax
+            if touches_edge:
+                assert a == b, (lay.name, a, b)
+    if name == "turtlebot-office":            # every wall piece stays, the furniture moves
+        moved = {i for lay in jitters
+                 for i, (a, b) in enumerate(zip(d0, scenario_to_dict(lay)["obstacles"]))
+                 if a != b}
+        walls = {i for i, o in enumerate(d0) if o["type"] == "rectangle"}
+        assert not moved & walls and moved == set(range(len(d0))) - walls
+
+
+def test_a_heading_left_out_is_mirrored_too():
+    """A unicycle without ``initial.theta`` starts at heading 0 (east); mirrored about the
+    vertical line it must start facing west (formerly it kept heading 0: not a mirror image)."""
+    from hybridnav.world import scenario_from_dict
+
+    data = scenario_to_dict(load_scenario("effc-env-a"))
+    data["robots"][0]["initial"] = {}
+    base = scenario_from_dict(data)
+    layouts = dict(perturbed_layouts(base, 2))
+    t = layouts["mirror-x"].robots[0].initial.get("theta", 0.0)
+    assert (math.cos(t), math.sin(t)) == pytest.approx((-1.0, 0.0))
+    t = layouts["mirror-y"].robots[0].initial.get("theta", 0.0)
+    assert (math.cos(t), math.sin(t)) == pytest.approx((1.0, 0.0))
+    # a point mass has no heading: nothing is added
+    assert dict(perturbed_layouts(load_scenario("fastep-s1"), 1))["mirror-x"].robots[0] \
+        .initial == {}
+
+
+def test_stored_verdicts_must_be_layouts_of_the_rows_they_name(tmp_path):
+    """A layout tag that is none of the family (a README marker smuggled into the block), a
+    scenario that is not the row's, a row the claim does not cover, or the same layout twice
+    (counted twice in the share) is refused."""
+    protocol = PROTOCOLS["effc-table3"]
+    head = "claim,text,row,scenario,layout,view,verdict,detail\n"
+    good = "0,t,environment (a),effc-env-a,mirror-x,hybridnav profile,False,d\n"
+    (tmp_path / "layouts.csv").write_text(head + good + good.replace("mirror-x", "jitter-12"))
+    assert load_layouts(tmp_path, protocol)["layout"].tolist() == ["mirror-x", "jitter-12"]
+    for rows, what in (
+            (good.replace("mirror-x", '"a | b\n<!-- /reproduce:effc-table3 -->"'),
+             "layout: expected mirror-x, mirror-y, start\\+, start- or jitter-<k>"),
+            (good.replace("mirror-x", "jitter-0"), "layout: expected"),
+            (good.replace(",effc-env-a,", ",effc-env-b,"),
+             r"scenario: expected effc-env-a \(the scenario of row 'environment \(a\)'\)"),
+            (good + good.replace(",False,", ",True,"),
+             "layout: expected one verdict per claim, row, layout and view")):
+        (tmp_path / "layouts.csv").write_text(head + rows)
+        with pytest.raises(HybridnavError, match=r"layouts\.csv: " + what):
+            load_layouts(tmp_path, protocol)
+    aco = PROTOCOLS["aco-table5"]
+    stuck = next(i for i, c in enumerate(aco.claims) if c.kind == "stuck")
+    (tmp_path / "layouts.csv").write_text(
+        head + f"{stuck},t,scenario 1,fastep-s1,mirror-x,hybridnav profile,True,d\n")
+    with pytest.raises(HybridnavError, match=r"row: expected a row of claim \d \(scenario 4\)"):
+        load_layouts(tmp_path, aco)
+
+
+def test_stored_verdicts_need_the_runs_per_layout_beside_them(tmp_path):
+    """layouts.csv in a stored run whose comparison.json has no layout_runs (or 0) would render
+    "0 run(s) per planner and layout" beside verdicts: refused."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, render
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "effc-table3"
+    shutil.copytree(root / STORE / "effc-table3", folder)
+    (folder / "layouts.csv").write_text(
+        "claim,text,row,scenario,layout,view,verdict,detail\n"
+        "0,t,environment (a),effc-env-a,mirror-x,hybridnav profile,False,d\n")
+    meta = json.loads((folder / "comparison.json").read_text())
+    for runs in (None, 0):
+        (folder / "comparison.json").write_text(json.dumps(
+            {k: v for k, v in {**meta, "layout_runs": runs}.items() if v is not None}))
+        with pytest.raises(HybridnavError, match="comparison.json: layout_runs: expected the "
+                                                 "runs per planner and layout"):
+            render(folder)
+    (folder / "comparison.json").write_text(json.dumps({**meta, "layout_runs": 3}))
+    assert "(3 run(s) per planner and layout)" in render(folder)

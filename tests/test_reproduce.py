@@ -217,11 +217,17 @@ def test_update_readme_rewrites_the_blocks_and_refuses_a_missing_run(tmp_path):
 
     from hybridnav.reproduce.readme import STORE, update_readme
 
+    import shutil
+
     root = Path(__file__).resolve().parents[1]
     readme = tmp_path / "README.md"
     readme.write_text("intro\n<!-- reproduce:psoba-fig15 -->\nold numbers\n"
                       "<!-- /reproduce:psoba-fig15 -->\nend\n")
-    assert update_readme(readme, root / STORE) == ["psoba-fig15"]
+    # a copy: update_readme rewrites the stored run's report.md too (not the repository's)
+    shutil.copytree(root / STORE / "psoba-fig15", tmp_path / "copy" / "psoba-fig15")
+    before = (root / STORE / "psoba-fig15" / "report.md").read_bytes()
+    assert update_readme(readme, tmp_path / "copy") == ["psoba-fig15"]
+    assert (root / STORE / "psoba-fig15" / "report.md").read_bytes() == before
     text = readme.read_text()
     assert "old numbers" not in text and text.startswith("intro\n") and text.endswith("end\n")
     assert "Measured by `hybridnav reproduce psoba-fig15`" in text
@@ -435,3 +441,187 @@ def test_the_tractor_trailer_target_has_table_2_and_table_3():
     assert {r.model for r in load_scenario("tractor-trailer-3").robots} == {"tractor_trailer"}
     for _, name, params in variants(PROTOCOLS["aco-tractor-trailers"]):
         assert name == "aco-kinematic" and params["a"] == 0.02 and params["c"] == 0.18
+
+
+def test_a_readme_block_renders_only_its_own_targets_run(tmp_path):
+    """A stored run of another protocol in a block's folder is refused, not shown under the
+    block's name."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, update_readme
+
+    root = Path(__file__).resolve().parents[1]
+    shutil.copytree(root / STORE / "fastep-table2", tmp_path / "store" / "effc-table3")
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:effc-table3 -->\nold\n<!-- /reproduce:effc-table3 -->\n")
+    with pytest.raises(HybridnavError, match=r"effc-table3/comparison.json: protocol: expected "
+                                             r"effc-table3 \(README's block\), got "
+                                             "fastep-table2"):
+        update_readme(readme, tmp_path / "store")
+    assert "old" in readme.read_text()
+
+
+@pytest.mark.parametrize("column", ["time_to_goal_mean", "units", "best_path_length"])
+def test_a_stored_summary_without_a_column_the_report_reads_is_a_named_error(tmp_path, capsys,
+                                                                            column):
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "store" / "fastep-table2"
+    shutil.copytree(root / STORE / "fastep-table2", folder)
+    summary = pd.read_csv(folder / "summary.csv")
+    summary.drop(columns=[column]).to_csv(folder / "summary.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:fastep-table2 -->\n<!-- /reproduce:fastep-table2 -->\n")
+    assert main(["reproduce", "--update-readme", "--reports", str(tmp_path / "store"),
+                 "--readme", str(readme)]) == 2
+    err = capsys.readouterr().err
+    assert f"summary.csv: {column}: missing column" in err and "Traceback" not in err
+
+
+def test_a_failed_claim_without_the_other_planners_number_is_still_judged():
+    """``a`` reached none where ``b`` reached, in a summary without ``b``'s time column: does
+    not hold (formerly a TypeError formatting the missing number)."""
+    protocol = PROTOCOLS["fastep-table2"]
+    rows = []
+    for planner, rate in (("fastep-kinematic", 0.0), ("aco-kinematic", 1.0)):
+        rows.append({"planner": planner, "scenario": "fastep-s1", "robots": 5,
+                     "success_rate": rate, "units": "cm", "path_length_mean": 50.0})
+    from hybridnav.reproduce.report import row_verdict
+
+    verdict, detail = row_verdict(protocol, protocol.claims[1], pd.DataFrame(rows),
+                                  "hybridnav profile", protocol.rows[0])
+    assert verdict is False and "aco-kinematic -" in detail
+
+
+def test_a_stuck_claim_needs_runs_that_were_trapped_not_runs_that_crashed():
+    """'LbCS is trapped in the local minimum': reaching in no run is not being trapped when the
+    runs collided (formerly any share of 0 reached held)."""
+    from hybridnav.reproduce.report import row_verdict
+
+    protocol = PROTOCOLS["aco-table5"]
+    claim = next(c for c in protocol.claims if c.kind == "stuck")
+    row = next(r for r in protocol.rows if r.label in claim.rows)
+
+    def verdict(**counts):
+        base = {"planner": "lbcs", "scenario": row.scenario, "robots": 30, "units": "m",
+                "success_rate": 0.0, "stuck": 0, "timeout": 0, "collided": 0,
+                "out_of_bounds": 0}
+        return row_verdict(protocol, claim, pd.DataFrame([{**base, **counts}]),
+                           "hybridnav profile", row)
+
+    assert verdict(stuck=30)[0] is True
+    assert verdict(stuck=20, timeout=10)[0] is True
+    crashed = verdict(collided=30)
+    assert crashed[0] is False and "stuck 0/30, reached 0, collided 30" in crashed[1]
+    assert verdict(stuck=29, collided=1)[0] is False
+    assert verdict(stuck=29, success_rate=1 / 30)[0] is False
+    # the paper's numbers: its outcome must be "stuck", not any failure
+    assert row_verdict(protocol, claim, None, "paper", row)[0] is True
+    import dataclasses
+
+    other = dataclasses.replace(row, paper={**row.paper, "lbcs": Value(outcome="collided")})
+    assert row_verdict(protocol, claim, None, "paper", other)[0] is False
+
+
+def test_a_claim_whose_second_planner_alone_is_swept_is_judged_at_every_value():
+    """HAPF (no sensor, run once) against EFFC (swept over the lidar noise): every noise level
+    is a case, each with the p-value column of EFFC at that level (formerly StopIteration)."""
+    import dataclasses
+
+    from hybridnav.reproduce.report import row_verdict
+
+    base = PROTOCOLS["effc-turtlebot"]
+    protocol = dataclasses.replace(base, claims=(Claim("HAPF is shorter", "shorter", "hapf",
+                                                       "effc"),))
+    values = base.sweep[1]
+    rows = [{"planner": "hapf", "scenario": "turtlebot-office", "robots": 10, "units": "m",
+             "success_rate": 1.0, "path_length_mean": 5.0,
+             **{f"path_length_p_vs_effc/sensor_noise={v:g}": (0.01 if v != values[-1] else 0.5)
+                for v in values}}]
+    rows += [{"planner": f"effc/sensor_noise={v:g}", "scenario": "turtlebot-office",
+              "robots": 10, "units": "m", "success_rate": 1.0, "path_length_mean": 6.0}
+             for v in values]
+    verdict, detail = row_verdict(protocol, protocol.claims[0], pd.DataFrame(rows),
+                                  "hybridnav profile", protocol.rows[0])
+    assert verdict is None                     # the last level is not significant
+    assert detail.count("sensor_noise = ") == len(values)
+    assert f"sensor_noise = {values[-1]:g}: 5 vs 6, p = 0.5 >= 0.05" in detail
+    assert f"sensor_noise = {values[0]:g}: 5 vs 6, p = 0.01" in detail
+
+
+@pytest.mark.parametrize("column, value, message", [
+    ("units", "m |\n<!-- /reproduce:psoba-fig15 -->", "units: expected a length unit"),
+    ("planner", "evil <!-- reproduce:x -->", "planner: expected one of the protocol's variants"),
+])
+def test_stored_summary_text_cannot_break_the_readme(tmp_path, capsys, column, value, message):
+    """Text of summary.csv shown in README (units, variant labels) is checked: a README marker in
+    it used to be written into the block, breaking every later --update-readme."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "store" / "psoba-fig15"
+    shutil.copytree(root / STORE / "psoba-fig15", folder)
+    summary = pd.read_csv(folder / "summary.csv")
+    summary.loc[0, column] = value
+    summary.to_csv(folder / "summary.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:psoba-fig15 -->\nold\n<!-- /reproduce:psoba-fig15 -->\n")
+    assert main(["reproduce", "--update-readme", "--reports", str(tmp_path / "store"),
+                 "--readme", str(readme)]) == 2
+    assert f"summary.csv: {message}" in capsys.readouterr().err
+    assert readme.read_text().count("reproduce:") == 2
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("load", "1\n<!-- /reproduce:psoba-fig15 -->", "load: expected a worker count or one line"),
+    ("workers", True, "workers: expected a worker count"),
+    ("version", "0.2 <!-- reproduce:x -->", "version: expected a version number"),
+])
+def test_stored_settings_shown_in_the_readme_are_plain_text(tmp_path, key, value, message):
+    import json
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE, render
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "psoba-fig15"
+    shutil.copytree(root / STORE / "psoba-fig15", folder)
+    meta = json.loads((folder / "comparison.json").read_text())
+    (folder / "comparison.json").write_text(json.dumps({**meta, key: value}))
+    with pytest.raises(HybridnavError, match=f"comparison.json: {message}"):
+        render(folder)
+
+
+@pytest.mark.parametrize("column, value", [("collided", None), ("stuck", None),
+                                           ("robot_contacts", None), ("collided", 999),
+                                           ("timeout", -1), ("out_of_bounds", 1.5)])
+def test_stored_outcome_counts_must_be_counts(tmp_path, capsys, column, value):
+    """An empty or impossible outcome count (formerly a ValueError from int(nan) in the safety
+    table, or a count above the robots run) is a named error."""
+    import shutil
+    from pathlib import Path
+
+    from hybridnav.reproduce.readme import STORE
+
+    root = Path(__file__).resolve().parents[1]
+    folder = tmp_path / "store" / "aco-case-studies"
+    shutil.copytree(root / STORE / "aco-case-studies", folder)
+    summary = pd.read_csv(folder / "summary.csv")
+    summary[column] = summary[column].astype(object)
+    summary.loc[0, column] = value
+    summary.to_csv(folder / "summary.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- reproduce:aco-case-studies -->\n<!-- /reproduce:aco-case-studies -->\n")
+    assert main(["reproduce", "--update-readme", "--reports", str(tmp_path / "store"),
+                 "--readme", str(readme)]) == 2
+    err = capsys.readouterr().err
+    assert f"summary.csv: {column}: expected a count of at most the row's robots" in err

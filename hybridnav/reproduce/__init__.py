@@ -12,6 +12,7 @@ paper's own table and here.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -31,7 +32,8 @@ __all__ = ["PROFILES", "PROTOCOLS", "Claim", "Protocol", "Row", "Value", "label_
 def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
               workers: int = 1, dask: str | Any | None = None,
               progress: Callable[[int, int], None] | None = None,
-              scenarios: Sequence[str] | None = None, layouts: int = LAYOUTS) -> dict[str, Any]:
+              scenarios: Sequence[str] | None = None, layouts: int | None = None
+              ) -> dict[str, Any]:
     """Run protocol ``name`` and write its report into ``out``.
 
     Parameters
@@ -55,10 +57,10 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         ``progress(done, total)``.
     scenarios : sequence of str, optional
         Run only these of the protocol's scenarios (its rows; default all).
-    layouts : int
+    layouts : int, optional
         Perturbed layouts per row where a claim does not hold in our runs
-        (:mod:`hybridnav.reproduce.layouts`; ``min(runs, LAYOUT_RUNS)`` runs per planner and
-        layout; 0: no layout sensitivity). They are written to ``out/layouts/``, their verdicts
+        (:mod:`hybridnav.reproduce.layouts`; default :data:`LAYOUTS`; ``min(runs,
+        LAYOUT_RUNS)`` runs per planner and layout; 0: no layout sensitivity). They are written to ``out/layouts/``, their verdicts
         to ``layouts.csv`` and their runs' summary to ``layouts_summary.csv``.
 
     Returns
@@ -84,6 +86,11 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         if scenarios:
             raise HybridnavError(f"reproduce {name}: --scenarios: this target tunes before it "
                                  "compares and judges fixed world sets; expected none")
+        if layouts is not None:
+            raise HybridnavError(f"reproduce {name}: --layouts: this target judges generated "
+                                 "world sets, not reconstructed layouts; expected none")
+        if runs is not None:
+            _check_count("--runs", runs, 1)
         with locked_folder(out, f"reproduce {name}"):
             return run_experiment(name, out, runs=runs, seed=seed, workers=workers, dask=dask,
                                   progress=progress)
@@ -96,17 +103,26 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
                                  f"{', '.join(known)}, got {bad[0]!r}")
         protocol = dataclasses.replace(protocol, rows=tuple(
             row for row in protocol.rows if row.scenario in scenarios))
-    n = protocol.runs if runs is None else runs
-    if int(n) != n or n < 1:
-        raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
-    if isinstance(layouts, bool) or int(layouts) != layouts or not 0 <= layouts <= MAX_LAYOUTS:
-        raise HybridnavError(f"reproduce: --layouts: expected an integer in [0, {MAX_LAYOUTS}], "
-                             f"got {layouts!r}")
+    n = protocol.runs if runs is None else _check_count("--runs", runs, 1)
+    layouts = LAYOUTS if layouts is None else _check_count("--layouts", layouts, 0, MAX_LAYOUTS)
     specs = [PlannerSpec(label, planner, params) for label, planner, params in variants(protocol)]
     scenarios = [row.scenario for row in protocol.rows]
     with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
         return _reproduce(name, protocol, specs, scenarios, int(n), Path(out), seed, workers,
                           dask, progress, int(layouts))
+
+
+def _check_count(option: str, value: Any, lo: int, hi: int | None = None) -> int:
+    """``value`` as an integer in ``[lo, hi]`` (a bool, NaN, inf or text is refused)."""
+    import numbers
+
+    ok = (isinstance(value, numbers.Real) and not isinstance(value, bool)
+          and math.isfinite(value) and int(value) == value
+          and lo <= value and (hi is None or value <= hi))
+    if not ok:
+        want = "a positive integer" if (lo, hi) == (1, None) else f"an integer in [{lo}, {hi}]"
+        raise HybridnavError(f"reproduce: {option}: expected {want}, got {value!r}")
+    return int(value)
 
 
 def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts):
@@ -145,6 +161,12 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
     else:                                    # an earlier run's verdicts are not this run's
         for stale in ("layouts.csv", "layouts_summary.csv"):
             (out / stale).unlink(missing_ok=True)
+        from hybridnav.reproduce.layouts import LAYOUT_FILE
+
+        if (out / "layouts").is_dir():       # nor its layouts (only names we write)
+            for old in (out / "layouts").glob("*.toml"):
+                if LAYOUT_FILE.fullmatch(old.name) and old.name.split(".")[0] in scenarios:
+                    old.unlink()
     claims = check_claims(protocol, summary)
     write_report(Path(out) / "report.md", protocol, summary, claims, runs=int(n), seed=seed,
                  version=__version__, files=files, layouts=verdicts, layout_runs=layout_runs)

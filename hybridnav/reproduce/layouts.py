@@ -16,8 +16,11 @@ The family, in this order (the first ``count`` that apply):
   to symmetry; a verdict that changes exposes ties and numerical asymmetries.
 * ``start+`` / ``start-``: every robot's start moved sideways, perpendicular to its start-goal
   line, by ``jitter`` times its start-goal distance.
-* ``jitter-K``: every obstacle moved by a random offset of length up to ``jitter`` times the
-  (first robot's) start-goal distance, drawn from the seed.
+* ``jitter-K``: every free-standing obstacle moved by a random offset of length up to
+  ``jitter`` times the (first robot's) start-goal distance, drawn from the seed. Obstacles
+  whose bounding boxes touch move together, and those touching the workspace's edge (outer
+  walls and the walls attached to them) stay: moving a piece of a wall would open a gap the
+  layout does not have. No obstacle leaves the workspace.
 
 :data:`JITTER` (5 % of the start-goal distance) is what reading a layout off a paper's figure
 cannot pin down better: it is what "within what the paper's description allows" means here,
@@ -48,7 +51,7 @@ if TYPE_CHECKING:                            # the command line imports this mod
 
     from hybridnav.world import Scenario
 
-__all__ = ["JITTER", "LAYOUTS", "LAYOUT_FILE", "LAYOUT_RUNS", "MAX_LAYOUTS", "TRIES", "failing_rows", "layout_sensitivity",
+__all__ = ["JITTER", "LAYOUTS", "LAYOUT_FILE", "LAYOUT_RUNS", "LAYOUT_TAG", "MAX_LAYOUTS", "TRIES", "failing_rows", "layout_sensitivity",
            "perturbed_layouts", "sensitivity_section"]
 
 #: perturbed layouts per row (the CLI's ``--layouts``; 0: no sensitivity runs)
@@ -59,8 +62,10 @@ MAX_LAYOUTS = 100
 LAYOUT_RUNS = 5
 #: how far starts and obstacles move, as a fraction of the start-goal distance
 JITTER = 0.05
+#: a perturbed layout's tag
+LAYOUT_TAG = re.compile(r"mirror-[xy]|start[+-]|jitter-[1-9]\d*")
 #: the file name of a written layout: ``<scenario>.<tag>.toml``
-LAYOUT_FILE = re.compile(r"[\w-]+\.(mirror-[xy]|start[+-]|jitter-\d+)\.toml")
+LAYOUT_FILE = re.compile(rf"[\w-]+\.({LAYOUT_TAG.pattern})\.toml")
 #: draws per jittered layout before it is given up
 TRIES = 20
 
@@ -100,11 +105,18 @@ def _mirror(data: dict[str, Any], axis: int) -> dict[str, Any] | None:
                     o[key] = flip(o[key])
             if "heading" in o:
                 o["heading"] = heading(o["heading"])
+    from hybridnav.models import MODELS
+
     for r in data["robots"]:
         for key in ("start", "goal"):
             if key in r:
                 r[key] = flip(r[key])
-        for key, value in r.get("initial", {}).items():
+        model = MODELS.get(r.get("model"))
+        initial = r.setdefault("initial", {})
+        for key in getattr(model, "plant_state_names", ())[2:]:
+            if key.startswith("theta"):          # a heading left out is 0: mirrored, it is not
+                initial.setdefault(key, 0.0)
+        for key, value in initial.items():
             if key.startswith("theta"):
                 r["initial"][key] = heading(value)
             elif key == "xi":                 # an angle relative to the heading: mirrored
@@ -137,18 +149,77 @@ def _shifted(data: dict[str, Any], sign: float, jitter: float) -> dict[str, Any]
     return data
 
 
-def _jittered(data: dict[str, Any], rng: np.random.Generator, jitter: float) -> dict[str, Any]:
+def _bounds(o: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The bounding box ``(lo, hi)`` of an obstacle of the scenario schema (a moving circle's
+    at its start)."""
+    if "center" in o:
+        c = np.asarray(o["center"], dtype=float)
+        return c - o["radius"], c + o["radius"]
+    if "min" in o:
+        return np.asarray(o["min"], dtype=float), np.asarray(o["max"], dtype=float)
+    P = np.asarray(o["points"] if "points" in o else [o["a"], o["b"]], dtype=float)
+    return P.min(axis=0), P.max(axis=0)
+
+
+def _free_groups(data: dict[str, Any]) -> list[list[int]]:
+    """The obstacles that may move, in rigid groups: obstacles whose bounding boxes touch move
+    together (the pieces of one wall, a wall and what leans on it), and a group touching the
+    workspace's edge does not move (an outer wall, a room's wall attached to it: moving it would
+    open a gap the layout does not have or push it out of the workspace)."""
+    ws = data["workspace"]
+    lo_ws = np.array([ws["xmin"], ws["ymin"]])
+    hi_ws = np.array([ws["xmax"], ws["ymax"]])
+    tol = 1e-9 * float(np.max(hi_ws - lo_ws))
+    boxes = [_bounds(o) for o in data["obstacles"]]
+    parent = list(range(len(boxes)))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, (lo_i, hi_i) in enumerate(boxes):
+        for j in range(i):
+            lo_j, hi_j = boxes[j]
+            if (lo_i <= hi_j + tol).all() and (lo_j <= hi_i + tol).all():
+                parent[root(i)] = root(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(len(boxes)):
+        groups.setdefault(root(i), []).append(i)
+    return [g for g in groups.values()
+            if not any((boxes[i][0] <= lo_ws + tol).any() or (boxes[i][1] >= hi_ws - tol).any()
+                       for i in g)]
+
+
+def _jittered(data: dict[str, Any], rng: np.random.Generator, jitter: float
+              ) -> dict[str, Any] | None:
+    """Every free-standing group of obstacles (:func:`_free_groups`) moved rigidly by a random
+    offset of length up to ``jitter`` times the start-goal distance; None where the scenario
+    cannot be jittered (a grid map file, no free obstacle) or an obstacle would leave the
+    workspace (the caller draws again)."""
     if data.get("grid", {}).get("map") is not None:
         return None
+    groups = _free_groups(data)
+    if not groups:
+        return None
     radius = jitter * _scale(data)
-    for o in data["obstacles"]:
+    ws = data["workspace"]
+    lo_ws = np.array([ws["xmin"], ws["ymin"]])
+    hi_ws = np.array([ws["xmax"], ws["ymax"]])
+    for group in groups:
         a = rng.uniform(0.0, 2.0 * math.pi)
         dx, dy = radius * math.sqrt(rng.uniform()) * np.array([math.cos(a), math.sin(a)])
-        for key in ("center", "a", "b", "min", "max"):
-            if key in o:
-                o[key] = [o[key][0] + dx, o[key][1] + dy]
-        if "points" in o:
-            o["points"] = [[x + dx, y + dy] for x, y in o["points"]]
+        for i in group:
+            o = data["obstacles"][i]
+            for key in ("center", "a", "b", "min", "max"):
+                if key in o:
+                    o[key] = [o[key][0] + dx, o[key][1] + dy]
+            if "points" in o:
+                o["points"] = [[x + dx, y + dy] for x, y in o["points"]]
+            lo, hi = _bounds(o)
+            if (lo < lo_ws).any() or (hi > hi_ws).any():
+                return None                   # out of the workspace: not this layout
     return data
 
 
@@ -219,7 +290,8 @@ def perturbed_layouts(scenario: Scenario, count: int = LAYOUTS, *, seed: int = 0
     add("start-", _shifted(copy.deepcopy(base), -1.0, jitter))
     rng = np.random.default_rng([seed, zlib.crc32(scenario.name.encode())])
     k = 0
-    while len(out) < count and base.get("grid", {}).get("map") is None and base["obstacles"]:
+    while len(out) < count and base.get("grid", {}).get("map") is None and \
+            _free_groups(base):
         k += 1
         for _ in range(TRIES):
             if add(f"jitter-{k}", _jittered(copy.deepcopy(base), rng, jitter)):
@@ -367,7 +439,8 @@ def sensitivity_section(protocol: Protocol, verdicts: pd.DataFrame, summary: pd.
              f"Every row where a claim does not hold in our runs, rerun on perturbed copies of "
              f"our reconstructed layout ({runs} run(s) per planner and layout): the whole world "
              f"mirrored, every start moved sideways by {JITTER:.0%} of its start-goal distance, "
-             f"and every obstacle moved by up to {JITTER:.0%} of it (how exactly a layout read "
+             f"and every free-standing obstacle moved by up to {JITTER:.0%} of it, walls staying "
+             "where they are (how exactly a layout read "
              "off a figure can be placed). Each cell: the verdict on our layout, then in how "
              "many perturbed layouts the claim holds / does not hold / is not shown, by the "
              "same rule as above.", "",

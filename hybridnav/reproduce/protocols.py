@@ -42,8 +42,8 @@ class Row:
 class Claim:
     """A paper's claim about two planners (``kind``: ``shorter`` or ``faster``: ``a`` beats ``b``
     in mean length / time on every listed row; ``worst-case``: ``a``'s worst run beats ``b``'s in
-    length and in time) or one (``reaches``: every run of ``a`` reaches its goal; ``stuck``: none
-    does; ``collision-free``: every robot of every run reaches its goal and none collides, with an
+    length and in time) or one (``reaches``: every run of ``a`` reaches its goal; ``stuck``: every
+    run of ``a`` ends trapped, stuck or at the time limit, none reaching, colliding or leaving; ``collision-free``: every robot of every run reaches its goal and none collides, with an
     obstacle or another robot). :mod:`hybridnav.reproduce.report` defines each precisely.
     ``rows``: the row labels it covers (empty: all).
     ``time``: which time a ``faster`` claim means, as the paper defines it: ``"simulated"`` (the

@@ -24,7 +24,7 @@ from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.params import Param, short_repr
 from hybridnav.reproduce.protocols import PROTOCOLS
 
-__all__ = ["STORE", "blocks", "load_layouts", "load_stored", "render", "rewrite_report",
+__all__ = ["STORE", "blocks", "check_shown", "load_layouts", "load_stored", "render", "rewrite_report",
            "update_readme"]
 
 #: where the full runs are kept, relative to the repository's root
@@ -35,7 +35,8 @@ _BLOCK = re.compile(r"<!-- reproduce:(?P<name>[\w-]+) -->\r?\n(?P<body>.*?)"
 _OPEN = re.compile(r"<!-- reproduce:([\w-]+) -->")
 
 #: the keys of a stored run's comparison.json that the README and the report read
-_STORED = {"version": Param("", "package version"), "runs": Param(1, "runs", lo=1),
+_STORED = {"version": Param("", "package version", pattern=r"[\w.+-]{1,64}",
+                           expected="a version number"), "runs": Param(1, "runs", lo=1),
            "seed": Param(0, "base seed"), "elapsed_s": Param(0.0, "wall time (s)", lo=0.0),
            "scenarios": Param([], "the protocol's scenarios"),
            "layout_runs": Param(0, "runs per planner and perturbed layout", lo=0)}
@@ -71,6 +72,7 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     for key, param in _STORED.items():
         if key in meta or key not in _OPTIONAL:
             meta[key] = param.check(key, meta.get(key), f"{meta_path}: ")
+    check_shown(meta_path, meta)
     rows = [row.scenario for row in PROTOCOLS[name].rows]
     if meta["scenarios"] != rows:
         raise HybridnavError(f"{meta_path}: scenarios: expected the protocol's "
@@ -84,6 +86,20 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
         raise HybridnavError(f"{path}: expected the summary of a reproduction (a CSV table): "
                              f"{short_repr(str(exc), 200)}") from None
     return name, _check_summary(path, summary, PROTOCOLS[name]), meta
+
+
+def check_shown(path: Path, meta: dict) -> None:
+    """The free-form keys of a stored run's settings that README shows (``workers``: a count or
+    ``dask ADDRESS``; ``load``: the load averages): one line of plain text each."""
+    for key in ("workers", "load"):
+        if key not in meta:
+            continue
+        v = meta[key]
+        ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 1) or (
+            isinstance(v, str) and re.fullmatch(r"[^|<>`\n\r]{0,200}", v) is not None)
+        if not ok:
+            raise HybridnavError(f"{path}: {key}: expected a worker count or one line of plain "
+                                 f"text, got {short_repr(v)}")
 
 
 _VERDICTS = {"True": True, "False": False, "": None}
@@ -125,10 +141,43 @@ def load_layouts(folder: str | Path, protocol) -> pd.DataFrame | None:
             i = int(bad.to_numpy().nonzero()[0][0])
             raise HybridnavError(f"{path}: {col}: expected {what}, got "
                                  f"{short_repr(table[col].iloc[i])} in row {i + 2}")
+    from hybridnav.reproduce.layouts import LAYOUT_TAG
+
+    scenario_of = {row.label: row.scenario for row in protocol.rows}
+    seen: set[tuple[str, ...]] = set()
+    for i, r in enumerate(table.itertuples(index=False)):
+        where = f"in row {i + 2}"
+        if not LAYOUT_TAG.fullmatch(r.layout):
+            raise HybridnavError(f"{path}: layout: expected mirror-x, mirror-y, start+, start- "
+                                 f"or jitter-<k>, got {short_repr(r.layout)} {where}")
+        if r.scenario != scenario_of[r.row]:
+            raise HybridnavError(f"{path}: scenario: expected {scenario_of[r.row]} (the scenario "
+                                 f"of row {r.row!r}), got {short_repr(r.scenario)} {where}")
+        claim = protocol.claims[int(r.claim)]
+        if claim.rows and r.row not in claim.rows:
+            raise HybridnavError(f"{path}: row: expected a row of claim {r.claim} "
+                                 f"({', '.join(claim.rows)}), got {short_repr(r.row)} {where}")
+        key = (r.claim, r.row, r.layout, r.view)
+        if key in seen:                     # counted twice, the share of layouts would be off
+            raise HybridnavError(f"{path}: layout: expected one verdict per claim, row, layout "
+                                 f"and view, got {r.layout!r} of claim {r.claim}, {r.row!r}, "
+                                 f"{r.view!r} again {where}")
+        seen.add(key)
     table["claim"] = table["claim"].astype(int)
     table["verdict"] = table["verdict"].map(_VERDICTS).astype(object)
     return table
 
+
+#: the metric columns the README block and the report read (``summarize_runs`` writes them all)
+_READ_COLUMNS = ("units", "collided", "stuck", "timeout", "out_of_bounds", "path_length_mean", "time_to_goal_mean", "path_length_median",
+                 "path_length_ci95_lo", "path_length_ci95_hi", "best_path_length",
+                 "best_time_to_goal", "min_clearance_min", "min_clearance_mean")
+
+#: outcome counts of a stored summary (robots x runs; ``robot_contacts`` where recorded)
+_COUNT_COLUMNS = ("collided", "stuck", "timeout", "out_of_bounds", "robot_contacts")
+
+#: a stored summary's length unit (text the README shows: no markup)
+_UNITS = re.compile(r"[^\W\d_]{0,16}")
 
 #: Columns of a stored summary that hold text; every other column holds numbers (or is empty)
 _TEXT_COLUMNS = ("planner", "scenario", "units")
@@ -138,7 +187,8 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
     """A stored ``summary.csv`` as :func:`hybridnav.analysis.compare.summarize` writes it: the
     key columns, numbers where numbers belong, a row for every scenario of the protocol."""
     need = ("planner", "scenario", "robots", "success_rate")
-    for col in need:
+    for col in need + _READ_COLUMNS + (("min_robot_clearance_mean",)
+                                       if "min_robot_clearance_min" in summary.columns else ()):
         if col not in summary.columns:
             raise HybridnavError(f"{path}: {col}: missing column (expected the columns "
                                  f"{', '.join(need)} and the metrics of a reproduction's "
@@ -172,14 +222,49 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
                              f"{short_repr(float(rate.iloc[row]))} in row {row + 2}")
     robots = summary["robots"]
     if not (np.isfinite(robots) & (robots >= 0) & (robots == np.round(robots))).all():
-        row = int((~(np.isfinite(robots) & (robots >= 0))).argmax())
+        row = int((~(np.isfinite(robots) & (robots >= 0) & (robots == np.round(robots))))
+                  .argmax())
         raise HybridnavError(f"{path}: robots: expected a count, got "
                              f"{short_repr(float(robots.iloc[row]))} in row {row + 2}")
+    for col in _COUNT_COLUMNS:               # outcome counts: of the row's robots
+        if col not in summary.columns:
+            continue
+        v = summary[col]
+        ok = np.isfinite(v) & (v >= 0) & (v == np.round(v)) & (v <= robots)
+        if not ok.all():
+            row = int((~ok).argmax())
+            raise HybridnavError(f"{path}: {col}: expected a count of at most the row's robots "
+                                 f"({int(robots.iloc[row])}), got "
+                                 f"{short_repr(float(v.iloc[row]))} in row {row + 2}")
+    from hybridnav.reproduce.variants import variants
+
+    labels = [label for label, _, _ in variants(protocol)]
+    for col, ok, what in (
+            ("planner", lambda v: v in labels,
+             f"one of the protocol's variants ({', '.join(labels)})"),
+            ("units", lambda v: v == "nan" or _UNITS.fullmatch(v) is not None,
+             "a length unit (letters, at most 16)")):
+        bad = ~summary[col].map(ok)
+        if bad.any():
+            row = int(bad.argmax())
+            raise HybridnavError(f"{path}: {col}: expected {what}, got "
+                                 f"{short_repr(summary[col].iloc[row])} in row {row + 2}")
     missing = [r.scenario for r in protocol.rows if r.scenario not in set(summary["scenario"])]
     if missing:
         raise HybridnavError(f"{path}: scenario: expected rows for the protocol's "
                              f"{', '.join(missing)} (run it again)")
     return summary
+
+
+def _stored_layouts(folder: Path, protocol, meta: dict) -> pd.DataFrame | None:
+    """:func:`load_layouts`, with the runs per layout its table states: a stored run with
+    layout verdicts has ``layout_runs >= 1`` in its ``comparison.json``."""
+    table = load_layouts(folder, protocol)
+    if table is not None and not meta.get("layout_runs", 0) >= 1:
+        raise HybridnavError(f"{Path(folder) / 'comparison.json'}: layout_runs: expected the "
+                             "runs per planner and layout (at least 1) beside layouts.csv, got "
+                             f"{short_repr(meta.get('layout_runs'))}")
+    return table
 
 
 def render(folder: str | Path) -> str:
@@ -217,7 +302,7 @@ def render(folder: str | Path) -> str:
     lines += literature_line(protocol)
     lines += claims_section(check_claims(protocol, summary), level=4,
                             profiles=has_profiles(protocol))
-    lines += sensitivity_section(protocol, load_layouts(folder, protocol), summary,
+    lines += sensitivity_section(protocol, _stored_layouts(folder, protocol, meta), summary,
                                  runs=meta.get("layout_runs", 0), level=4,
                                  profiles=has_profiles(protocol))
     return "\n".join(lines)
@@ -235,7 +320,7 @@ def rewrite_report(folder: str | Path) -> Path:
     write_report(folder / "report.md", protocol, summary, check_claims(protocol, summary),
                  runs=meta["runs"], seed=meta["seed"], version=meta["version"],
                  files=[f.name for f in folder.iterdir()],
-                 layouts=load_layouts(folder, protocol),
+                 layouts=_stored_layouts(folder, protocol, meta),
                  layout_runs=meta.get("layout_runs", 0))
     return folder / "report.md"
 
@@ -276,14 +361,21 @@ def update_readme(readme: str | Path, store: str | Path) -> list[str]:
     found = blocks(text, str(readme))
     if not found:
         raise HybridnavError(f"{readme}: expected <!-- reproduce:NAME --> blocks, found none")
-    from hybridnav.reproduce.tuning import (EXPERIMENTS, render_experiment,
+    from hybridnav.reproduce.tuning import (EXPERIMENTS, load_experiment, render_experiment,
                                             rewrite_experiment_report)
 
-    for name in found:
+    for name in found:                       # every stored run checked before anything is written
         need = "experiment.json" if name in EXPERIMENTS else "summary.csv"
         if not (Path(store) / name / need).exists():
             raise HybridnavError(f"{Path(store) / name}: {need}: expected a stored run of "
                                  f"`hybridnav reproduce {name}` for README's block")
+        stored = (load_experiment(Path(store) / name)[0].name if name in EXPERIMENTS
+                  else load_stored(Path(store) / name)[0])
+        if stored != name:                   # another target's run in this block's folder
+            key = "experiment.json: experiment" if name in EXPERIMENTS else \
+                "comparison.json: protocol"
+            raise HybridnavError(f"{Path(store) / name}/{key}: expected {name} (README's "
+                                 f"block), got {stored}")
 
     for name in found:
         (rewrite_experiment_report if name in EXPERIMENTS else rewrite_report)(

@@ -228,9 +228,15 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
     if view == "paper":
         cases = [(row.label, row.paper.get(claim.a), row.paper.get(claim.b), "")]
     else:                       # per sweep value of a (b at the same value, or its only one)
+        levels_a = _levels(protocol, claim.a, view)
+        levels_b = _levels(protocol, claim.b, view) if claim.b else [(None, "")]
+        if levels_a[0][0] is None and levels_b[0][0] is not None:
+            pairs = [(level, levels_a[0][1], lb) for level, lb in levels_b]   # only b swept
+        else:
+            pairs = [(level, la, _at_level(protocol, claim.b, view, level) if claim.b else "")
+                     for level, la in levels_a]
         cases = []
-        for level, la in _levels(protocol, claim.a, view):
-            lb = _at_level(protocol, claim.b, view, level) if claim.b else ""
+        for level, la, lb in pairs:
             cases.append((_where(protocol, row, level), ours(summary, la, row.scenario),
                           ours(summary, lb, row.scenario) if claim.b else None, lb))
     verdicts, parts = [], []
@@ -241,11 +247,12 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
             verdict, part = _collision_free_row(va)
         elif claim.kind == "worst-case":
             verdict, part = _worst_case_row(claim, row, view, va, vb)
+        elif claim.kind == "stuck":
+            verdict, part = _stuck_row(va)
         else:
             share = _reached(va)
             verdict, part = ((None, "no number") if share is None else
-                             (share == 1.0 if claim.kind == "reaches" else share == 0.0,
-                              f"reached {share:.0%}"))
+                             (share == 1.0, f"reached {share:.0%}"))
             if view == "paper" and share is not None:      # a statement, not a measured share
                 part = f"the paper states it ({va.outcome}; no runs counted)"
         verdicts.append(verdict)
@@ -291,7 +298,8 @@ def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: s
     na, nb = int(va["robots"]), int(vb["robots"])
     reach = f"reached {round(ra * na)}/{na} vs {round(rb * nb)}/{nb}"
     if ra == 0.0 and rb > 0.0:
-        return False, f"{claim.a} reached none, {claim.b} {b:.4g} ({reach})"
+        shown = _fmt(b) if b is not None else "-"      # a summary without the column
+        return False, f"{claim.a} reached none, {claim.b} {shown} ({reach})"
     if ra <= MOST_REACHED or rb <= MOST_REACHED:
         nums = f"{_fmt(a) if a is not None else '-'} vs {_fmt(b) if b is not None else '-'}"
         return None, f"{nums}, {reach}: not most runs on both sides"
@@ -310,6 +318,9 @@ CLAIM_RULES = {
     "collision-free": ("A \"no collision\" claim holds in ours only when every robot of every run "
                        "reached its goal and none touched an obstacle or another robot; "
                        "anything else does not hold."),
+    "stuck": ("A \"trapped\" claim holds in ours only when every run ended stuck or at the "
+              "time limit short of the goal; a run that reached, collided or left the workspace "
+              "was not trapped."),
     "worst-case": ("A worst-case claim compares each planner's worst run (its longest reached "
                    "path, with that run's own time): it holds when the first planner's is both "
                    "shorter and faster; a run that did not reach is worse than any that did "
@@ -350,6 +361,28 @@ def _collision_free_row(value: Value | dict[str, Any] | None) -> tuple[bool | No
     if gap is not None:
         part += f", closest robots {_fmt(gap)} {units}".rstrip()
     return k == n and collided == 0 and not contacts, part
+
+
+def _stuck_row(value: Value | dict[str, Any] | None) -> tuple[bool | None, str]:
+    """One row of a ``stuck`` claim: in ours it holds when every run ended trapped, ``stuck``
+    or still short of the goal at the time limit (``timeout``); a run that reached, collided or
+    left the workspace was not trapped, so the claim does not hold (not reaching is not being
+    stuck). In the paper's numbers it holds where the paper's outcome is ``stuck``."""
+    if value is None:
+        return None, "no number"
+    if isinstance(value, Value):
+        return (value.outcome == "stuck",
+                f"the paper states it ({value.outcome}; no runs counted)")
+    n = int(value["robots"])
+    k = int(round(float(value["success_rate"]) * n))
+    counts = {o: _finite(value.get(o)) for o in ("stuck", "timeout", "collided",
+                                                 "out_of_bounds")}
+    if counts["stuck"] is None:
+        return None, "no stuck count in this summary (run it again)"
+    counts = {o: int(c or 0) for o, c in counts.items()}
+    part = f"stuck {counts['stuck']}/{n}, reached {k}" + "".join(
+        f", {o} {c}" for o, c in counts.items() if o != "stuck" and c)
+    return counts["stuck"] + counts["timeout"] == n and k == 0, part
 
 
 def _worst_case_row(claim: Claim, row: Row, view: str, va, vb) -> tuple[bool | None, str]:
@@ -427,7 +460,8 @@ def _measure(claim: Claim) -> str:
     if claim.kind == "worst-case":
         return ("each planner's worst run: its longest reached path and that run's simulated "
                 "travel time")
-    return "share of runs that reached" if claim.kind == "reaches" else "share of runs stuck"
+    return ("share of runs that reached" if claim.kind == "reaches" else
+            "runs that ended stuck (or at the time limit) short of the goal")
 
 
 def _word(v: bool | None) -> str:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -36,8 +37,8 @@ from typing import Any
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["EXPERIMENTS", "HELDOUT", "Experiment", "heldout_verdicts", "mcnemar",
-           "render_experiment", "run_experiment", "write_experiment_report"]
+__all__ = ["EXPERIMENTS", "HELDOUT", "Experiment", "heldout_verdicts", "load_experiment",
+           "mcnemar", "render_experiment", "run_experiment", "write_experiment_report"]
 
 #: the generated worlds no tuning run used (the deploy job draws its sets from seeds 1-13;
 #: ``seed`` of a reproduction adds ``1000 * seed`` to these)
@@ -113,15 +114,11 @@ def mcnemar(a: list[bool], b: list[bool]) -> tuple[int, int, float]:
         Worlds only ``a`` reached, worlds only ``b`` reached, and the two-sided binomial
         p-value of the discordant pairs (1.0 when there are none).
     """
-    from scipy import stats
-
     if len(a) != len(b):
         raise ValueError("mcnemar: expected paired outcomes of the same length")
     only_a = sum(1 for x, y in zip(a, b) if x and not y)
     only_b = sum(1 for x, y in zip(a, b) if y and not x)
-    n = only_a + only_b
-    p = 1.0 if n == 0 else float(stats.binomtest(only_a, n, 0.5).pvalue)
-    return only_a, only_b, p
+    return only_a, only_b, _mcnemar_p(only_a, only_b)
 
 
 def _job(experiment: Experiment, profile: str, seed: int, workers: int, dask):
@@ -180,9 +177,9 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
     from hybridnav.tuner.run import run_job
 
     experiment = EXPERIMENTS[name]
-    n = experiment.runs if runs is None else runs
-    if isinstance(n, bool) or int(n) != n or n < 1:
-        raise HybridnavError(f"reproduce: --runs: expected a positive integer, got {runs!r}")
+    from hybridnav.reproduce import _check_count
+
+    n = experiment.runs if runs is None else _check_count("--runs", runs, 1)
     out = Path(out)
     tic = time.perf_counter()
     worlds = _worlds(experiment, seed)       # fail on a bad set before any tuning
@@ -371,44 +368,218 @@ def write_experiment_report(path: Path, experiment: Experiment, summary, verdict
     atomic_write_text(path, "\n".join(lines))
 
 
-def render_experiment(folder: str | Path) -> str:
-    """The README block of a stored experiment (from its CSV files and ``experiment.json``)."""
+#: what ``render_experiment`` reads of a stored run's ``experiment.json``
+_META = {"version": ("", "package version"), "runs": (1, "GA runs per profile"),
+         "seed": (0, "base seed"), "elapsed_s": (0.0, "wall time (s)")}
+#: the columns of a stored ``heldout_summary.csv`` the report reads (the rest may be absent)
+_SUMMARY_TEXT = ("set", "system")
+_SUMMARY_COUNTS = ("worlds", "reached", "collided", "out_of_bounds")
+_SUMMARY_REALS = ("ci_low", "ci_high", "min_clearance_reached", "common_length")
+#: text a stored table may put into a README table cell: one line, no cell bar, no markup
+_PLAIN = re.compile(r"[^|<>`\n\r]*")
+#: the columns of a stored ``verdicts.csv``
+_VERDICT_COUNTS = ("training_reached", "training_worlds", "heldout_reached", "start_reached",
+                   "worlds", "only_tuned", "only_start", "collisions", "start_collisions")
+
+
+def _csv(path: Path, what: str):
+    """A stored CSV table as text cells (a named error where it is not one)."""
+    import io
+
     import pandas as pd
 
     from hybridnav.fileio import read_text_file
-    from hybridnav.reproduce.readme import STORE
+    from hybridnav.params import short_repr
+
+    text = read_text_file(path, what)
+    try:
+        table = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
+    except (ValueError, pd.errors.ParserError) as exc:     # EmptyDataError is a ValueError
+        raise HybridnavError(f"{path}: expected the {what} of `hybridnav reproduce` (a CSV "
+                             f"table): {short_repr(str(exc), 200)}") from None
+    if table.empty:
+        raise HybridnavError(f"{path}: expected a row per system, got only the header")
+    return table
+
+
+def _columns(path: Path, table, text=(), counts=(), reals=(), *, required=()) -> None:
+    """Check and convert ``table``'s columns in place: names (non-empty text), counts
+    (integers >= 0), reals (numbers, empty: NaN)."""
+    import math
+
+    from hybridnav.params import short_repr
+
+    for col in (*text, *counts, *reals, *required):
+        if col not in table.columns:
+            raise HybridnavError(f"{path}: {col}: missing column")
+
+    def bad(col, what, i):
+        raise HybridnavError(f"{path}: {col}: expected {what}, got "
+                             f"{short_repr(table[col].iloc[i])} in row {i + 2}")
+
+    for col in text:
+        for i, v in enumerate(table[col]):
+            if not v.strip():
+                bad(col, "a name", i)
+    for col in counts:
+        out = []
+        for i, v in enumerate(table[col]):
+            try:
+                x = float(v)
+            except ValueError:
+                bad(col, "a count", i)
+            if not (math.isfinite(x) and x >= 0 and x == int(x)):
+                bad(col, "a count", i)
+            out.append(int(x))
+        table[col] = out
+    for col in reals:
+        out = []
+        for i, v in enumerate(table[col]):
+            try:
+                out.append(float(v) if v.strip() else math.nan)
+            except ValueError:
+                bad(col, "a number (or empty)", i)
+        table[col] = out
+
+
+def load_experiment(folder: str | Path):
+    """``(experiment, summary, verdicts, meta)`` of a stored experiment, checked: its
+    ``experiment.json``, ``heldout_summary.csv`` and ``verdicts.csv`` as
+    :func:`run_experiment` writes them.
+
+    Raises
+    ------
+    HybridnavError
+        A missing or unreadable file, a bad key or column, a count that is not one, a GA run
+        of a profile the experiment does not have, or a p-value that is not the exact McNemar
+        test of the run's own counts (naming the file, key or column and row).
+    """
+    import math
+
+    from hybridnav.fileio import read_text_file
+    from hybridnav.params import Param, short_repr
+    from hybridnav.reproduce.readme import check_shown
 
     folder = Path(folder)
-    meta = json.loads(read_text_file(folder / "experiment.json", "experiment.json"))
+    path = folder / "experiment.json"
+    try:
+        meta = json.loads(read_text_file(path, "experiment.json"))
+    except (ValueError, RecursionError) as exc:
+        if isinstance(exc, HybridnavError):
+            raise
+        raise HybridnavError(f"{path}: expected the experiment.json of `hybridnav reproduce` "
+                             f"({short_repr(str(exc), 200)})") from None
+    if not isinstance(meta, dict):
+        raise HybridnavError(f"{path}: expected a JSON object, got {type(meta).__name__}")
     name = meta.get("experiment")
-    if name not in EXPERIMENTS:
-        raise HybridnavError(f"{folder / 'experiment.json'}: experiment: expected one of "
-                             f"{', '.join(EXPERIMENTS)}, got {name!r}")
+    if not isinstance(name, str) or name not in EXPERIMENTS:
+        raise HybridnavError(f"{path}: experiment: expected one of {', '.join(EXPERIMENTS)}, "
+                             f"got {short_repr(name)}")
     experiment = EXPERIMENTS[name]
-    summary = pd.read_csv(folder / "heldout_summary.csv")
-    verdicts = pd.read_csv(folder / "verdicts.csv").fillna({"headline": ""})
+    for key, (default, doc) in _META.items():
+        if key == "elapsed_s" and key not in meta:
+            continue                            # optional: the timing is then left out
+        lo = 1 if key == "runs" else 0 if key != "version" else None
+        extra = {"pattern": r"[\w.+-]{1,64}", "expected": "a version number"} \
+            if key == "version" else {}
+        meta[key] = Param(default, doc, lo=lo, **extra).check(key, meta.get(key), f"{path}: ")
+    sets = meta.get("sets")
+    if not isinstance(sets, dict) or not sets or not all(
+            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) and v >= 0
+            for k, v in sets.items()):
+        raise HybridnavError(f"{path}: sets: expected a table of world counts by set, got "
+                             f"{short_repr(sets)}")
+    check_shown(path, meta)
+
+    spath = folder / "heldout_summary.csv"
+    summary = _csv(spath, "held-out summary")
+    _columns(spath, summary, _SUMMARY_TEXT, _SUMMARY_COUNTS, _SUMMARY_REALS)
+    systems = re.compile("|".join([*map(re.escape, experiment.beside), "apf",
+                                   *(rf"{re.escape(p)}/seed\d+" for p in experiment.profiles)]))
+    for col, ok, what in (("set", lambda v: v in experiment.sets,
+                           f"one of the sets {', '.join(experiment.sets)}"),
+                          ("system", lambda v: systems.fullmatch(v) is not None,
+                           "start, deploy, apf or <profile>/seed<k>")):
+        for i, v in enumerate(summary[col]):
+            if not ok(v):
+                raise HybridnavError(f"{spath}: {col}: expected {what}, got {short_repr(v)} in "
+                                     f"row {i + 2}")
+    for i, (k, n) in enumerate(zip(summary["reached"], summary["worlds"])):
+        if k > n:
+            raise HybridnavError(f"{spath}: reached: expected at most worlds ({n}), got {k} in "
+                                 f"row {i + 2}")
+
+    vpath = folder / "verdicts.csv"
+    verdicts = _csv(vpath, "GA runs' verdicts")
+    _columns(vpath, verdicts, ("system", "profile"), _VERDICT_COUNTS, ("p_vs_start",),
+             required=("ready", "headline"))
+    for i, r in verdicts.iterrows():
+        row = f"in row {i + 2}"
+        system = r["system"].split("/")
+        if len(system) != 2 or system[0] != r["profile"] or not system[1].startswith("seed"):
+            raise HybridnavError(f"{vpath}: system: expected <profile>/seed<k> of the row's "
+                                 f"profile, got {short_repr(r['system'])} {row}")
+        if r["profile"] not in experiment.profiles:
+            raise HybridnavError(f"{vpath}: profile: expected one of "
+                                 f"{', '.join(experiment.profiles)}, got "
+                                 f"{short_repr(r['profile'])} {row}")
+        for k, n in (("training_reached", "training_worlds"), ("heldout_reached", "worlds"),
+                     ("start_reached", "worlds")):
+            if r[k] > r[n]:
+                raise HybridnavError(f"{vpath}: {k}: expected at most {n} ({r[n]}), got "
+                                     f"{r[k]} {row}")
+        if r["only_tuned"] + r["only_start"] > r["worlds"] or \
+                r["heldout_reached"] - r["start_reached"] != r["only_tuned"] - r["only_start"]:
+            raise HybridnavError(f"{vpath}: only_tuned: expected the worlds only the tuned "
+                                 f"system reached (with only_start, the paired counts of "
+                                 f"heldout_reached and start_reached), got {r['only_tuned']} "
+                                 f"and {r['only_start']} {row}")
+        p = _mcnemar_p(r["only_tuned"], r["only_start"])
+        if not math.isclose(r["p_vs_start"], p, rel_tol=1e-6, abs_tol=1e-12):
+            raise HybridnavError(f"{vpath}: p_vs_start: expected the exact McNemar p of "
+                                 f"only_tuned and only_start ({p:.6g}), got "
+                                 f"{short_repr(r['p_vs_start'])} {row}")
+        if not _PLAIN.fullmatch(r["headline"]):     # shown in a table row of README
+            raise HybridnavError(f"{vpath}: headline: expected one line of text without '|' "
+                                 f"or markup, got {short_repr(r['headline'])} {row}")
+        if r["ready"] not in ("True", "False"):
+            raise HybridnavError(f"{vpath}: ready: expected True or False, got "
+                                 f"{short_repr(r['ready'])} {row}")
+    verdicts["ready"] = verdicts["ready"] == "True"
+    return experiment, summary, verdicts, meta
+
+
+def _mcnemar_p(only_a: int, only_b: int) -> float:
+    """The two-sided exact McNemar p of the discordant counts (1.0 with none)."""
+    from scipy import stats
+
+    n = only_a + only_b
+    return 1.0 if n == 0 else float(stats.binomtest(only_a, n, 0.5).pvalue)
+
+
+def render_experiment(folder: str | Path) -> str:
+    """The README block of a stored experiment (from its CSV files and ``experiment.json``,
+    checked by :func:`load_experiment`)."""
+    from hybridnav.reproduce.readme import STORE
+
+    experiment, summary, verdicts, meta = load_experiment(folder)
+    name = experiment.name
     claims = experiment_claims(experiment, verdicts)
+    timing = (f", {meta['elapsed_s'] / 60:.1f} min with {meta.get('workers', 1)} worker(s) "
+              f"(load {meta.get('load', '?')})" if "elapsed_s" in meta else "")
     how = (f"Measured by `hybridnav reproduce {name}` with hybridnav {meta['version']}: "
-           f"{meta['runs']} GA run(s) per profile (the paper: 1), seed {meta['seed']}, "
-           f"{meta['elapsed_s'] / 60:.1f} min with {meta.get('workers', 1)} worker(s) "
-           f"(load {meta.get('load', '?')}). The whole report: [`{STORE.as_posix()}/{name}/"
+           f"{meta['runs']} GA run(s) per profile (the paper: 1), seed {meta['seed']}"
+           f"{timing}. The whole report: [`{STORE.as_posix()}/{name}/"
            f"report.md`]({STORE.as_posix()}/{name}/report.md).")
     return "\n".join([how, ""] + experiment_sections(experiment, summary, verdicts, claims,
                                                       meta, level=4))
 
 
 def rewrite_experiment_report(folder: str | Path) -> Path:
-    """Write a stored experiment's ``report.md`` again from its stored tables."""
-    import pandas as pd
-
-    from hybridnav.fileio import read_text_file
-
+    """Write a stored experiment's ``report.md`` again from its stored tables (checked by
+    :func:`load_experiment`)."""
     folder = Path(folder)
-    meta = json.loads(read_text_file(folder / "experiment.json", "experiment.json"))
-    experiment = EXPERIMENTS[meta["experiment"]]
-    summary = pd.read_csv(folder / "heldout_summary.csv")
-    verdicts = pd.read_csv(folder / "verdicts.csv").fillna({"headline": ""})
+    experiment, summary, verdicts, meta = load_experiment(folder)
     write_experiment_report(folder / "report.md", experiment, summary, verdicts,
                             experiment_claims(experiment, verdicts), meta)
     return folder / "report.md"
-
