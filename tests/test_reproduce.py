@@ -289,6 +289,25 @@ def test_claims_hold_in_our_runs_only_with_significance_and_runs_that_reached():
     assert holds is None and "not most runs on both sides" in detail   # no comparison of means
     holds, _ = verdict(summary(none, none), "EFFC reaches the goal in less time than HAPF")
     assert holds is None
+    # two deterministic planners (every run the same length): ten copies are one comparison,
+    # whatever the Mann-Whitney p of the copies says
+    fixed = {**row, "path_length_min": 2.5, "path_length_max": 2.5, "path_length_p_vs_hapf": 1e-5}
+    fixed_long = {**longer, "path_length_min": 3.0, "path_length_max": 3.0}
+    holds, detail = verdict(summary(fixed, fixed_long))
+    assert holds is None and "every run of each gave the same result" in detail
+    from hybridnav.reproduce.report import row_verdict
+    claim = p.claims[0]
+    one = row_verdict(p, claim, summary(fixed, fixed_long), "hybridnav profile", p.rows[1],
+                      single=True)
+    assert one[0] is True and "(one comparison)" in one[1]         # a layout: its sign
+    tie = row_verdict(p, claim, summary(fixed, fixed), "hybridnav profile", p.rows[1],
+                      single=True)
+    assert tie[0] is None and "(a tie)" in tie[1]
+    # one side varying: the test applies
+    varying = {**fixed_long, "path_length_min": 2.9, "path_length_max": 3.1}
+    assert verdict(summary(fixed, varying))[0] is True
+    from hybridnav.reproduce.layouts import failing_rows   # such rows get layout runs
+    assert (0, "environment (b)") in failing_rows(p, summary(fixed, fixed_long))
 
 
 def test_a_faster_claim_uses_the_time_its_paper_means():

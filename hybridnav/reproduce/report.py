@@ -204,7 +204,7 @@ def _column(claim: Claim) -> str:
 
 
 def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, view: str,
-                row: Row) -> tuple[bool | None, str]:
+                row: Row, single: bool = False) -> tuple[bool | None, str]:
     """One row's verdict on a claim and the numbers it rests on (for a protocol with a
     :attr:`Protocol.sweep`, every swept value of ``a`` against ``b`` at the same value, or its
     only one: the row holds when every value holds and fails when one fails).
@@ -219,6 +219,12 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
     row : Row
         A row of the claim; its ``scenario`` names the summary's rows (a perturbed layout's
         name in :mod:`hybridnav.reproduce.layouts`).
+
+    single : bool
+        Where both planners gave one result in every run (deterministic: the runs are copies,
+        not samples, and a test on them would count one observation many times), judge the one
+        comparison by its sign (a perturbed layout of :mod:`hybridnav.reproduce.layouts` is one
+        observation) instead of "not shown".
 
     Returns
     -------
@@ -242,7 +248,7 @@ def row_verdict(protocol: Protocol, claim: Claim, summary: pd.DataFrame | None, 
     verdicts, parts = [], []
     for where, va, vb, lb in cases:
         if claim.kind in ("shorter", "faster"):
-            verdict, part = _compare_row(protocol, claim, view, va, vb, lb)
+            verdict, part = _compare_row(protocol, claim, view, va, vb, lb, single)
         elif claim.kind == "collision-free":
             verdict, part = _collision_free_row(va)
         elif claim.kind == "worst-case":
@@ -277,11 +283,21 @@ def _check(protocol: Protocol, claim: Claim, summary: pd.DataFrame, view: str
     return _combined(verdicts), "; ".join(parts)
 
 
-def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: str = ""
-                 ) -> tuple[bool | None, str]:
+def _constant(value: dict[str, Any], col: str) -> bool:
+    """Whether every reached run of a summary row gave the same ``col`` (a deterministic
+    planner's copies): its minimum is its maximum."""
+    lo, hi = value.get(f"{col}_min"), value.get(f"{col}_max")
+    return lo is not None and hi is not None and math.isfinite(float(lo)) and \
+        float(lo) == float(hi)
+
+
+def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: str = "",
+                 single: bool = False) -> tuple[bool | None, str]:
     """One row of a ``shorter`` / ``faster`` claim. The paper's numbers (one value per method)
-    are compared as printed; ours need significance and runs that reached (see :data:`ALPHA`);
-    ``label_b``: the variant of ``b`` compared (its p-value column)."""
+    are compared as printed; ours need significance and runs that reached (see :data:`ALPHA`),
+    and at least one side whose runs differ (two deterministic planners give one comparison,
+    however many runs: "not shown", or its sign with ``single``); ``label_b``: the variant of
+    ``b`` compared (its p-value column)."""
     col = _column(claim)
     a, b = _metric(va, col), _metric(vb, col)
     if view == "paper":
@@ -303,6 +319,12 @@ def _compare_row(protocol: Protocol, claim: Claim, view: str, va, vb, label_b: s
     if ra <= MOST_REACHED or rb <= MOST_REACHED:
         nums = f"{_fmt(a) if a is not None else '-'} vs {_fmt(b) if b is not None else '-'}"
         return None, f"{nums}, {reach}: not most runs on both sides"
+    if a is not None and b is not None and _constant(va, col) and _constant(vb, col):
+        one = f"{a:.4g} vs {b:.4g}: every run of each gave the same result"
+        if single:
+            return (None, f"{one} (a tie)") if a == b else (a < b, f"{one} (one comparison)")
+        return None, (f"{one}, so the runs are copies, not samples: one comparison, no test "
+                      "(see the layout sensitivity)")
     key = f"{col}_p_vs_{label_b or _label(protocol, claim.b, view)}"
     p = va.get(key, math.nan)
     p = math.nan if p is None else float(p)
