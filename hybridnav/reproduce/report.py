@@ -660,7 +660,10 @@ def claims_section(claims: Sequence[dict[str, Any]], level: int = 2,
             f"when both planners reached in more than {MOST_REACHED:.0%} of their runs and the "
             f"two-sided Mann-Whitney U test of the reached runs gives p < {ALPHA:g} in its "
             "favour; significant the other way, or the first planner reaching in no run where "
-            "the second does, is \"does not hold\"; anything else is \"not shown\".")
+            "the second does, is \"does not hold\"; anything else is \"not shown\". Two "
+            "planners that each gave the same result in every run (deterministic) give one "
+            "comparison, not a sample: \"not shown\" here, and the layout sensitivity below "
+            "counts them layout by layout.")
     kinds = list(dict.fromkeys(c.get("kind") for c in claims))
     if all(k in CLAIM_RULES for k in kinds):     # no claim the significance rule judges
         rule = "In the paper's numbers a claim is judged as printed."
