@@ -278,11 +278,11 @@ PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (
         sweep=("sensor_noise", (0.0, 0.01, 0.03, 0.05)),
         claims=(Claim("EFFC drives the TurtleBot3 to the goal without a collision in an office "
                       "setting (Sec. 4: the real-time implementation 'validated the "
-                      "effectiveness of the approach in practical scenarios')", "reaches",
+                      "effectiveness of the approach in practical scenarios')", "collision-free",
                       "effc"),
                 Claim("The GA-tuned EFFC reaches the goal without a collision whatever the "
                       "range noise (abstract: the GA is to 'enhance adaptability and robustness "
-                      "to sensor uncertainties')", "reaches", "effc/tuned"),
+                      "to sensor uncertainties')", "collision-free", "effc/tuned"),
                 Claim("EFFC's path is shorter than HAPF's (the paper's simulated comparison, "
                       "Table 3 and the conclusion, carried over to the office)", "shorter",
                       "effc", "hapf")),
