@@ -53,7 +53,7 @@ FloatArray = NDArray[np.float64]
 _STRIDE = 8
 # control cycles integrated per compiled call: a candidate whose move has ended is integrated
 # no further (a divisor of the blocks of roll_block) ...
-_SUB = 16
+_SUB = 32
 # ... for models whose step has more operations than this (the point mass: 53, the unicycle:
 # 200, the tractor-trailer: 309)
 _CHEAP = 100
@@ -67,13 +67,15 @@ def roll_block(model, n: int) -> tuple[int, int]:
     """Control cycles between two checks for a batch of ``n`` candidates, and per compiled call.
 
     Short blocks stop the integration of a large batch soon after its moves collide; small
-    batches, whose checks cost more per sample, take long blocks. Within a block the moves that
+    batches, whose checks cost more per sample (a check's cost is mostly per call below a few
+    hundred candidates, and most candidates a swarm asks about at that size are feasible, so
+    driven to their end anyway), take long blocks. Within a block the moves that
     have ended are integrated no further, :data:`_SUB` cycles at a time, for models whose cycle
     costs more than a compiled call's overhead (those with trigonometry: a step function of more
     than :data:`_CHEAP` operations). Both are multiples of :data:`_STRIDE`.
     """
     cheap = _cycle_cost(model) <= _CHEAP
-    block = 64 if n < 1024 else 16
+    block = 256 if n < 256 else 64 if n < 1024 else 16
     return block, block if cheap else _SUB
 
 
