@@ -22,7 +22,10 @@ Planning a step: candidates lie in the workspace (shrunk by the robot's radius; 
 the whole-body disk (radius ``model.radius``, for the tractor-trailer ``sqrt(L^2 + b^2) / 2``) at
 least ``margin`` from obstacles and robots; the robot's compiled model is rolled out from its state
 towards every candidate in batched calls and the candidates whose swept footprint comes closer
-than ``margin`` are infeasible (:func:`~hybridnav.planners.step.stepfit.feasible_steps`). The goal is
+than ``margin`` are infeasible (:func:`~hybridnav.planners.step.stepfit.feasible_steps`); the step
+fitness of the candidates that pass the cheap tests is a lower bound of their value, so the swarm
+asks for the rollout only of the candidates whose value can change its run (a
+:class:`~hybridnav.planners.swarm._core.BoundedObjective`; the same steps). The goal is
 always one of the candidates, so a robot that can drive straight to its goal does. A robot that
 finds no feasible step holds its position and tries again every second; after ``patience`` seconds
 without one it is ``stuck``, and so is a robot with a fixed goal that plans ``stall_steps`` steps in
@@ -69,6 +72,7 @@ from hybridnav.planners.step.stepfit import (
     step_fitness,
 )
 from hybridnav.planners.swarm import OptResult
+from hybridnav.planners.step.sweep import costly_cycles
 from hybridnav.planners.swarm._core import BoundedObjective
 from hybridnav.results import Result
 
@@ -283,7 +287,7 @@ class StepPlanner(Planner):
 
             # optimizers that keep only their best candidates check the moves of those that can
             # be kept (the bound decides the others)
-            f = BoundedObjective(bound, refine)
+            f = BoundedObjective(bound, refine, costly=costly_cycles(plan_models[i]))
 
             # within reach of the goal no candidate other than the goal itself may be taken
             # (steps are farther than reach), so the goal is the step when it is feasible:

@@ -45,7 +45,7 @@ from hybridnav.native.boxes import near_any as compiled_near_any
 from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
-__all__ = ["roll_block", "sweep"]
+__all__ = ["costly_cycles", "roll_block", "sweep"]
 
 FloatArray = NDArray[np.float64]
 
@@ -77,6 +77,13 @@ def roll_block(model, n: int) -> tuple[int, int]:
     cheap = _cycle_cost(model) <= _CHEAP
     block = 256 if n < 256 else 64 if n < 1024 else 16
     return block, block if cheap else _SUB
+
+
+def costly_cycles(model) -> bool:
+    """Whether the model's control cycle costs more than a compiled call's overhead (a step
+    function of more than :data:`_CHEAP` operations: trigonometry), so that a candidate's
+    rollout, not the check's calls, is what a check mostly costs."""
+    return _cycle_cost(model) > _CHEAP
 
 
 def _cycle_cost(model) -> int:

@@ -123,12 +123,18 @@ class BoundedObjective:
         ``lower_bound(X) -> (N,)`` bounds.
     refine : callable
         ``refine(X, B) -> (N,)`` exact values, given ``B = lower_bound(X)`` (it may reuse them).
+    costly : bool
+        Whether an exact value costs much more than a call of ``refine`` (then an optimizer may
+        take a second call to skip more points; otherwise it asks in one call for every point
+        it may need). Speed only: the run is the same either way.
     """
 
     def __init__(self, lower_bound: Callable[[NDArray[np.float64]], ArrayLike],
-                 refine: Callable[[NDArray[np.float64], NDArray[np.float64]], ArrayLike]) -> None:
+                 refine: Callable[[NDArray[np.float64], NDArray[np.float64]], ArrayLike],
+                 costly: bool = True) -> None:
         self.lower_bound = lower_bound
         self.refine = refine
+        self.costly = bool(costly)
 
     def __call__(self, X: NDArray[np.float64]) -> ArrayLike:
         return self.refine(X, np.asarray(self.lower_bound(X), dtype=float))

@@ -306,7 +306,8 @@ def _generation_values(run: Run, V: NDArray[np.float64], F: NDArray[np.float64]
     * ``y_i`` is taken only when ``f(y_i) < F_i``: with a bound ``>= F_i`` it is not, and it
       is not a new best either (``F_i`` is at least the best value so far);
     * ``z_i`` is taken whenever ``y_i`` is not, so it is needed when ``y_i``'s bound rules
-      ``y_i`` out, or once ``y_i`` has turned out no better (a second call, for those only);
+      ``y_i`` out, or once ``y_i`` has turned out no better (a second call, for those only,
+      when the objective says its values are costly; otherwise asked with the others);
       otherwise only when its bound is below the best value so far (it may be a new best).
 
     Every value the generation uses -- the preference test, the values carried, the elitism
@@ -318,7 +319,10 @@ def _generation_values(run: Run, V: NDArray[np.float64], F: NDArray[np.float64]
     out = np.full(2 * n, np.inf)
     live = lb < np.inf                           # a bound of +inf: the value is +inf
     need_y = live[:n] & (lb[:n] < F)
-    need_z = live[n:] & (~need_y | (lb[n:] < run.best_f))
+    if getattr(run.f, "costly", True):
+        need_z = live[n:] & (~need_y | (lb[n:] < run.best_f))
+    else:                                        # one call: every z_i that may be needed
+        need_z = live[n:]
     rows = np.flatnonzero(np.concatenate([need_y, need_z]))
     out[rows] = run.refine(V, B, rows)
     later = n + np.flatnonzero(live[n:] & ~need_z & ~(out[:n] < F))
