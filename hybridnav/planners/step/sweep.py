@@ -69,14 +69,17 @@ def roll_block(model, n: int) -> tuple[int, int]:
     Short blocks stop the integration of a large batch soon after its moves collide; small
     batches, whose checks cost more per sample (a check's cost is mostly per call below a few
     hundred candidates, and most candidates a swarm asks about at that size are feasible, so
-    driven to their end anyway), take long blocks. Within a block the moves that
-    have ended are integrated no further, :data:`_SUB` cycles at a time, for models whose cycle
+    driven to their end anyway), take long blocks -- 256 cycles for models with costly cycles,
+    64 for cheap ones (whose block is one compiled call that drives ended moves on). Within a
+    block the moves that have ended are integrated no further, :data:`_SUB` cycles at a time, for models whose cycle
     costs more than a compiled call's overhead (those with trigonometry: a step function of more
     than :data:`_CHEAP` operations). Both are multiples of :data:`_STRIDE`.
     """
     cheap = _cycle_cost(model) <= _CHEAP
+    if cheap:       # a cheap model integrates a whole block in one call, ended moves too
+        return (64, 64) if n < 1024 else (16, 16)
     block = 256 if n < 256 else 64 if n < 1024 else 16
-    return block, block if cheap else _SUB
+    return block, _SUB
 
 
 def costly_cycles(model) -> bool:
