@@ -84,3 +84,21 @@ def test_step_fitness_is_row_by_row(name):
         for sel in (np.arange(0), np.array([5]), np.flatnonzero(rng.random(400) < 0.3)):
             part = step_fitness(X[sel], goal, env, 0.18, 0.18, 0.18, 0.01, goal_distance=dist)
             assert part.tobytes() == full[sel].tobytes()
+
+
+@pytest.mark.parametrize("planner,scenario", [("fastep-kinematic", "fastep-s3"),
+                                              ("aco-kinematic", "fastep-s1")])
+def test_runs_are_the_same_when_every_candidate_is_checked(planner, scenario, monkeypatch):
+    """The step fitness as a lower bound (only the candidates whose value can change the
+    swarm's run get the swept-footprint check) against every candidate's value computed: the
+    same run, state for state."""
+    from hybridnav import planners
+    from hybridnav.planners.swarm import _core
+
+    runs = []
+    for bounded in (True, False):
+        if not bounded:
+            monkeypatch.setattr(_core.Run, "bounded", property(lambda self: False))
+        result = planners.get(planner).run(load_scenario(scenario), seed=0)
+        runs.append([(r.outcome, r.states.tobytes()) for r in result.robots])
+    assert runs[0] == runs[1]

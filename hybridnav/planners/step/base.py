@@ -22,7 +22,10 @@ Planning a step: candidates lie in the workspace (shrunk by the robot's radius; 
 the whole-body disk (radius ``model.radius``, for the tractor-trailer ``sqrt(L^2 + b^2) / 2``) at
 least ``margin`` from obstacles and robots; the robot's compiled model is rolled out from its state
 towards every candidate in batched calls and the candidates whose swept footprint comes closer
-than ``margin`` are infeasible (:func:`~hybridnav.planners.step.stepfit.feasible_steps`). The goal is
+than ``margin`` are infeasible (:func:`~hybridnav.planners.step.stepfit.feasible_steps`); the step
+fitness of the candidates that pass the cheap tests is a lower bound of their value, so the swarm
+asks for the rollout only of the candidates whose value can change its run (a
+:class:`~hybridnav.planners.swarm._core.BoundedObjective`; the same steps). The goal is
 always one of the candidates, so a robot that can drive straight to its goal does. A robot that
 finds no feasible step holds its position and tries again every second; after ``patience`` seconds
 without one it is ``stuck``, and so is a robot with a fixed goal that plans ``stall_steps`` steps in
@@ -69,6 +72,8 @@ from hybridnav.planners.step.stepfit import (
     step_fitness,
 )
 from hybridnav.planners.swarm import OptResult
+from hybridnav.planners.step.sweep import costly_cycles
+from hybridnav.planners.swarm._core import BoundedObjective
 from hybridnav.results import Result
 
 __all__ = ["StepPlanner"]
@@ -253,7 +258,9 @@ class StepPlanner(Planner):
                 upper = np.minimum(upper, pos + v["window"] * R[i])
             upper = np.maximum(upper, lower + 1e-9)
 
-            def f(X: np.ndarray) -> np.ndarray:
+            def bound(X: np.ndarray) -> np.ndarray:
+                # the step fitness where the cheap tests pass (a candidate's value if its move
+                # is feasible, else +inf: a lower bound), +inf elsewhere
                 is_goal = (X[:, 0] == goal[0]) & (X[:, 1] == goal[1])
                 ok = is_goal | (np.hypot(X[:, 0] - pos[0], X[:, 1] - pos[1]) > reach[i])
                 if world.obstacles:
@@ -261,17 +268,26 @@ class StepPlanner(Planner):
                 if len(orad):
                     d = np.hypot(X[:, None, 0] - oc[None, :, 0], X[:, None, 1] - oc[None, :, 1])
                     ok &= np.all(d >= body + orad[None], axis=1)
-                sel = np.flatnonzero(ok)
-                if len(sel):
-                    ok[sel] = feasible_steps(plan_models[i], x0, X[sel], env, steps=steps,
-                                             reach=reach[i], margin=m_i, end_margin=margin[i])
-                # the fitness of the feasible candidates only (row by row: the same values)
                 val = np.full(len(X), np.inf)
                 sel = np.flatnonzero(ok)
-                if len(sel):
+                if len(sel):          # row by row: the same values for any subset of rows
                     val[sel] = step_fitness(X[sel], goal, env, *weights,
                                             goal_distance=goal_distance[i])
                 return val
+
+            def refine(X: np.ndarray, B: np.ndarray) -> np.ndarray:
+                # the fitness of the candidates whose moves are feasible, +inf for the others
+                val = np.array(B, dtype=float)
+                sel = np.flatnonzero(val < np.inf)       # (a NaN fitness counts as +inf anyway)
+                if len(sel):
+                    ok = feasible_steps(plan_models[i], x0, X[sel], env, steps=steps,
+                                        reach=reach[i], margin=m_i, end_margin=margin[i])
+                    val[sel[~ok]] = np.inf
+                return val
+
+            # optimizers that keep only their best candidates check the moves of those that can
+            # be kept (the bound decides the others)
+            f = BoundedObjective(bound, refine, costly=costly_cycles(plan_models[i]))
 
             # within reach of the goal no candidate other than the goal itself may be taken
             # (steps are farther than reach), so the goal is the step when it is feasible:

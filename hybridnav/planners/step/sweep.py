@@ -45,7 +45,7 @@ from hybridnav.native.boxes import near_any as compiled_near_any
 from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
-__all__ = ["roll_block", "sweep"]
+__all__ = ["costly_cycles", "roll_block", "sweep"]
 
 FloatArray = NDArray[np.float64]
 
@@ -53,7 +53,7 @@ FloatArray = NDArray[np.float64]
 _STRIDE = 8
 # control cycles integrated per compiled call: a candidate whose move has ended is integrated
 # no further (a divisor of the blocks of roll_block) ...
-_SUB = 16
+_SUB = 32
 # ... for models whose step has more operations than this (the point mass: 53, the unicycle:
 # 200, the tractor-trailer: 309)
 _CHEAP = 100
@@ -67,14 +67,26 @@ def roll_block(model, n: int) -> tuple[int, int]:
     """Control cycles between two checks for a batch of ``n`` candidates, and per compiled call.
 
     Short blocks stop the integration of a large batch soon after its moves collide; small
-    batches, whose checks cost more per sample, take long blocks. Within a block the moves that
-    have ended are integrated no further, :data:`_SUB` cycles at a time, for models whose cycle
+    batches, whose checks cost more per sample (a check's cost is mostly per call below a few
+    hundred candidates, and most candidates a swarm asks about at that size are feasible, so
+    driven to their end anyway), take long blocks -- 256 cycles for models with costly cycles,
+    64 for cheap ones (whose block is one compiled call that drives ended moves on). Within a
+    block the moves that have ended are integrated no further, :data:`_SUB` cycles at a time, for models whose cycle
     costs more than a compiled call's overhead (those with trigonometry: a step function of more
     than :data:`_CHEAP` operations). Both are multiples of :data:`_STRIDE`.
     """
     cheap = _cycle_cost(model) <= _CHEAP
-    block = 64 if n < 1024 else 16
-    return block, block if cheap else _SUB
+    if cheap:       # a cheap model integrates a whole block in one call, ended moves too
+        return (64, 64) if n < 1024 else (16, 16)
+    block = 256 if n < 256 else 64 if n < 1024 else 16
+    return block, _SUB
+
+
+def costly_cycles(model) -> bool:
+    """Whether the model's control cycle costs more than a compiled call's overhead (a step
+    function of more than :data:`_CHEAP` operations: trigonometry), so that a candidate's
+    rollout, not the check's calls, is what a check mostly costs."""
+    return _cycle_cost(model) > _CHEAP
 
 
 def _cycle_cost(model) -> int:

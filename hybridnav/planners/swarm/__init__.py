@@ -5,7 +5,10 @@ max_evals=None, target=None, seed=None, init=None, **method_parameters) -> OptRe
 
 * ``f(X)`` takes an ``(N, d)`` array of points and returns ``N`` values (lower is better; NaN
   counts as ``+inf``). It is called once for the initial population and once per iteration with
-  the whole swarm, never per individual.
+  the whole swarm, never per individual. An objective that also offers cheap lower bounds
+  (:class:`~hybridnav.planners.swarm._core.BoundedObjective`) is asked for its exact values
+  only where they can change the run (``acor``, ``fastep``: in a few batches per iteration);
+  the result is the same.
 * ``bounds = (lower, upper)``, two sequences of length ``d`` with ``lower < upper``; every point
   passed to ``f`` lies inside the box.
 * the budget is ``iterations`` and/or ``max_evals`` (an iteration that would exceed ``max_evals``

@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from hybridnav.errors import HybridnavError
 from hybridnav.params import check_int, check_real  # noqa: F401  (the optimizers import them from here)
 
-__all__ = ["BoundsLike", "History", "Objective", "OptResult", "SeedLike"]
+__all__ = ["BoundedObjective", "BoundsLike", "History", "Objective", "OptResult", "SeedLike"]
 
 log = logging.getLogger("hybridnav.planners.swarm")
 
@@ -103,6 +103,46 @@ class OptResult:
     params: dict[str, Any]
     message: str
     state: dict[str, NDArray[Any]] = field(default_factory=dict)
+
+
+class BoundedObjective:
+    """An objective that can say cheaply how good a point can at best be.
+
+    ``f(X) = f.refine(X, f.lower_bound(X))``; for every row ``f(X) >= f.lower_bound(X)`` (a NaN
+    value counts as ``+inf``, a NaN bound bounds nothing), a row's value does not depend on the
+    other rows, and a row whose bound is ``+inf`` has the value ``+inf``. Optimizers that carry
+    only their best points (``acor``: the archive; ``fastep``: a firefly's move is taken only
+    when it is better) use the bound to skip the exact value of points whose bound already rules
+    them out (:meth:`Run.refine` only where it can change the run): the run is the same as with
+    every value computed, for the cost of the points that can matter. Other optimizers call it
+    as a plain objective.
+
+    Parameters
+    ----------
+    lower_bound : callable
+        ``lower_bound(X) -> (N,)`` bounds.
+    refine : callable
+        ``refine(X, B) -> (N,)`` exact values, given ``B = lower_bound(X)`` (it may reuse them).
+    costly : bool
+        Whether an exact value costs much more than a call of ``refine`` (then an optimizer may
+        take a second call to skip more points; otherwise it asks in one call for every point
+        it may need). Speed only: the run is the same either way.
+    """
+
+    def __init__(self, lower_bound: Callable[[NDArray[np.float64]], ArrayLike],
+                 refine: Callable[[NDArray[np.float64], NDArray[np.float64]], ArrayLike],
+                 costly: bool = True) -> None:
+        self.lower_bound = lower_bound
+        self.refine = refine
+        self.costly = bool(costly)
+
+    def __call__(self, X: NDArray[np.float64]) -> ArrayLike:
+        return self.refine(X, np.asarray(self.lower_bound(X), dtype=float))
+
+
+def decisive(B: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bounds to decide with: a NaN bound (which bounds nothing) as ``-inf``."""
+    return np.where(np.isnan(B), -math.inf, B)
 
 
 # --------------------------------------------------------------------------------------------
@@ -269,25 +309,60 @@ class Run:
 
     def evaluate(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
         """Call the objective once on all rows of ``X``; NaN counts as ``+inf``."""
-        n = X.shape[0]
-        raw = self.f(X)
+        values = self._values(self.f(X), X.shape[0])
+        self.account(X, values)
+        return values
+
+    def _values(self, raw: Any, n: int, what: str = "f") -> NDArray[np.float64]:
+        """``raw`` as ``n`` floats, NaN as ``+inf`` (``what``: the callable, for the message)."""
         try:
             values = np.array(raw, dtype=float)
         except (TypeError, ValueError):
-            raise HybridnavError(f"f: returned {type(raw).__name__} that is not an array of "
+            raise HybridnavError(f"{what}: returned {type(raw).__name__} that is not an array of "
                                  "real numbers") from None
         if values.shape != (n,):
-            raise HybridnavError(f"f: returned shape {values.shape} for {n} points; expected "
+            raise HybridnavError(f"{what}: returned shape {values.shape} for {n} points; expected "
                                  f"({n},): one value per row of X")
         values[np.isnan(values)] = math.inf
+        return values
+
+    def account(self, X: NDArray[np.float64], values: NDArray[np.float64]) -> None:
+        """Count one call of the objective on the rows of ``X`` with these ``values`` (budget,
+        best point so far)."""
         first = self.ncalls == 0
         self.ncalls += 1
-        self.nfev += n
+        self.nfev += X.shape[0]
         i = int(np.argmin(values))
         if first or values[i] < self.best_f:  # ties keep the earlier point
             self.best_f = float(values[i])
             self.best_x = X[i].copy()
-        return values
+
+    # bounded objectives: evaluate only where a value can matter -----------------------------
+
+    @property
+    def bounded(self) -> bool:
+        """Whether the objective offers lower bounds (:func:`bounded_objective`), so an optimizer
+        may skip the exact value of points whose bound already decides their fate."""
+        return callable(getattr(self.f, "lower_bound", None)) and callable(
+            getattr(self.f, "refine", None))
+
+    def lower_bound(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The objective's lower bounds of the rows of ``X`` (``f(X) >= bound`` row by row; a
+        NaN bound bounds nothing, see :func:`decisive`). Not a call of the objective: no budget
+        is counted (:meth:`account` does that once the values are in)."""
+        B = np.array(self.f.lower_bound(X), dtype=float)
+        if B.shape != (X.shape[0],):
+            raise HybridnavError(f"f.lower_bound: returned shape {B.shape} for {X.shape[0]} "
+                                 "points; expected one bound per row of X")
+        return B
+
+    def refine(self, X: NDArray[np.float64], B: NDArray[np.float64],
+               rows: NDArray[np.int_]) -> NDArray[np.float64]:
+        """The exact values of the rows ``rows`` of ``X`` whose bounds are ``B`` (as
+        :meth:`lower_bound` returned them), NaN as ``+inf``; no bookkeeping."""
+        if not len(rows):
+            return np.zeros(0)
+        return self._values(self.f.refine(X[rows], B[rows]), len(rows), "f.refine")
 
     # history --------------------------------------------------------------------------------
 

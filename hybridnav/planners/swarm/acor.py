@@ -15,6 +15,7 @@ from hybridnav.planners.swarm._core import (
     SeedLike,
     check_int,
     check_real,
+    decisive,
     fold,
     uniform_population,
 )
@@ -88,6 +89,9 @@ def acor(f: Objective, bounds: BoundsLike, *, k: int = 50, m: int = 2,
     the bounds (mirror walls). The rotated coordinate system of Socha & Dorigo's Section 5.3 is
     not implemented.
 
+    With a :class:`~hybridnav.planners.swarm._core.BoundedObjective` only the samples that can
+    enter the archive are evaluated exactly (:func:`_sample_values`); the run is the same.
+
     The defaults are Socha & Dorigo's standard values (``k = 50``, ``m = 2``, ``q = 1e-4``,
     ``xi = 0.85``); ACO-Kinematic's navigation values are :data:`ACO_KINEMATIC`
     (``acor(f, bounds, **ACO_KINEMATIC)`` or ``minimize("acor", ..., preset="aco-kinematic")``).
@@ -145,7 +149,7 @@ def acor(f: Objective, bounds: BoundsLike, *, k: int = 50, m: int = 2,
         chosen = run.rng.choice(k, size=m, p=p)
         Z = S[chosen] + sigma[chosen] * run.rng.standard_normal((m, run.d))
         Z, _ = fold(Z, run.lower, run.upper)
-        FZ = run.evaluate(Z)
+        FZ = _sample_values(run, Z, FS) if run.bounded else run.evaluate(Z)
         allS = np.concatenate([S, Z])
         allF = np.concatenate([FS, FZ])
         keep = np.argsort(allF, kind="stable")[:k]
@@ -153,3 +157,43 @@ def acor(f: Objective, bounds: BoundsLike, *, k: int = 50, m: int = 2,
         run.record(FS)
     params: dict[str, Any] = dict(k=k, m=m, q=q, xi=xi)
     return run.result(S, FS, params)
+
+
+def _sample_values(run: Run, Z: NDArray[np.float64], FS: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The samples' values as far as the archive's update needs them, for a bounded objective:
+    exact for every sample that can be among the ``k`` best of archive and samples, ``+inf`` for
+    the others (one evaluation in the budget and the best point, as :meth:`Run.evaluate`).
+
+    The samples are refined in the order of their bounds, a batch at a time, while a bound is at
+    most the ``k``-th best value known (archive ``FS``, ``k`` values, and the samples refined so
+    far). A sample left out has a bound, so a value, above that; ``k`` known values are at most
+    it, so the sample is not among the ``k`` kept (ties included: they are refined), and nor is
+    it the best point (the best value so far is at most the archive's). The archive after the
+    merge, its order and the best point are those of every value computed.
+    """
+    k, m = len(FS), len(Z)
+    B = run.lower_bound(Z)
+    lb = decisive(B)
+    FZ = np.full(m, np.inf)
+    todo = np.flatnonzero(lb < np.inf)            # a bound of +inf: the value is +inf
+    todo = todo[np.argsort(lb[todo], kind="stable")]
+    sorted_lb = lb[todo]
+    kth = float(FS[-1])                           # the archive is sorted: its k-th best
+    done = 0
+    size = k
+    while done < len(todo):
+        stop = int(np.searchsorted(sorted_lb, kth, side="right"))   # bounds <= kth
+        if stop <= done:
+            break
+        rows = todo[done:min(stop, done + size)]
+        FZ[rows] = run.refine(Z, B, rows)
+        done += len(rows)
+        known = np.concatenate([FS, FZ[todo[:done]]])
+        kth = float(np.partition(known, k - 1)[k - 1])
+        # the next batch: about what is still missing for k finite values at the rate found so
+        # far, at most as many as done (the rate of the best bounds says little of the rest)
+        finite = int(np.count_nonzero(np.isfinite(known)))
+        rate = max(np.count_nonzero(np.isfinite(FZ[todo[:done]])) / done, 1.0 / 64)
+        size = max(1, min(max(k // 4, int(1.25 * max(k - finite, k // 4) / rate)), done))
+    run.account(Z, FZ)
+    return FZ

@@ -30,6 +30,7 @@ from hybridnav.planners.swarm._core import (
     SeedLike,
     check_int,
     check_real,
+    decisive,
     uniform_population,
 )
 
@@ -214,7 +215,9 @@ def fastep(f: Objective, bounds: BoundsLike, *, n: int = 50, iterations: int | N
        standard move; the result reports it.)
 
     To keep one call of ``f`` per generation, ``y`` and ``z`` of all fireflies are evaluated
-    together: a generation costs ``2 n`` evaluations (the initial swarm ``n``).
+    together: a generation costs ``2 n`` evaluations (the initial swarm ``n``). With a
+    :class:`~hybridnav.planners.swarm._core.BoundedObjective` only the values the generation
+    uses are computed exactly (:func:`_generation_values`); the run is the same.
 
     Parameters
     ----------
@@ -277,7 +280,8 @@ def fastep(f: Objective, bounds: BoundsLike, *, n: int = 50, iterations: int | N
         beta = _beta(np.einsum("ij,ij->i", diff, diff) * inv_diag2, beta0, gamma, beta_min)
         Z = X[b] + beta[:, None] * diff + alpha_t * (run.rng.random(X.shape) - 0.5) * run.span
         Z = np.clip(Z, run.lower, run.upper)
-        V = run.evaluate(np.concatenate([Y, Z]))
+        V = (_generation_values(run, np.concatenate([Y, Z]), F) if run.bounded
+             else run.evaluate(np.concatenate([Y, Z])))
         FY, FZ = V[:n], V[n:]
         better = FY < F
         stepped = ~better
@@ -290,3 +294,39 @@ def fastep(f: Objective, bounds: BoundsLike, *, n: int = 50, iterations: int | N
     params: dict[str, Any] = dict(n=n, alpha=alpha, beta0=beta0, gamma=gamma, beta_min=beta_min,
                                   damping=damping)
     return run.result(X, F, params, state={"stepped": stepped})
+
+
+def _generation_values(run: Run, V: NDArray[np.float64], F: NDArray[np.float64]
+                       ) -> NDArray[np.float64]:
+    """The values of one FAStep generation's ``V = [Y; Z]`` (standard, then stepping-ahead
+    moves of the ``n`` fireflies whose values are ``F``) as far as the generation uses them, for
+    a bounded objective: ``+inf`` where the exact value cannot change the run (one evaluation in
+    the budget and the best point, as :meth:`Run.evaluate`).
+
+    * ``y_i`` is taken only when ``f(y_i) < F_i``: with a bound ``>= F_i`` it is not, and it
+      is not a new best either (``F_i`` is at least the best value so far);
+    * ``z_i`` is taken whenever ``y_i`` is not, so it is needed when ``y_i``'s bound rules
+      ``y_i`` out, or once ``y_i`` has turned out no better (a second call, for those only,
+      when the objective says its values are costly; otherwise asked with the others);
+      otherwise only when its bound is below the best value so far (it may be a new best).
+
+    Every value the generation uses -- the preference test, the values carried, the elitism
+    test and the best point -- is then the exact one.
+    """
+    n = len(F)
+    B = run.lower_bound(V)
+    lb = decisive(B)
+    out = np.full(2 * n, np.inf)
+    live = lb < np.inf                           # a bound of +inf: the value is +inf
+    need_y = live[:n] & (lb[:n] < F)
+    if getattr(run.f, "costly", True):
+        need_z = live[n:] & (~need_y | (lb[n:] < run.best_f))
+    else:                                        # one call: every z_i that may be needed
+        need_z = live[n:]
+    rows = np.flatnonzero(np.concatenate([need_y, need_z]))
+    out[rows] = run.refine(V, B, rows)
+    later = n + np.flatnonzero(live[n:] & ~need_z & ~(out[:n] < F))
+    if len(later):
+        out[later] = run.refine(V, B, later)
+    run.account(V, out)
+    return out
