@@ -2,8 +2,9 @@
 
 ``hybridnav.analysis.compare.compare`` of ``--planners`` x ``--scenarios`` x ``--runs`` (by
 default the four field planners on the EFFC paper's four worlds, 2 runs each: 32 short runs)
-with ``workers = 1`` (in this process) and ``workers = 2`` (a local process pool), alternately,
-best of ``--repeat``; the tables must be equal (results do not depend on the workers). Next to
+with ``workers = 1`` (in this process) and ``workers = 2`` (the local process pool ``compare``
+keeps for the life of the process, as ``reproduce`` uses it: the first repeat starts it),
+alternately, best of ``--repeat``; the tables must be equal (results do not depend on the workers). Next to
 it, in the same repeats and timed the same way (best of, interleaved), a trivially parallel
 reference job: two equal pure-Python CPU loops in this process and on two worker processes. On a
 shared machine the reference ratio is what two workers can get right now; ``compare``'s ratio is

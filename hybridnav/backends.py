@@ -9,8 +9,10 @@ rebuilt and the unfinished tasks resubmitted; Dask reschedules a dead worker's t
 
 from __future__ import annotations
 
+import atexit
 import logging
 import os
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
@@ -24,7 +26,7 @@ from hybridnav.params import Param, short_repr
 log = logging.getLogger(__name__)
 
 __all__ = ["DASK_ADDRESS", "NO_WORKERS_TIMEOUT", "Backend", "DaskBackend", "ProcessBackend",
-           "SerialBackend", "cores", "make_backend"]
+           "SerialBackend", "close_shared", "cores", "make_backend", "shared_backend"]
 
 #: What ``--dask`` / ``[backend] dask`` takes: empty (no Dask), ``local`` (a new LocalCluster on
 #: this machine) or a scheduler address ``[protocol://]host:port``.
@@ -90,18 +92,19 @@ class ProcessBackend(Backend):
 
     name = "processes"
 
-    def __init__(self, workers: int, retries: int = 3) -> None:
+    def __init__(self, workers: int, retries: int = 3, full: bool = False) -> None:
         self.workers = workers
         self.retries = retries
         self.limit = min(workers, cores())
         if self.limit < workers:
             log.info("%d worker processes asked for, %d used: the cores of this machine",
                      workers, self.limit)
+        self.full = full                   # always all ``limit`` processes (a shared pool)
         self.size = 0                      # processes of the current pool (made on demand)
         self._pool: ProcessPoolExecutor | None = None
 
     def _ensure(self, tasks: int) -> ProcessPoolExecutor:
-        want = max(1, min(self.limit, tasks))
+        want = self.limit if self.full else max(1, min(self.limit, tasks))
         if self._pool is None or want > self.size:
             if self._pool is not None:
                 self._pool.shutdown(wait=True)
@@ -139,6 +142,59 @@ class ProcessBackend(Backend):
     def close(self):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+            self.size = 0
+
+
+class _Kept(Backend):
+    """A view of a shared :class:`ProcessBackend` whose ``close`` keeps the pool running."""
+
+    name = "processes"
+
+    def __init__(self, backend: ProcessBackend) -> None:
+        self.backend = backend
+        self.workers, self.limit = backend.workers, backend.limit
+
+    def map(self, fn, args, on_done=None):
+        return self.backend.map(fn, args, on_done)
+
+
+_SHARED: dict[int, ProcessBackend] = {}
+_SHARED_LOCK = threading.Lock()
+
+
+def close_shared() -> None:
+    """Shut down the pools :func:`shared_backend` keeps (at exit; or to reap the workers, e.g.
+    to count their CPU time)."""
+    with _SHARED_LOCK:
+        for backend in _SHARED.values():
+            backend.close()
+        _SHARED.clear()
+
+
+atexit.register(close_shared)
+
+
+def shared_backend(workers: int = 1, dask: str | Any = "") -> Backend:
+    """:func:`make_backend`, except that local worker processes are kept for the life of this
+    process and reused by every later call with the same ``workers``: a worker pays its start-up
+    (imports, compiled model functions, fuzzy systems, packed worlds: everything cached per
+    process) once, not once per call — ``reproduce`` calls ``compare`` once per protocol and
+    layout. ``close()`` of the returned backend leaves the pool running (it is shut down when
+    this process exits).
+
+    Workers are forked when the pool is first used, so they keep that moment's working
+    directory and module state; tasks must not depend on either (``compare`` ships loaded
+    scenarios and absolute paths). Dask and a single worker are as :func:`make_backend` gives
+    them.
+    """
+    if dask or workers <= 1:
+        return make_backend(workers, dask)
+    with _SHARED_LOCK:
+        backend = _SHARED.get(workers)
+        if backend is None:
+            backend = _SHARED[workers] = ProcessBackend(workers, full=True)
+    return _Kept(backend)
 
 
 class DaskBackend(Backend):
