@@ -12,8 +12,9 @@ to be read against it. ``uptime`` is printed before and after.
 
 Target (issue 25): ``--workers 2`` >= 1.8x ``--workers 1`` on a quiet two-core machine.
 
-Run: ``python benchmarks/bench_compare.py [--repeat 3] [--runs 2] [--planners apf,effc]
-[--scenarios effc-env-a,effc-env-b]``.
+Run: ``PYTHONPATH=$PWD python benchmarks/bench_compare.py [--repeat 3] [--runs 2]
+[--planners apf,effc] [--scenarios effc-env-a,effc-env-b]`` (``PYTHONPATH``: this tree's package,
+not an installed one).
 """
 
 from __future__ import annotations
