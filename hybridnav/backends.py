@@ -12,8 +12,10 @@ from __future__ import annotations
 import atexit
 import logging
 import os
+import pickle
 import threading
 import time
+import uuid
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -26,7 +28,8 @@ from hybridnav.params import Param, short_repr
 log = logging.getLogger(__name__)
 
 __all__ = ["DASK_ADDRESS", "NO_WORKERS_TIMEOUT", "Backend", "DaskBackend", "ProcessBackend",
-           "SerialBackend", "close_shared", "cores", "make_backend", "shared_backend"]
+           "SerialBackend", "Shipped", "close_shared", "cores", "make_backend", "shared_backend",
+           "unship"]
 
 #: What ``--dask`` / ``[backend] dask`` takes: empty (no Dask), ``local`` (a new LocalCluster on
 #: this machine) or a scheduler address ``[protocol://]host:port``.
@@ -39,6 +42,46 @@ DASK_ADDRESS = Param("", "a Dask scheduler address or 'local'",
 #: finished generations; ``--resume`` continues). The environment variable
 #: ``HYBRIDNAV_DASK_NO_WORKERS_TIMEOUT`` overrides it.
 NO_WORKERS_TIMEOUT = 300.0
+
+
+#: objects a worker process has received as :class:`Shipped`, by key (a few kept)
+_ARRIVED: dict[str, Any] = {}
+
+
+def _arrive(key: str, blob: bytes) -> Any:
+    """The object of ``key`` in this process: unpickled from ``blob`` the first time only."""
+    obj = _ARRIVED.get(key)
+    if obj is None:
+        if len(_ARRIVED) >= 16:
+            _ARRIVED.pop(next(iter(_ARRIVED)))
+        obj = _ARRIVED[key] = pickle.loads(blob)
+    return obj
+
+
+class Shipped:
+    """An object sent with every task of a job but unpickled once per worker process.
+
+    Pickled, it is its key and its bytes (serialized once, here); a worker that already holds
+    the key gets the copy it unpickled the first time, with whatever that copy built for itself
+    (a cost's packed worlds, a settings object's fuzzy family), instead of a fresh copy per
+    task. The object must not change after it is wrapped. In this process (the serial backend)
+    a task receives the wrapper itself: :func:`unship` gives the object in both cases.
+    """
+
+    def __init__(self, obj: Any) -> None:
+        self.obj = obj
+        self.key = uuid.uuid4().hex
+        self._blob: bytes | None = None
+
+    def __reduce__(self):
+        if self._blob is None:
+            self._blob = pickle.dumps(self.obj, protocol=pickle.HIGHEST_PROTOCOL)
+        return (_arrive, (self.key, self._blob))
+
+
+def unship(obj: Any) -> Any:
+    """``obj``, or the object a :class:`Shipped` wraps."""
+    return obj.obj if isinstance(obj, Shipped) else obj
 
 
 def cores() -> int:
