@@ -778,11 +778,15 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
            backend) -> None:
     """Start and tuned on the validation and test costs: ``result.heldout`` and verdicts."""
     systems = {"start": start, "tuned": result.system}
+    roles = [(role, c) for role, c in (("validation", validation), ("test", test))
+             if c is not None]
+    if len(roles) > 1 and backend is not None and not isinstance(backend, SerialBackend):
+        # the held-out sets are independent: one worker each (a worker judges its set alone)
+        judged = backend.map(_judge_one, [(c, systems, role) for role, c in roles])
+    else:
+        judged = [c.judge(systems, role, backend=backend) for role, c in roles]
     tables = []
-    for role, c in (("validation", validation), ("test", test)):
-        if c is None:
-            continue
-        t = c.judge(systems, role, backend=backend)
+    for (role, c), t in zip(roles, judged):
         tables.append(t)
         v = c.verdict(t, role)
         if role == "validation" and v.get("headline"):
@@ -792,6 +796,11 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
         result.verdicts[role] = v
     if tables:
         result.heldout = pd.concat(tables, ignore_index=True)
+
+
+def _judge_one(cost: Cost, systems: dict[str, Any], role: str) -> pd.DataFrame:
+    """``cost.judge`` of ``systems`` on ``role``'s data (one unit of work of :func:`_judge`)."""
+    return cost.judge(systems, role)
 
 
 def first_train_cost(cost: Cost, fraction: float, seed: int) -> Cost:

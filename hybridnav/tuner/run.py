@@ -338,7 +338,7 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
                                       "apf": "apf"},
                                budget=cfg["budget"], population=cfg["population"],
                                obstacles=cfg["obstacles"], keep=cfg["keep"],
-                               optimizer=cfg["optimizer"], seed=seed,
+                               optimizer=cfg["optimizer"], seed=seed, backend=backend,
                                structures={k: cfg[k] for k in ("cups", "corridors", "gaps")})
     res = searched["tuned"]
     table = rates(searched)
