@@ -57,7 +57,7 @@ def test_workers_are_kept_between_calls_and_need_not_share_the_working_directory
     from hybridnav.backends import shared_backend
     from hybridnav.world import load_scenario, save_scenario
 
-    table, _ = compare(*ARGS, seed=5, params=PARAMS, workers=2)       # the pool exists now
+    compare(*ARGS, seed=5, params=PARAMS, workers=2)                  # the pool exists now
     pool = shared_backend(2).backend._pool
     assert pool is not None
     save_scenario(load_scenario("effc-train-2"), tmp_path / "here.toml")
