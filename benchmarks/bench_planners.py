@@ -238,8 +238,11 @@ def compare_child(workers: int, runs: int) -> None:
     from hybridnav.analysis.compare import compare
 
     tic, cpu0 = time.perf_counter(), time.process_time()
+    from hybridnav.backends import close_shared
+
     table, _ = compare(list(PLANNERS), COMPARE_SCENARIOS, runs, seed=0, workers=workers)
     seconds = time.perf_counter() - tic
+    close_shared()                        # compare keeps its pool: reap it to count its CPU
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)       # the pool's processes, reaped
     cpu = time.process_time() - cpu0 + kids.ru_utime + kids.ru_stime
     same = table.drop(columns=["compute_time"]).to_csv(index=False)

@@ -4,7 +4,10 @@
    environments plus 30 generated worlds, validation on 24 more, early stopping) on this machine
    with ``--workers`` local processes (default 2) and with one, in this one run (best of
    ``--repeat`` interleaved runs each: this shared machine's load swings): wall times,
-   their ratio and whether both return the same system. Targets (issue 25): <= 20 s on two
+   their ratio and whether both return the same system. Next to it, in the same interleaved
+   repeats and timed the same way, a trivially parallel reference (two equal pure-Python CPU
+   loops in one process and on two): on a shared machine its ratio is what two workers can get
+   at that moment; ``uptime`` is printed before and after. Targets (issue 25): <= 20 s on two
    workers, >= 1.8x one worker (``bench_generalization.py`` times the whole job: <= 45 s).
 2. The paper's reward (length if reached, else the penalty; ``reward.kind = "length"``, no
    coverage penalty) on the paper's two environments computed the straightforward way — a
@@ -13,7 +16,8 @@
    (individual, environment) evaluation and their ratio. Target: >= 100x. The two rewards are
    also compared (they must agree).
 
-Run: ``python benchmarks/bench_tuning.py [--workers 2] [--repeat 2] [--reduced 6] [--skip-full]``.
+Run: ``PYTHONPATH=$PWD python benchmarks/bench_tuning.py [--workers 2] [--repeat 2] [--reduced 6]
+[--skip-full] [--skip-reward]`` (``PYTHONPATH``: this tree's package, not an installed one).
 """
 
 from __future__ import annotations
@@ -83,21 +87,42 @@ def straightforward_reward(job, system, scenarios) -> float:
     return total
 
 
+def _burn(n: int) -> int:
+    s = 0
+    for i in range(n):
+        s += i * i
+    return s
+
+
+def _uptime() -> str:
+    import subprocess
+
+    return subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--reduced", type=int, default=6, help="individuals in the reduced job")
     ap.add_argument("--skip-full", action="store_true")
+    ap.add_argument("--skip-reward", action="store_true", help="skip part 2")
+    ap.add_argument("--burn", type=int, default=30_000_000,
+                    help="loop length of the trivially parallel reference (per process)")
     ap.add_argument("--repeat", type=int, default=2,
                     help="GA runs per worker count, interleaved; the best wall time counts")
     args = ap.parse_args()
     job = load_job()
+    print(f"uptime: {_uptime()}")
     if not args.skip_full:
         import os
+        from concurrent.futures import ProcessPoolExecutor
 
         walls: dict[int, float] = {}
+        ref: dict[int, float] = {}
         results = {}
         load = os.getloadavg()[0]
+        pool = ProcessPoolExecutor(args.workers)
+        list(pool.map(_burn, [1] * args.workers))       # the reference's workers, started
         for _ in range(max(1, args.repeat)):
             for w in sorted({1, args.workers}, reverse=True):
                 job2 = job.with_backend(workers=w)
@@ -108,6 +133,14 @@ def main() -> None:
                     wall = time.perf_counter() - tic
                 walls[w] = min(walls.get(w, math.inf), wall)
                 results[w] = res
+                tic = time.perf_counter()
+                if w == 1:
+                    for _ in range(args.workers):
+                        _burn(args.burn)
+                else:
+                    list(pool.map(_burn, [args.burn] * args.workers))
+                ref[w] = min(ref.get(w, math.inf), time.perf_counter() - tic)
+        pool.shutdown()
         res, wall = results[args.workers], walls[args.workers]
         evals = res.evaluations
         E = len(job.scenarios("train"))
@@ -123,6 +156,12 @@ def main() -> None:
                   f"{walls[1] / wall:.2f}x (target >= 1.8x; best of {max(1, args.repeat)} each, "
                   f"interleaved); the same tuned system: {same}; "
                   f"load {load:.2f} -> {os.getloadavg()[0]:.2f}")
+            print(f"reference ({args.workers} equal CPU loops, same repeats): 1 process "
+                  f"{ref[1]:.2f} s, {args.workers} processes {ref[args.workers]:.2f} s: "
+                  f"{ref[1] / ref[args.workers]:.2f}x (what {args.workers} workers can get now)")
+        print(f"uptime: {_uptime()}")
+    if args.skip_reward:
+        return
     import pathlib
 
     job = validate_job({"scenarios": {"train": ["effc-train-1", "effc-train-2"]},

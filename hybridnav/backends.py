@@ -9,9 +9,13 @@ rebuilt and the unfinished tasks resubmitted; Dask reschedules a dead worker's t
 
 from __future__ import annotations
 
+import atexit
 import logging
 import os
+import pickle
+import threading
 import time
+import uuid
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -24,7 +28,8 @@ from hybridnav.params import Param, short_repr
 log = logging.getLogger(__name__)
 
 __all__ = ["DASK_ADDRESS", "NO_WORKERS_TIMEOUT", "Backend", "DaskBackend", "ProcessBackend",
-           "SerialBackend", "cores", "make_backend"]
+           "SerialBackend", "Shipped", "close_shared", "cores", "make_backend", "shared_backend",
+           "unship"]
 
 #: What ``--dask`` / ``[backend] dask`` takes: empty (no Dask), ``local`` (a new LocalCluster on
 #: this machine) or a scheduler address ``[protocol://]host:port``.
@@ -37,6 +42,46 @@ DASK_ADDRESS = Param("", "a Dask scheduler address or 'local'",
 #: finished generations; ``--resume`` continues). The environment variable
 #: ``HYBRIDNAV_DASK_NO_WORKERS_TIMEOUT`` overrides it.
 NO_WORKERS_TIMEOUT = 300.0
+
+
+#: objects a worker process has received as :class:`Shipped`, by key (a few kept)
+_ARRIVED: dict[str, Any] = {}
+
+
+def _arrive(key: str, blob: bytes) -> Any:
+    """The object of ``key`` in this process: unpickled from ``blob`` the first time only."""
+    obj = _ARRIVED.get(key)
+    if obj is None:
+        if len(_ARRIVED) >= 16:
+            _ARRIVED.pop(next(iter(_ARRIVED)))
+        obj = _ARRIVED[key] = pickle.loads(blob)
+    return obj
+
+
+class Shipped:
+    """An object sent with every task of a job but unpickled once per worker process.
+
+    Pickled, it is its key and its bytes (serialized once, here); a worker that already holds
+    the key gets the copy it unpickled the first time, with whatever that copy built for itself
+    (a cost's packed worlds, a settings object's fuzzy family), instead of a fresh copy per
+    task. The object must not change after it is wrapped. In this process (the serial backend)
+    a task receives the wrapper itself: :func:`unship` gives the object in both cases.
+    """
+
+    def __init__(self, obj: Any) -> None:
+        self.obj = obj
+        self.key = uuid.uuid4().hex
+        self._blob: bytes | None = None
+
+    def __reduce__(self):
+        if self._blob is None:
+            self._blob = pickle.dumps(self.obj, protocol=pickle.HIGHEST_PROTOCOL)
+        return (_arrive, (self.key, self._blob))
+
+
+def unship(obj: Any) -> Any:
+    """``obj``, or the object a :class:`Shipped` wraps."""
+    return obj.obj if isinstance(obj, Shipped) else obj
 
 
 def cores() -> int:
@@ -90,18 +135,19 @@ class ProcessBackend(Backend):
 
     name = "processes"
 
-    def __init__(self, workers: int, retries: int = 3) -> None:
+    def __init__(self, workers: int, retries: int = 3, full: bool = False) -> None:
         self.workers = workers
         self.retries = retries
         self.limit = min(workers, cores())
         if self.limit < workers:
             log.info("%d worker processes asked for, %d used: the cores of this machine",
                      workers, self.limit)
+        self.full = full                   # always all ``limit`` processes (a shared pool)
         self.size = 0                      # processes of the current pool (made on demand)
         self._pool: ProcessPoolExecutor | None = None
 
     def _ensure(self, tasks: int) -> ProcessPoolExecutor:
-        want = max(1, min(self.limit, tasks))
+        want = self.limit if self.full else max(1, min(self.limit, tasks))
         if self._pool is None or want > self.size:
             if self._pool is not None:
                 self._pool.shutdown(wait=True)
@@ -139,6 +185,59 @@ class ProcessBackend(Backend):
     def close(self):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+            self.size = 0
+
+
+class _Kept(Backend):
+    """A view of a shared :class:`ProcessBackend` whose ``close`` keeps the pool running."""
+
+    name = "processes"
+
+    def __init__(self, backend: ProcessBackend) -> None:
+        self.backend = backend
+        self.workers, self.limit = backend.workers, backend.limit
+
+    def map(self, fn, args, on_done=None):
+        return self.backend.map(fn, args, on_done)
+
+
+_SHARED: dict[int, ProcessBackend] = {}
+_SHARED_LOCK = threading.Lock()
+
+
+def close_shared() -> None:
+    """Shut down the pools :func:`shared_backend` keeps (at exit; or to reap the workers, e.g.
+    to count their CPU time)."""
+    with _SHARED_LOCK:
+        for backend in _SHARED.values():
+            backend.close()
+        _SHARED.clear()
+
+
+atexit.register(close_shared)
+
+
+def shared_backend(workers: int = 1, dask: str | Any = "") -> Backend:
+    """:func:`make_backend`, except that local worker processes are kept for the life of this
+    process and reused by every later call with the same ``workers``: a worker pays its start-up
+    (imports, compiled model functions, fuzzy systems, packed worlds: everything cached per
+    process) once, not once per call — ``reproduce`` calls ``compare`` once per protocol and
+    layout. ``close()`` of the returned backend leaves the pool running (it is shut down when
+    this process exits).
+
+    Workers are forked when the pool is first used, so they keep that moment's working
+    directory and module state; tasks must not depend on either (``compare`` ships loaded
+    scenarios and absolute paths). Dask and a single worker are as :func:`make_backend` gives
+    them.
+    """
+    if dask or workers <= 1:
+        return make_backend(workers, dask)
+    with _SHARED_LOCK:
+        backend = _SHARED.get(workers)
+        if backend is None:
+            backend = _SHARED[workers] = ProcessBackend(workers, full=True)
+    return _Kept(backend)
 
 
 class DaskBackend(Backend):

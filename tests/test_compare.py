@@ -46,6 +46,35 @@ def test_two_local_workers_give_the_same_tables(serial):
     _same(summary, serial[1])
 
 
+def test_workers_are_kept_between_calls_and_need_not_share_the_working_directory(
+        serial, tmp_path, monkeypatch):
+    """The local pool outlives a call (workers start once), its units go out longest expected
+    first, and a scenario named by a path relative to the caller's directory reaches workers
+    forked elsewhere (the loaded scenario travels, not its name)."""
+    import os
+
+    from hybridnav.analysis import compare as module
+    from hybridnav.backends import shared_backend
+    from hybridnav.world import load_scenario, save_scenario
+
+    compare(*ARGS, seed=5, params=PARAMS, workers=2)                  # the pool exists now
+    pool = shared_backend(2).backend._pool
+    assert pool is not None
+    save_scenario(load_scenario("effc-train-2"), tmp_path / "here.toml")
+    monkeypatch.chdir(tmp_path)
+    again, _ = compare(["apf", "pbpf"], ["effc-train-1", "here.toml"], 2, seed=5,
+                       params=PARAMS, workers=2)
+    assert shared_backend(2).backend._pool is pool                    # the same processes
+    assert os.getcwd() == str(tmp_path)
+    _same(again.drop(columns="scenario"), serial[0].drop(columns="scenario"))
+    tasks = [module._Task("a", "apf", (), str(k), 0, 0) for k in range(8)]
+    monkeypatch.setattr(module, "_SECONDS", {("a", "apf", (), str(k)): float(k)
+                                              for k in range(8)})
+    units = module._units(tasks, 8, 1, 2)
+    assert [u[0].scenario for u in units] == [str(k) for k in range(7, -1, -1)]
+    assert module._units(tasks, 8, 1, 1) == [[t] for t in tasks]    # one worker: in order
+
+
 @pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_tables(serial):
     from distributed import Client, LocalCluster

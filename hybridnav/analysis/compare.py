@@ -24,7 +24,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from hybridnav.analysis.convergence import CONVERGENCE_COLUMNS, convergence_rows, plot_convergence
-from hybridnav.backends import make_backend
+from hybridnav.backends import shared_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.params import short_repr
@@ -229,12 +229,19 @@ class _Shared(dict):
 
 @dataclass(frozen=True)
 class _Task:
+    """One run. ``built`` and ``loaded`` are the planner and scenario ``compare`` built and
+    checked once in the calling process: the worker runs them as they are (no parsing,
+    validation or file reading per run, and no dependence on the worker's working directory);
+    without them (a task made elsewhere) the worker builds them from the names."""
+
     label: str
     planner: str
     params: tuple
     scenario: str
     run: int
     seed: int
+    built: Any = field(default=None, compare=False, repr=False)
+    loaded: Any = field(default=None, compare=False, repr=False)
 
 
 def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] | None,
@@ -244,8 +251,10 @@ def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] |
     from hybridnav import planners
     from hybridnav.world import load_scenario
 
-    scenario = load_scenario(task.scenario)
-    result = planners.get(task.planner, **dict(task.params)).run(scenario, seed=task.seed)
+    scenario = task.loaded if task.loaded is not None else load_scenario(task.scenario)
+    planner = task.built if task.built is not None else \
+        planners.get(task.planner, **dict(task.params))
+    result = planner.run(scenario, seed=task.seed)
     rows = []
     for r in result.robots:
         s = r.summary()
@@ -258,21 +267,64 @@ def _execute(task: _Task) -> tuple[list[dict[str, Any]], dict[str, np.ndarray] |
     return rows, paths, convergence_rows(result, task.label, task.run)
 
 
+#: seconds per run measured in earlier calls of this process, per (label, planner, parameters,
+#: scenario): they order the next call's units (``reproduce`` compares the same planners on the
+#: same worlds again and again); only the order of work depends on them, never a result
+_SECONDS: dict[tuple, float] = {}
+
+
+def _guess(task: _Task) -> float:
+    """The expected seconds of a run: measured before in this process, else a rough guess from
+    the scenario (robots x the share of the time limit a straight drive to the goal takes x
+    its steps) -- only the ranking of units matters."""
+    known = _SECONDS.get((task.label, task.planner, task.params, task.scenario))
+    if known is not None:
+        return known
+    sc = task.loaded
+    if sc is None:
+        return 1.0
+    try:
+        w = sc.world.workspace
+        diag = float(np.hypot(w[1] - w[0], w[3] - w[2])) or 1.0
+        share = sum(min(1.0, 0.1 + float(np.hypot(r.goal[0] - r.start[0],
+                                                  r.goal[1] - r.start[1])) / diag)
+                    if r.goal is not None else 1.0 for r in sc.robots)
+        return 1e-3 * share * sc.steps
+    except (AttributeError, TypeError, ValueError, IndexError):
+        return 1.0
+
+
 def _units(tasks: list[_Task], combos: int, runs: int, workers: int) -> list[list[_Task]]:
-    """The tasks (in order, ``runs`` per planner and scenario) as units of work: a unit holds
-    runs of one planner on one scenario, so that a worker pays what the first run of a
-    combination costs in a process (its model functions, grids and fuzzy systems) once, as
-    one process running everything does. With few combinations their runs are split, so that
-    every worker gets about two units."""
-    parts = max(1, min(runs, -(-2 * max(1, workers) // max(1, combos))))
-    size = -(-runs // parts)
-    return [tasks[c * runs + a:c * runs + min(runs, a + size)]
-            for c in range(combos) for a in range(0, runs, size)]
+    """The tasks (``runs`` per planner and scenario, in order) as units of work, longest
+    expected first.
+
+    A unit holds runs of one planner on one scenario (a worker pays what a combination's first
+    run costs in a process -- its model functions, grids, fuzzy systems -- once per unit). Units
+    hold at most ``ceil(tasks / (4 * workers))`` runs, so that every worker gets several and
+    the pool's queue balances them; they are handed out longest expected first
+    (:func:`_guess`), so the last to start are short and both workers finish together.
+    """
+    size = max(1, min(runs, -(-len(tasks) // (4 * max(1, workers)))))
+    units = [tasks[c * runs + a:c * runs + min(runs, a + size)]
+             for c in range(combos) for a in range(0, runs, size)]
+    if workers <= 1:
+        return units
+    cost = [sum(_guess(t) for t in u) for u in units]
+    order = sorted(range(len(units)), key=lambda i: -cost[i])          # stable: ties in order
+    return [units[i] for i in order]
 
 
 def _execute_many(tasks: list[_Task]) -> list[tuple]:
-    """:func:`_execute` of each task of a unit, in order (in whatever process gets the unit)."""
-    return [_execute(t) for t in tasks]
+    """:func:`_execute` of each task of a unit, in order (in whatever process gets the unit),
+    each with its wall time."""
+    import time
+
+    out = []
+    for t in tasks:
+        tic = time.perf_counter()
+        result = _execute(t)
+        out.append((result, time.perf_counter() - tic))
+    return out
 
 
 def compare(
@@ -347,19 +399,23 @@ def compare(
                              f"planners ({', '.join(labels)})")
     loaded = [load_scenario(s) for s in scenarios]
     settings: dict[str, dict[str, Any]] = {}
+    built: dict[str, Any] = {}
     for spec in specs:                     # fail before any work starts
         try:
             merged = {**params.get(spec.label, {}), **spec.params}   # the variant's own win
-            planner = registry.get(spec.name, **merged)
+            planner = built[spec.label] = registry.get(spec.name, **merged)
             settings[spec.label] = _absolute_paths(spec.name, merged)
             for scenario in loaded:
                 planner.check_scenario(scenario)
         except HybridnavError as exc:
             raise HybridnavError(f"--planners {_cut(str(spec))}: {exc}") from None
     tasks = [_Task(spec.label, spec.name, tuple(sorted(settings[spec.label].items())), s, r,
-                   run_seed(seed, r))
-             for spec in specs for s in scenarios for r in range(runs)]
+                   run_seed(seed, r), built[spec.label], sc)
+             for spec in specs for s, sc in zip(scenarios, loaded) for r in range(runs)]
+    # the planners and scenarios built and checked above travel to the workers as objects
+    # (shipped once per unit): no worker re-reads or re-validates them per run
     units = _units(tasks, len(specs) * len(scenarios), runs, workers)
+    position = {id(t): i for i, t in enumerate(tasks)}
     done = 0
 
     def finished(i):
@@ -368,9 +424,16 @@ def compare(
         if progress is not None:
             progress(done, len(tasks))
 
-    with make_backend(workers, dask or "") as backend:
+    # local workers are kept for later calls (shared_backend): they pay their start-up once
+    with shared_backend(workers, dask or "") as backend:
         parts = backend.map(_execute_many, [(u,) for u in units], on_done=finished)
-    results = [r for part in parts for r in part]
+    results: list[Any] = [None] * len(tasks)
+    for unit, part in zip(units, parts):
+        for t, (result, seconds) in zip(unit, part):
+            results[position[id(t)]] = result
+            if len(_SECONDS) > 4096:
+                _SECONDS.clear()
+            _SECONDS[(t.label, t.planner, t.params, t.scenario)] = seconds
     rows = [row for result_rows, _, _ in results for row in result_rows]
     names = {spec: sc.name for spec, sc in zip(scenarios, loaded)}
     paths = {(t.label, names[t.scenario]): p for t, (_, p, _) in zip(tasks, results)

@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from hybridnav import __version__
-from hybridnav.backends import Backend, SerialBackend
+from hybridnav.backends import Backend, SerialBackend, Shipped
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.tuner.costs.base import Candidates, Context, Cost, Evaluation, evaluate_chunk
@@ -144,19 +144,46 @@ class _Run:
         self.finished = False
         self._writer: ThreadPoolExecutor | None = None
         self._writes: list[Future] = []
+        self._ship: dict[int, tuple[Any, Shipped]] = {}
 
     # ---- evaluation ------------------------------------------------------------------------
 
     def evaluate(self, cost: Cost, X: np.ndarray, context: Context) -> Evaluation:
-        """``cost.assess`` of ``X`` in chunks on the backend."""
-        if len(X) == 0:
+        """``cost.assess`` of ``X`` in chunks on the backend.
+
+        ``ceil(n / chunk)`` chunks of (nearly) equal size, dealt round robin: chunk ``k`` holds
+        candidates ``k, k + m, k + 2m, ...`` of the ``m`` chunks. Both the sizes and the mix
+        keep the workers' shares even: a GA generation asks for fewer than ``population``
+        vectors (consecutive ranges gave 50 and 43), and its first generation draws the first
+        half near the start (long drives) and the second at random (early crashes). The layout
+        depends on ``n`` and ``chunk`` only, never on the workers; each candidate's context
+        index is its place in ``X``.
+        """
+        n = len(X)
+        if n == 0:
             return Evaluation(np.zeros((0, cost.n_objectives)))
-        args = []
-        for s in range(0, len(X), self.chunk):
-            idx = tuple(range(s, min(s + self.chunk, len(X))))
-            ctx = Context(context.seed, context.role, context.generation, idx)
-            args.append((cost, self.settings, X[s:s + self.chunk], ctx))
-        return Evaluation.concat(self.backend.map(evaluate_chunk, args))
+        m = -(-n // self.chunk)
+        parts = [np.arange(k, n, m) for k in range(m)]
+        shipped = self._shipped(cost)
+        args = [(shipped, self._shipped(self.settings), X[idx],
+                 Context(context.seed, context.role, context.generation,
+                         tuple(int(i) for i in idx)))
+                for idx in parts]
+        out = self.backend.map(evaluate_chunk, args)
+        if m == 1:
+            return out[0]
+        order = np.argsort(np.concatenate(parts), kind="stable")
+        ev = Evaluation.concat(out)
+        return Evaluation(ev.objectives[order], ev.feasible[order],
+                          [ev.info[i] for i in order], [ev.details[i] for i in order])
+
+    def _shipped(self, obj: Any) -> Shipped:
+        """``obj`` wrapped once per run: the workers unpickle each cost and the settings once
+        (with what they build from them: packed worlds, the fuzzy family), not per chunk."""
+        entry = self._ship.get(id(obj))
+        if entry is None or entry[0] is not obj:
+            entry = self._ship[id(obj)] = (obj, Shipped(obj))
+        return entry[1]
 
     # ---- validation ------------------------------------------------------------------------
 
@@ -513,9 +540,11 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
     resume : bool
         Continue from ``checkpoint``.
     chunk : int
-        Candidates per unit of parallel work. Part of the configuration: the batched arithmetic
-        of a chunk can round differently (1e-14) from that of another size, so a run is
-        reproduced exactly — on any backend and number of workers — with the same chunk.
+        At most this many candidates per unit of parallel work: ``ceil(n / chunk)`` chunks of
+        nearly equal size, dealt round robin (the layout depends on ``n`` and ``chunk`` only).
+        Part of the configuration: the batched arithmetic of a chunk can round differently
+        (1e-14) from that of another size, so a run is reproduced exactly — on any backend and
+        number of workers — with the same chunk.
     top, patience, tolerance :
         Validation: candidates scored per generation, generations without improvement before
         stopping (0: never; None: the optimizer's ``default_patience``: GA 10, PSO 15, CMA-ES
@@ -622,7 +651,7 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         "validation": val_cost.config() if val_cost else None,
         "kfold": len(stages) if len(stages) > 1 else 0, "optimizer": optimizer.config(),
         "seed": seed, "top": top, "patience": patience, "tolerance": tolerance,
-        "max_evals": max_evals, "chunk": chunk})
+        "max_evals": max_evals, "chunk": chunk, "chunking": "round-robin"})
     if checkpoint is not None:
         run.dir = Path(checkpoint)
         try:
@@ -749,11 +778,15 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
            backend) -> None:
     """Start and tuned on the validation and test costs: ``result.heldout`` and verdicts."""
     systems = {"start": start, "tuned": result.system}
+    roles = [(role, c) for role, c in (("validation", validation), ("test", test))
+             if c is not None]
+    if len(roles) > 1 and backend is not None and not isinstance(backend, SerialBackend):
+        # the held-out sets are independent: one worker each (a worker judges its set alone)
+        judged = backend.map(_judge_one, [(c, systems, role) for role, c in roles])
+    else:
+        judged = [c.judge(systems, role, backend=backend) for role, c in roles]
     tables = []
-    for role, c in (("validation", validation), ("test", test)):
-        if c is None:
-            continue
-        t = c.judge(systems, role, backend=backend)
+    for (role, c), t in zip(roles, judged):
         tables.append(t)
         v = c.verdict(t, role)
         if role == "validation" and v.get("headline"):
@@ -763,6 +796,11 @@ def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | No
         result.verdicts[role] = v
     if tables:
         result.heldout = pd.concat(tables, ignore_index=True)
+
+
+def _judge_one(cost: Cost, systems: dict[str, Any], role: str) -> pd.DataFrame:
+    """``cost.judge`` of ``systems`` on ``role``'s data (one unit of work of :func:`_judge`)."""
+    return cost.judge(systems, role)
 
 
 def first_train_cost(cost: Cost, fraction: float, seed: int) -> Cost:

@@ -285,12 +285,29 @@ def falsify(cost, system, *, budget: int = 600, population: int = 30,
     return res
 
 
-def falsify_systems(cost, systems: dict[str, Any], *, seed: int = 0, **kwargs: Any
-                    ) -> dict[str, FalsifyResult]:
+def falsify_systems(cost, systems: dict[str, Any], *, seed: int = 0, backend=None,
+                    **kwargs: Any) -> dict[str, FalsifyResult]:
     """:func:`falsify` of every system (label -> ``FuzzySystem`` or ``"apf"``) with the same
     budget, swarm, world class and seed: their failure and collision rates compare (each search
-    is driven by its own system's failures, as an adversary would be)."""
-    return {label: falsify(cost, system, seed=seed, **kwargs) for label, system in systems.items()}
+    is driven by its own system's failures, as an adversary would be).
+
+    The searches are independent: given a ``backend`` (:mod:`hybridnav.backends`) they run on
+    its workers, one search per task (the same results: each depends on its seed only); a
+    ``progress`` callback keeps them in this process.
+    """
+    from hybridnav.backends import SerialBackend
+
+    labels = list(systems)
+    if backend is None or isinstance(backend, SerialBackend) or len(labels) < 2 \
+            or kwargs.get("progress") is not None:
+        return {label: falsify(cost, systems[label], seed=seed, **kwargs) for label in labels}
+    found = backend.map(_falsify_one, [(cost, systems[label], seed, kwargs) for label in labels])
+    return dict(zip(labels, found))
+
+
+def _falsify_one(cost, system, seed: int, kwargs: dict[str, Any]) -> FalsifyResult:
+    """One search of :func:`falsify_systems` (in whatever process gets it)."""
+    return falsify(cost, system, seed=seed, **kwargs)
 
 
 def rates(results: dict[str, FalsifyResult]) -> "pd.DataFrame":

@@ -203,7 +203,8 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     out : Path
         The output folder.
     backend : Backend, optional
-        Runs the falsification's ``apf`` runs (default: this process).
+        Runs the falsification searches and their ``apf`` runs and the path figure's runs
+        (default: this process).
     """
     from hybridnav.fuzzy import plots
 
@@ -250,7 +251,7 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
             save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
                         out / "coverage.png")
             files.append("coverage.png")
-        files += _paths(job, result, out)
+        files += _paths(job, result, out, backend)
     effc = nav and job["cost"]["planner"] == "effc"
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
     if nav:                                   # the settings (and filter) it was judged with
@@ -267,11 +268,17 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     return files
 
 
-def _paths(job: Job, result: TuningResult, out: Path) -> list[str]:
-    """Start, tuned and ``apf`` on the paper's worlds, on every test world where the tuned
-    system fails, and on a few more generated test worlds."""
+def _path_run(planner: str, params: dict[str, Any], scenario):
+    """One run of :func:`_paths` (in whatever process gets it)."""
     from hybridnav import planners
 
+    return planners.get(planner, **params).run(scenario)
+
+
+def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = None
+           ) -> list[str]:
+    """Start, tuned and ``apf`` on the paper's worlds, on every test world where the tuned
+    system fails, and on a few more generated test worlds (run on ``backend``)."""
     test = job.scenarios("test")
     failed: set[str] = set()
     if result.heldout is not None and len(result.heldout):
@@ -296,9 +303,12 @@ def _paths(job: Job, result: TuningResult, out: Path) -> list[str]:
     runs = (("start", job["cost"]["planner"], {"fis": result.start, **settings}),
             ("tuned", job["cost"]["planner"], {"fis": result.system, **settings}),
             ("apf", "apf", baseline(settings)))          # plain apf, as judged
+    # the runs are independent: on the backend's workers, drawn here in order
+    done = (backend or SerialBackend()).map(
+        _path_run, [(planner, params, s) for _, s in shown for _, planner, params in runs])
     for row, (kind, s) in enumerate(shown):
         for col, (label, planner, params) in enumerate(runs):
-            res = planners.get(planner, **params).run(s)
+            res = done[row * len(runs) + col]
             plot_result(s, res, ax=axes[row, col])
             outcome = res.robots[0].outcome if res.robots else "-"
             axes[row, col].set_title(f"{s.name} ({kind}): {label}, {outcome}", fontsize=9)
@@ -338,7 +348,7 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
                                       "apf": "apf"},
                                budget=cfg["budget"], population=cfg["population"],
                                obstacles=cfg["obstacles"], keep=cfg["keep"],
-                               optimizer=cfg["optimizer"], seed=seed,
+                               optimizer=cfg["optimizer"], seed=seed, backend=backend,
                                structures={k: cfg[k] for k in ("cups", "corridors", "gaps")})
     res = searched["tuned"]
     table = rates(searched)

@@ -272,7 +272,12 @@ class Cost(ABC):
 
 
 def evaluate_chunk(cost: Cost, settings, X: np.ndarray, context: Context) -> Evaluation:
-    """One unit of parallel work: ``cost.assess`` of the vectors ``X`` (any process)."""
+    """One unit of parallel work: ``cost.assess`` of the vectors ``X`` (any process); ``cost``
+    and ``settings`` may come as :class:`hybridnav.backends.Shipped` (unpickled once per
+    worker)."""
+    from hybridnav.backends import unship
+
+    cost, settings = unship(cost), unship(settings)
     ev = cost.assess(Candidates(settings, X), context)
     ev.objectives = cost.objectives(ev.objectives, len(X))
     return ev
