@@ -28,6 +28,7 @@ from hybridnav.params import Param, short_repr
 log = logging.getLogger(__name__)
 
 __all__ = ["DASK_ADDRESS", "NO_WORKERS_TIMEOUT", "Backend", "DaskBackend", "ProcessBackend",
+           "load_average",
            "SerialBackend", "Shipped", "close_shared", "cores", "make_backend", "shared_backend",
            "unship"]
 
@@ -230,6 +231,18 @@ def shared_backend(workers: int = 1, dask: str | Any = "") -> Backend:
     directory and module state; tasks must not depend on either (``compare`` ships loaded
     scenarios and absolute paths). Dask and a single worker are as :func:`make_backend` gives
     them.
+
+    Parameters
+    ----------
+    workers : int
+        Local worker processes (1: in this process).
+    dask : str or distributed.Client
+        A Dask scheduler address or client (then :func:`make_backend`'s Dask backend).
+
+    Returns
+    -------
+    Backend
+        A backend whose ``close()`` keeps the shared pool.
     """
     if dask or workers <= 1:
         return make_backend(workers, dask)
@@ -329,3 +342,12 @@ def make_backend(workers: int = 1, dask: str | Any = "") -> Backend:
     if workers > 1:
         return ProcessBackend(workers)
     return SerialBackend()
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages as text (what timings and parallel speed-ups on a
+    shared machine need beside them; ``"unknown"`` where the platform has none)."""
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "unknown"

@@ -10,8 +10,8 @@ import pytest
 from hybridnav.cli import main
 from hybridnav.errors import HybridnavError
 from hybridnav.reproduce import PROTOCOLS, reproduce
-from hybridnav.reproduce.layouts import (JITTER, failing_rows, perturbed_layouts,
-                                         sensitivity_section)
+from hybridnav.reproduce.layouts import JITTER, failing_rows, perturbed_layouts
+from hybridnav.reproduce.report import sensitivity_section
 from hybridnav.reproduce.readme import load_layouts
 from hybridnav.world import load_scenario, scenario_to_dict
 

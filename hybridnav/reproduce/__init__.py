@@ -12,14 +12,14 @@ paper's own table and here.
 from __future__ import annotations
 
 import dataclasses
-import math
-import os
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from hybridnav.errors import HybridnavError
+from hybridnav.backends import load_average
+from hybridnav.reproduce.checks import check_count
 from hybridnav.fileio import locked_folder
 from hybridnav.reproduce.layouts import LAYOUT_RUNS, LAYOUTS, MAX_LAYOUTS
 from hybridnav.reproduce.protocols import PROTOCOLS, Claim, Protocol, Row, Value
@@ -90,7 +90,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
             raise HybridnavError(f"reproduce {name}: --layouts: this target judges generated "
                                  "world sets, not reconstructed layouts; expected none")
         if runs is not None:
-            _check_count("--runs", runs, 1)
+            check_count("--runs", runs, 1)
         with locked_folder(out, f"reproduce {name}"):
             return run_experiment(name, out, runs=runs, seed=seed, workers=workers, dask=dask,
                                   progress=progress)
@@ -103,8 +103,8 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
                                  f"{', '.join(known)}, got {bad[0]!r}")
         protocol = dataclasses.replace(protocol, rows=tuple(
             row for row in protocol.rows if row.scenario in scenarios))
-    n = protocol.runs if runs is None else _check_count("--runs", runs, 1)
-    layouts = LAYOUTS if layouts is None else _check_count("--layouts", layouts, 0, MAX_LAYOUTS)
+    n = protocol.runs if runs is None else check_count("--runs", runs, 1)
+    layouts = LAYOUTS if layouts is None else check_count("--layouts", layouts, 0, MAX_LAYOUTS)
     specs = [PlannerSpec(label, planner, params) for label, planner, params in variants(protocol)]
     scenarios = [row.scenario for row in protocol.rows]
     with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
@@ -112,17 +112,6 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
                           dask, progress, int(layouts))
 
 
-def _check_count(option: str, value: Any, lo: int, hi: int | None = None) -> int:
-    """``value`` as an integer in ``[lo, hi]`` (a bool, NaN, inf or text is refused)."""
-    import numbers
-
-    ok = (isinstance(value, numbers.Real) and not isinstance(value, bool)
-          and math.isfinite(value) and int(value) == value
-          and lo <= value and (hi is None or value <= hi))
-    if not ok:
-        want = "a positive integer" if (lo, hi) == (1, None) else f"an integer in [{lo}, {hi}]"
-        raise HybridnavError(f"reproduce: {option}: expected {want}, got {value!r}")
-    return int(value)
 
 
 def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts):
@@ -151,7 +140,7 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
                 "paper_runs": protocol.runs, "seed": seed, "profiles": list(PROFILES),
                 "planners": [s.format() for s in specs], "scenarios": scenarios,
                 "workers": workers if dask is None else f"dask {dask}",
-                "elapsed_s": round(elapsed, 1), "load": _load(), "layouts": layouts,
+                "elapsed_s": round(elapsed, 1), "load": load_average(), "layouts": layouts,
                 "layout_runs": layout_runs}
     files = write_comparison(out, table, summary, settings=settings)
     if not verdicts.empty:
@@ -173,9 +162,3 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
     return {"claims": claims, "files": ["report.md", *files]}
 
 
-def _load() -> str:
-    """The 1, 5 and 15 minute load averages (what timings on a shared machine need beside them)."""
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:                      # not available on this platform
-        return "unknown"

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.reproduce.protocols import Protocol
+from hybridnav.reproduce.protocols import JITTER, Protocol
 
 if TYPE_CHECKING:                            # the command line imports this module: kept light
     import pandas as pd
@@ -52,7 +52,7 @@ if TYPE_CHECKING:                            # the command line imports this mod
     from hybridnav.world import Scenario
 
 __all__ = ["JITTER", "LAYOUTS", "LAYOUT_FILE", "LAYOUT_RUNS", "LAYOUT_TAG", "MAX_LAYOUTS", "TRIES", "failing_rows", "layout_sensitivity",
-           "perturbed_layouts", "sensitivity_section"]
+           "perturbed_layouts"]
 
 #: perturbed layouts per row (the CLI's ``--layouts``; 0: no sensitivity runs)
 LAYOUTS = 8
@@ -60,8 +60,6 @@ LAYOUTS = 8
 MAX_LAYOUTS = 100
 #: runs per planner and layout (at most the reproduction's runs)
 LAYOUT_RUNS = 5
-#: how far starts and obstacles move, as a fraction of the start-goal distance
-JITTER = 0.05
 #: a perturbed layout's tag
 LAYOUT_TAG = re.compile(r"mirror-[xy]|start[+-]|jitter-[1-9]\d*")
 #: the file name of a written layout: ``<scenario>.<tag>.toml``
@@ -413,58 +411,3 @@ def layout_sensitivity(protocol: Protocol, summary: pd.DataFrame, *, count: int 
                             "scenario": rows[label].scenario, "layout": tag, "view": view,
                             "verdict": verdict, "detail": detail})
     return pd.DataFrame(out, columns=columns), lsummary
-
-
-def sensitivity_section(protocol: Protocol, verdicts: pd.DataFrame, summary: pd.DataFrame,
-                        *, runs: int, level: int = 2, profiles: bool = True) -> list[str]:
-    """The layout-sensitivity table (markdown lines; none if no claim failed).
-
-    Parameters
-    ----------
-    protocol : Protocol
-    verdicts : DataFrame
-        :func:`layout_sensitivity`'s first table.
-    summary : DataFrame
-        The reproduction's own summary (the unperturbed verdicts).
-    runs : int
-        Runs per planner and layout.
-    level : int
-        Of the heading.
-    profiles : bool
-        A column per profile (else one: planners without profiles ran once).
-    """
-    from hybridnav.reproduce.report import row_verdict
-
-    if verdicts is None or verdicts.empty:
-        return []
-    views = _VIEWS if profiles else _VIEWS[1:]
-    rows = {row.label: row for row in protocol.rows}
-    n_layouts = verdicts.groupby(["claim", "row"])["layout"].nunique()
-    lines = [f"{'#' * level} Layout sensitivity", "",
-             f"Every row where a claim does not hold in our runs (or two deterministic planners "
-             f"give one comparison), rerun on perturbed copies of "
-             f"our reconstructed layout ({runs} run(s) per planner and layout): the whole world "
-             f"mirrored, every start moved sideways by {JITTER:.0%} of its start-goal distance, "
-             f"and every free-standing obstacle moved by up to {JITTER:.0%} of it, walls staying "
-             "where they are (how exactly a layout read "
-             "off a figure can be placed). Each cell: the verdict on our layout, then in how "
-             "many perturbed layouts the claim holds / does not hold / is not shown, by the "
-             "same rule as above, except that where both planners gave one result in every run "
-             "(deterministic) a layout counts as one comparison, judged by its sign. Rows where "
-             "such planners could not be tested on our layout are rerun too.", "",
-             "| claim | row | layouts | " + " | ".join(
-                 f"ours, `profile={v.split()[0]}`" if profiles else "ours" for v in views) + " |",
-             "|---|---|---|" + "---|" * len(views)]
-    for (i, label), group in verdicts.groupby(["claim", "row"], sort=False):
-        claim = protocol.claims[int(i)]
-        cells = []
-        for view in views:
-            v = group[group["view"] == view]["verdict"]
-            own = row_verdict(protocol, claim, summary, view, rows[label])[0]
-            words = {True: "holds", False: "does not hold", None: "not shown"}
-            cells.append(f"{words[own]} here; {int((v == True).sum())} / "        # noqa: E712
-                         f"{int((v == False).sum())} / {int(v.isna().sum())} of {len(v)}")  # noqa: E712
-        tags = ", ".join(dict.fromkeys(group["layout"]))
-        lines.append(f"| {claim.text} | {label} | {int(n_layouts[(i, label)])} ({tags}) | "
-                     + " | ".join(cells) + " |")
-    return lines + [""]

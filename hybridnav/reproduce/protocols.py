@@ -10,9 +10,10 @@ report checks on the paper's own numbers and on ours.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-__all__ = ["PROTOCOLS", "Claim", "Protocol", "Row", "Value"]
+__all__ = ["JITTER", "PROTOCOLS", "STORE", "Claim", "Protocol", "Row", "Value"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,12 @@ class Protocol:
     #: as a figure: ``runs`` is ours, chosen to see how typical that run is)
     paper_runs: str = ""
 
+
+#: layout sensitivity (:mod:`hybridnav.reproduce.layouts`): how far starts and obstacles move,
+#: as a fraction of the start-goal distance
+JITTER = 0.05
+#: where the full runs are kept, relative to the repository's root
+STORE = Path("docs") / "reproductions"
 
 FASTEP = "Chaudhary, Prasad, Prasad & Sharma, IEEE Access 2024 (FAStep-Kinematic)"
 ACOK = "Chaudhary, Prasad, Chand & Sharma, PeerJ CS 2022 (ACO-Kinematic)"

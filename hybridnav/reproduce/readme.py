@@ -22,13 +22,12 @@ import pandas as pd
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.params import Param, short_repr
-from hybridnav.reproduce.protocols import PROTOCOLS
+from hybridnav.reproduce.checks import check_shown
+from hybridnav.reproduce.protocols import PROTOCOLS, STORE
 
 __all__ = ["STORE", "blocks", "check_shown", "load_layouts", "load_stored", "render", "rewrite_report",
            "update_readme"]
 
-#: where the full runs are kept, relative to the repository's root
-STORE = Path("docs") / "reproductions"
 
 _BLOCK = re.compile(r"<!-- reproduce:(?P<name>[\w-]+) -->\r?\n(?P<body>.*?)"
                     r"<!-- /reproduce:(?P=name) -->", re.S)
@@ -88,18 +87,6 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     return name, _check_summary(path, summary, PROTOCOLS[name]), meta
 
 
-def check_shown(path: Path, meta: dict) -> None:
-    """The free-form keys of a stored run's settings that README shows (``workers``: a count or
-    ``dask ADDRESS``; ``load``: the load averages): one line of plain text each."""
-    for key in ("workers", "load"):
-        if key not in meta:
-            continue
-        v = meta[key]
-        ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 1) or (
-            isinstance(v, str) and re.fullmatch(r"[^|<>`\n\r]{0,200}", v) is not None)
-        if not ok:
-            raise HybridnavError(f"{path}: {key}: expected a worker count or one line of plain "
-                                 f"text, got {short_repr(v)}")
 
 
 _VERDICTS = {"True": True, "False": False, "": None}
@@ -271,8 +258,8 @@ def render(folder: str | Path) -> str:
     """The README block of the stored reproduction in ``folder``: how it was run, the paper's
     numbers beside ours per profile, and the paper's claims checked (as in its ``report.md``).
     """
-    from hybridnav.reproduce.layouts import sensitivity_section
     from hybridnav.reproduce.report import (check_claims, claims_section, conflicts_section,
+                                            sensitivity_section,
                                             extremes_section, has_profiles, literature_line,
                                             profile_sections, safety_section,
                                             separation_section, variants_section)

@@ -38,13 +38,13 @@ import pandas as pd
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
-from hybridnav.reproduce.protocols import Claim, Protocol, Row, Value
+from hybridnav.reproduce.protocols import JITTER, Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for, levels
 
 __all__ = ["ALPHA", "ASTAR_SLACK", "CLAIM_RULES", "MOST_REACHED", "astar_bound", "bounds_section",
            "check_claims", "claims_section", "conflicts_section", "extremes_section",
            "has_profiles", "impossible_lengths", "length_bounds", "literature_line", "ours",
-           "profile_sections", "row_verdict", "separation_section", "straight_line_bound",
+           "profile_sections", "row_verdict", "sensitivity_section", "separation_section", "straight_line_bound",
            "variants_section", "write_report"]
 
 VIEWS = ("paper", "paper profile", "hybridnav profile")
@@ -789,6 +789,59 @@ def conflicts_section(protocol: Protocol, level: int = 2) -> list[str]:
         f"- {c}" for c in protocol.conflicts] + [""]
 
 
+def sensitivity_section(protocol: Protocol, verdicts: pd.DataFrame, summary: pd.DataFrame,
+                        *, runs: int, level: int = 2, profiles: bool = True) -> list[str]:
+    """The layout-sensitivity table (markdown lines; none if no claim failed).
+
+    Parameters
+    ----------
+    protocol : Protocol
+    verdicts : DataFrame
+        :func:`layout_sensitivity`'s first table.
+    summary : DataFrame
+        The reproduction's own summary (the unperturbed verdicts).
+    runs : int
+        Runs per planner and layout.
+    level : int
+        Of the heading.
+    profiles : bool
+        A column per profile (else one: planners without profiles ran once).
+    """
+    if verdicts is None or verdicts.empty:
+        return []
+    views = VIEWS[1:] if profiles else VIEWS[2:]
+    rows = {row.label: row for row in protocol.rows}
+    n_layouts = verdicts.groupby(["claim", "row"])["layout"].nunique()
+    lines = [f"{'#' * level} Layout sensitivity", "",
+             f"Every row where a claim does not hold in our runs (or two deterministic planners "
+             f"give one comparison), rerun on perturbed copies of "
+             f"our reconstructed layout ({runs} run(s) per planner and layout): the whole world "
+             f"mirrored, every start moved sideways by {JITTER:.0%} of its start-goal distance, "
+             f"and every free-standing obstacle moved by up to {JITTER:.0%} of it, walls staying "
+             "where they are (how exactly a layout read "
+             "off a figure can be placed). Each cell: the verdict on our layout, then in how "
+             "many perturbed layouts the claim holds / does not hold / is not shown, by the "
+             "same rule as above, except that where both planners gave one result in every run "
+             "(deterministic) a layout counts as one comparison, judged by its sign. Rows where "
+             "such planners could not be tested on our layout are rerun too.", "",
+             "| claim | row | layouts | " + " | ".join(
+                 f"ours, `profile={v.split()[0]}`" if profiles else "ours" for v in views) + " |",
+             "|---|---|---|" + "---|" * len(views)]
+    for (i, label), group in verdicts.groupby(["claim", "row"], sort=False):
+        claim = protocol.claims[int(i)]
+        cells = []
+        for view in views:
+            v = group[group["view"] == view]["verdict"]
+            own = row_verdict(protocol, claim, summary, view, rows[label])[0]
+            words = {True: "holds", False: "does not hold", None: "not shown"}
+            cells.append(f"{words[own]} here; {int((v == True).sum())} / "        # noqa: E712
+                         f"{int((v == False).sum())} / {int(v.isna().sum())} of {len(v)}")  # noqa: E712
+        tags = ", ".join(dict.fromkeys(group["layout"]))
+        lines.append(f"| {claim.text} | {label} | {int(n_layouts[(i, label)])} ({tags}) | "
+                     + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def literature_line(protocol: Protocol) -> list[str]:
     """The values the paper quotes from other work (markdown lines; none if it quotes none)."""
     if not protocol.literature:
@@ -822,7 +875,6 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
     layout_runs : int
         Runs per planner and perturbed layout.
     """
-    from hybridnav.reproduce.layouts import sensitivity_section
 
     units_of = _units(summary)
     lines = [f"# `{protocol.name}`: {protocol.paper}", "",

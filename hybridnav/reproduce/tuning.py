@@ -172,14 +172,14 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
     from hybridnav import __version__
     from hybridnav.fileio import atomic_write_text
     from hybridnav.fuzzy import load_any
-    from hybridnav.reproduce import _load
+    from hybridnav.backends import load_average
     from hybridnav.tuner.heldout import run_systems, summarize
     from hybridnav.tuner.run import run_job
 
     experiment = EXPERIMENTS[name]
-    from hybridnav.reproduce import _check_count
+    from hybridnav.reproduce.checks import check_count
 
-    n = experiment.runs if runs is None else _check_count("--runs", runs, 1)
+    n = experiment.runs if runs is None else check_count("--runs", runs, 1)
     out = Path(out)
     tic = time.perf_counter()
     worlds = _worlds(experiment, seed)       # fail on a bad set before any tuning
@@ -214,7 +214,7 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
     meta = {"experiment": name, "paper": experiment.paper, "version": __version__,
             "runs": int(n), "paper_runs": 1, "seed": seed, "profiles": list(experiment.profiles),
             "workers": workers if dask is None else f"dask {dask}",
-            "elapsed_s": round(elapsed, 1), "load": _load(),
+            "elapsed_s": round(elapsed, 1), "load": load_average(),
             "sets": {k: len(v) for k, v in worlds.items()}}
     atomic_write_text(out / "heldout.csv", table.to_csv(index=False))
     atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
@@ -458,7 +458,7 @@ def load_experiment(folder: str | Path):
 
     from hybridnav.fileio import read_text_file
     from hybridnav.params import Param, short_repr
-    from hybridnav.reproduce.readme import check_shown
+    from hybridnav.reproduce.checks import check_shown
 
     folder = Path(folder)
     path = folder / "experiment.json"
@@ -560,7 +560,7 @@ def _mcnemar_p(only_a: int, only_b: int) -> float:
 def render_experiment(folder: str | Path) -> str:
     """The README block of a stored experiment (from its CSV files and ``experiment.json``,
     checked by :func:`load_experiment`)."""
-    from hybridnav.reproduce.readme import STORE
+    from hybridnav.reproduce.protocols import STORE
 
     experiment, summary, verdicts, meta = load_experiment(folder)
     name = experiment.name
