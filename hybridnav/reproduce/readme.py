@@ -229,7 +229,8 @@ def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
     for col, ok, what in (
             ("planner", lambda v: v in labels,
              f"one of the protocol's variants ({', '.join(labels)})"),
-            ("units", lambda v: v == "nan" or _UNITS.fullmatch(v) is not None,
+            ("units", lambda v: v != v or v == "nan" or (
+                isinstance(v, str) and _UNITS.fullmatch(v) is not None),
              "a length unit (letters, at most 16)")):
         bad = ~summary[col].map(ok)
         if bad.any():
