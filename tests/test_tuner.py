@@ -811,10 +811,12 @@ def test_one_and_two_workers_judge_and_falsify_alike(tmp_path):
     assert [w.name for w in fa["tuned"].worlds] == [w.name for w in fb["tuned"].worlds]
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_one_and_two_workers_give_the_same_job_outputs(tmp_path):
     """Same seed, one worker and two: the round-robin chunks, the held-out sets judged one per
-    worker and the falsification searches one per worker give the same tables, bit for bit."""
+    worker and the falsification searches one per worker give the same tables, bit for bit.
+    (``long``: two whole jobs with their figures; the test above checks the same mechanisms
+    in seconds on every run.)"""
     from hybridnav.tuner.run import run_job
 
     text = SMALL.replace("[scenarios]\n", "[scenarios]\ntest = [{generate = 2, seed = 5, "
