@@ -11,8 +11,6 @@ renders each block again from the stored files and compares it with README.
 
 from __future__ import annotations
 
-import io
-import json
 import re
 from pathlib import Path
 
@@ -22,7 +20,7 @@ import pandas as pd
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, read_text_file
 from hybridnav.params import Param, short_repr
-from hybridnav.reproduce.checks import check_shown
+from hybridnav.reproduce.checks import check_shown, read_stored_csv, read_stored_json
 from hybridnav.reproduce.protocols import PROTOCOLS, STORE
 
 __all__ = ["STORE", "blocks", "check_shown", "load_layouts", "load_stored", "render", "rewrite_report",
@@ -54,16 +52,7 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
     """
     folder = Path(folder)
     meta_path = folder / "comparison.json"
-    try:
-        meta = json.loads(read_text_file(meta_path, "comparison.json"))
-    except (ValueError, RecursionError) as exc:
-        if isinstance(exc, HybridnavError):
-            raise
-        raise HybridnavError(f"{meta_path}: expected the comparison.json of a reproduction "
-                             f"({short_repr(str(exc), 200)})") from None
-    if not isinstance(meta, dict):
-        raise HybridnavError(f"{meta_path}: expected a JSON object, got "
-                             f"{type(meta).__name__}")
+    meta = read_stored_json(meta_path, "the comparison.json of a reproduction")
     name = meta.get("protocol")
     if not isinstance(name, str) or name not in PROTOCOLS:
         raise HybridnavError(f"{meta_path}: protocol: expected one of "
@@ -78,12 +67,7 @@ def load_stored(folder: str | Path) -> tuple[str, pd.DataFrame, dict]:
                              f"{', '.join(rows)} (run it again), got "
                              f"{', '.join(map(str, meta['scenarios']))}")
     path = folder / "summary.csv"
-    text = read_text_file(path, "summary")
-    try:
-        summary = pd.read_csv(io.StringIO(text))
-    except (ValueError, pd.errors.ParserError) as exc:
-        raise HybridnavError(f"{path}: expected the summary of a reproduction (a CSV table): "
-                             f"{short_repr(str(exc), 200)}") from None
+    summary = read_stored_csv(path, "summary", "the summary of a reproduction")
     return name, _check_summary(path, summary, PROTOCOLS[name]), meta
 
 
@@ -106,12 +90,8 @@ def load_layouts(folder: str | Path, protocol) -> pd.DataFrame | None:
     path = Path(folder) / "layouts.csv"
     if not path.exists():
         return None
-    text = read_text_file(path, "layouts")
-    try:
-        table = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
-    except (ValueError, pd.errors.ParserError) as exc:
-        raise HybridnavError(f"{path}: expected the layout verdicts of a reproduction (a CSV "
-                             f"table): {short_repr(str(exc), 200)}") from None
+    table = read_stored_csv(path, "layouts", "the layout verdicts of a reproduction",
+                            text_cells=True)
     for col in _LAYOUT_COLUMNS:
         if col not in table.columns:
             raise HybridnavError(f"{path}: {col}: missing column (expected "

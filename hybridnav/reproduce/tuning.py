@@ -384,19 +384,10 @@ _VERDICT_COUNTS = ("training_reached", "training_worlds", "heldout_reached", "st
 
 def _csv(path: Path, what: str):
     """A stored CSV table as text cells (a named error where it is not one)."""
-    import io
+    from hybridnav.reproduce.checks import read_stored_csv
 
-    import pandas as pd
-
-    from hybridnav.fileio import read_text_file
-    from hybridnav.params import short_repr
-
-    text = read_text_file(path, what)
-    try:
-        table = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
-    except (ValueError, pd.errors.ParserError) as exc:     # EmptyDataError is a ValueError
-        raise HybridnavError(f"{path}: expected the {what} of `hybridnav reproduce` (a CSV "
-                             f"table): {short_repr(str(exc), 200)}") from None
+    table = read_stored_csv(path, what, f"the {what} of `hybridnav reproduce`",
+                            text_cells=True)
     if table.empty:
         raise HybridnavError(f"{path}: expected a row per system, got only the header")
     return table
@@ -456,21 +447,12 @@ def load_experiment(folder: str | Path):
     """
     import math
 
-    from hybridnav.fileio import read_text_file
     from hybridnav.params import Param, short_repr
-    from hybridnav.reproduce.checks import check_shown
+    from hybridnav.reproduce.checks import check_shown, read_stored_json
 
     folder = Path(folder)
     path = folder / "experiment.json"
-    try:
-        meta = json.loads(read_text_file(path, "experiment.json"))
-    except (ValueError, RecursionError) as exc:
-        if isinstance(exc, HybridnavError):
-            raise
-        raise HybridnavError(f"{path}: expected the experiment.json of `hybridnav reproduce` "
-                             f"({short_repr(str(exc), 200)})") from None
-    if not isinstance(meta, dict):
-        raise HybridnavError(f"{path}: expected a JSON object, got {type(meta).__name__}")
+    meta = read_stored_json(path, "the experiment.json of `hybridnav reproduce`")
     name = meta.get("experiment")
     if not isinstance(name, str) or name not in EXPERIMENTS:
         raise HybridnavError(f"{path}: experiment: expected one of {', '.join(EXPERIMENTS)}, "
