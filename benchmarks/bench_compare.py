@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -29,16 +28,7 @@ import pandas as pd
 
 from hybridnav.analysis.compare import compare
 
-
-def _burn(n: int) -> int:
-    s = 0
-    for i in range(n):
-        s += i * i
-    return s
-
-
-def _uptime() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
+from _reference import burn, uptime  # this folder: the reference job every parallel benchmark times
 
 
 def main() -> None:
@@ -50,7 +40,7 @@ def main() -> None:
     ap.add_argument("--burn", type=int, default=15_000_000,
                     help="loop length of the trivially parallel reference (per process)")
     args = ap.parse_args()
-    print(f"uptime: {_uptime()}")
+    print(f"uptime: {uptime()}")
     planners, scenarios = args.planners.split(","), args.scenarios.split(",")
     compare(planners, scenarios[:1], 1)            # imports, compiled functions on disk
     best = {1: float("inf"), 2: float("inf")}
@@ -58,7 +48,7 @@ def main() -> None:
     load = os.getloadavg()[0]
     ref = {1: float("inf"), 2: float("inf")}
     pool = ProcessPoolExecutor(2)
-    list(pool.map(_burn, [1, 1]))                      # the reference's workers, started
+    list(pool.map(burn, [1, 1]))                      # the reference's workers, started
     for _ in range(args.repeat):
         for w in (2, 1):
             tic = time.perf_counter()
@@ -66,9 +56,9 @@ def main() -> None:
             best[w] = min(best[w], time.perf_counter() - tic)
             tic = time.perf_counter()
             if w == 1:
-                _burn(args.burn), _burn(args.burn)
+                burn(args.burn), burn(args.burn)
             else:
-                list(pool.map(_burn, [args.burn, args.burn]))
+                list(pool.map(burn, [args.burn, args.burn]))
             ref[w] = min(ref[w], time.perf_counter() - tic)
     pool.shutdown()
     cols = ["planner", "scenario", "run", "robot", "outcome", "path_length"]
@@ -80,7 +70,7 @@ def main() -> None:
           "tables equal")
     print(f"reference (2 equal CPU loops, same repeats): 1 process {ref[1]:.2f} s, 2 processes "
           f"{ref[2]:.2f} s; speed-up {ref[1] / ref[2]:.2f}x (what 2 workers can get now)")
-    print(f"uptime: {_uptime()}")
+    print(f"uptime: {uptime()}")
 
 
 if __name__ == "__main__":

@@ -42,6 +42,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from _reference import burn  # this folder: the reference job every parallel benchmark times
+
 PLANNERS = {"fastep-kinematic": "fastep", "aco-kinematic": "acor"}
 SCENARIOS = ["fastep-s1", "fastep-s2", "fastep-s3", "tractor-trailer-1"]
 COMPARE_SCENARIOS = ["fastep-s1", "fastep-s3"]
@@ -252,24 +254,18 @@ def compare_child(workers: int, runs: int) -> None:
                       "reached": int((table["outcome"] == "reached").sum()), "rows": len(table)}))
 
 
-def _burn(n: int) -> int:
-    s = 0
-    for i in range(n):
-        s += i * i
-    return s
-
 
 def free_parallelism(n: int = 10_000_000) -> float:
     """Speedup of 2 processes over 1 on pure CPU-bound work: what the machine offers right now."""
     from concurrent.futures import ProcessPoolExecutor
 
     tic = time.perf_counter()
-    _burn(n), _burn(n)
+    burn(n), burn(n)
     serial = time.perf_counter() - tic
     with ProcessPoolExecutor(2) as pool:
-        list(pool.map(_burn, [1, 1]))                  # start the workers outside the timing
+        list(pool.map(burn, [1, 1]))                  # start the workers outside the timing
         tic = time.perf_counter()
-        list(pool.map(_burn, [n, n]))
+        list(pool.map(burn, [n, n]))
         return serial / (time.perf_counter() - tic)
 
 

@@ -35,6 +35,8 @@ from hybridnav.tuner import tune
 from hybridnav.tuner.costs.base import Context, evaluate_chunk
 from hybridnav.tuner.job import load_job, validate_job
 
+from _reference import burn, uptime  # this folder: the reference job every parallel benchmark times
+
 
 def straightforward_reward(job, system, scenarios) -> float:
     """One ControlSystemSimulation, one robot at a time, one step at a time."""
@@ -87,17 +89,6 @@ def straightforward_reward(job, system, scenarios) -> float:
     return total
 
 
-def _burn(n: int) -> int:
-    s = 0
-    for i in range(n):
-        s += i * i
-    return s
-
-
-def _uptime() -> str:
-    import subprocess
-
-    return subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
 
 
 def main() -> None:
@@ -112,7 +103,7 @@ def main() -> None:
                     help="GA runs per worker count, interleaved; the best wall time counts")
     args = ap.parse_args()
     job = load_job()
-    print(f"uptime: {_uptime()}")
+    print(f"uptime: {uptime()}")
     if not args.skip_full:
         import os
         from concurrent.futures import ProcessPoolExecutor
@@ -122,7 +113,7 @@ def main() -> None:
         results = {}
         load = os.getloadavg()[0]
         pool = ProcessPoolExecutor(args.workers)
-        list(pool.map(_burn, [1] * args.workers))       # the reference's workers, started
+        list(pool.map(burn, [1] * args.workers))       # the reference's workers, started
         for _ in range(max(1, args.repeat)):
             for w in sorted({1, args.workers}, reverse=True):
                 job2 = job.with_backend(workers=w)
@@ -136,9 +127,9 @@ def main() -> None:
                 tic = time.perf_counter()
                 if w == 1:
                     for _ in range(args.workers):
-                        _burn(args.burn)
+                        burn(args.burn)
                 else:
-                    list(pool.map(_burn, [args.burn] * args.workers))
+                    list(pool.map(burn, [args.burn] * args.workers))
                 ref[w] = min(ref.get(w, math.inf), time.perf_counter() - tic)
         pool.shutdown()
         res, wall = results[args.workers], walls[args.workers]
@@ -159,7 +150,7 @@ def main() -> None:
             print(f"reference ({args.workers} equal CPU loops, same repeats): 1 process "
                   f"{ref[1]:.2f} s, {args.workers} processes {ref[args.workers]:.2f} s: "
                   f"{ref[1] / ref[args.workers]:.2f}x (what {args.workers} workers can get now)")
-        print(f"uptime: {_uptime()}")
+        print(f"uptime: {uptime()}")
     if args.skip_reward:
         return
     import pathlib
