@@ -280,3 +280,41 @@ def test_a_rounding_radius_is_stated_in_the_claim():
     if cert.status == "proved":
         r0 = cert.details["ball"]["r0"]
         assert r0 >= 1e-4 and f"except within r0 = {r0:.3g} of x*" in cert.claim
+
+
+def _exact_inside(state, level, v):
+    """Whether ``v`` (rational coefficients) at the reported float state is at most the level,
+    in exact rational arithmetic."""
+    from fractions import Fraction
+
+    return v(*(Fraction(float(c)) for c in state)) <= Fraction(level)
+
+
+def test_a_counterexample_state_lies_in_the_level_set_exactly_certificate_route():
+    """A review found the certificate route reporting (1, 0), 1.85e-17 outside {V <= 1/3}
+    (double(1/3) is below a third), where the jump to an unstable branch sits: on the set
+    itself Vdot < 0, so there is no counterexample."""
+    import casadi as cs
+
+    from hybridnav.analysis import check_lyapunov
+
+    x = cs.SX.sym("x", 2)
+    rhs = cs.vertcat(cs.if_else(x[0] >= 1, x[0], -x[0]), -x[1])
+    rep = check_lyapunov((x, rhs), (x[0] ** 2 + x[1] ** 2) / 3, equilibrium=[0, 0],
+                         region={"x_0": (-2, 2), "x_1": (-2, 2)}, level=1 / 3)
+    assert rep.status != "counterexample", rep.counterexample
+
+
+def test_a_counterexample_state_lies_in_the_level_set_exactly_quadratic_route():
+    """The quadratic route reported Vdot's maximizer (1/2, 0), 4.6e-18 outside {V <= 1/12};
+    the violation is real (Vdot > 0 inside the set), and the state reported must be inside."""
+    import casadi as cs
+
+    from hybridnav.analysis import check_lyapunov
+
+    x = cs.SX.sym("x", 2)
+    rhs = cs.vertcat(1 - x[0], -x[1])
+    rep = check_lyapunov((x, rhs), (x[0] ** 2 + x[1] ** 2) / 3, equilibrium=[1, 0],
+                         region={"x_0": (-2, 2), "x_1": (-2, 2)}, level=1 / 12)
+    assert rep.status == "counterexample"
+    assert _exact_inside(rep.counterexample, 1 / 12, lambda a, b: (a * a + b * b) / 3)

@@ -381,7 +381,7 @@ def certify(
         if not len(rest):
             continue
         lo, hi, tag = lo[rest], hi[rest], tag[rest]
-        # a centre that violates the condition is a counterexample
+        # a centre that violates the condition (and surely lies in K) is a counterexample
         mid = (lo + hi) / 2
         bad, bad_face = _violations(point, mid, tag, ng, cap, center, width, lasalle, local,
                                     zero_tol)
@@ -389,6 +389,7 @@ def certify(
             # claimed only where the interval enclosure at the centre shows the violation
             pl, ph, _ = F(mid[bad], mid[bad], clamp)
             sure = (pl[:, idot] > 0) if lasalle else (ph[:, iv] <= 0) | (pl[:, idot] >= 0)
+            sure &= ph[:, iv] <= cap            # and the centre surely in {V <= level}
             if sure.any():
                 cex = mid[bad[np.flatnonzero(sure)[0]]]
                 break

@@ -77,7 +77,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
     if ev_v.min() < 0:
         # an indefinite quadratic: V < 0 along that eigenvector, away from its centre
         xs = np.linalg.lstsq(hv, -gv0.ravel(), rcond=None)[0]
-        state = _inside(xs, vec_v[:, int(np.argmin(ev_v))], box, level, fn)
+        state = _inside(xs, vec_v[:, int(np.argmin(ev_v))], box, level, witness)
         if state is None or not witness.v_negative(state)[0]:
             return False
         report.route = "quadratic"
@@ -103,7 +103,7 @@ def _quadratic_argument(model, v_num, vdot_num, box: Box, level, report: Lyapuno
         return True
     if ev_d.max() < 0:
         xd = np.linalg.solve(hd, -gd0.ravel())
-        if box.contains(xd) and (level is None or float(np.asarray(fn(xd)[0]).item()) <= level):
+        if box.contains(xd) and witness.within_level(xd, level):
             if witness.vdot_sign(xd)[0] == "positive":
                 report.route = "quadratic"
                 _counterexample(report, _both(fn), xd, "exact: Vdot is a quadratic form whose "
@@ -135,7 +135,7 @@ def _centred(report, fn, witness, c, ev_v, ev_d, vec_d, m_v, M_d, box, level) ->
     # along the eigenvector of the largest eigenvalue Vdot = lambda t^2 / 2: a counterexample
     # where the enclosure there shows Vdot > 0, or Vdot = 0 exactly (a semidefinite H_Vdot)
     direction = vec_d[:, int(np.argmax(ev_d))]
-    state = _inside(c, direction, box, level, fn)
+    state = _inside(c, direction, box, level, witness)
     sign = witness.vdot_sign(state)[0] if state is not None else ""
     if sign in ("positive", "zero"):
         report.route = "quadratic"
@@ -165,15 +165,16 @@ def _both(fn: cs.Function):
     return both
 
 
-def _inside(xs, direction, box: Box, level, fn) -> np.ndarray | None:
-    """A point x* + t v inside the box (and level set), as far out as allowed, t != 0."""
+def _inside(xs, direction, box: Box, level, witness: Witness) -> np.ndarray | None:
+    """A point x* + t v inside the box (and surely inside the level set), as far out as
+    allowed, t != 0."""
     for sign in (1.0, -1.0):
         t = _max_step(xs, sign * direction, box)
         for _ in range(60):
             if t <= 0:
                 break
             z = xs + sign * t * direction
-            if level is None or float(np.asarray(fn(z)[0]).item()) <= level:
+            if witness.within_level(z, level):
                 return z
             t /= 2
     return None
