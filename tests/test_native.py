@@ -322,3 +322,32 @@ def test_processes_sharing_the_cache_build_a_library_once(tmp_path):
     assert [o.strip() for o, _ in outs] == ["5", "5", "5"]
     assert not any("does not match" in e for _, e in outs)
     assert len(list(tmp_path.glob("native/race-*.so"))) == 1
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.05])
+def test_the_candidate_grid_changes_no_bit(monkeypatch, margin):
+    """The compiled cycle searching only each cell's candidate obstacles
+    (``WorldStack.cells``; ``kernel.CELLS``) gives the same runs bit for bit as searching every
+    obstacle, with the escape filter (whose clearance queries reach outside the workspace) on
+    and off, on generated worlds with circles, segments and rectangles."""
+    gen = WorldGenerator(segments=(1, 3), rectangles=(1, 3))
+    scen = [dataclasses.replace(s, max_time=40.0)
+            for s in [load_scenario("effc-env-a"), load_scenario("effc-env-b")]
+            + gen.generate(8, seed=11)]
+    fis = fuzzy.builtin("effc-safe")
+    fam = SystemFamily(fis)
+    tables = fam.tables_of([fis] * 2)
+    tables.output[1] *= 0.6
+    planner = {**PLANNER, "safety_margin": margin}
+    runs = []
+    for cells in (0, 32):
+        monkeypatch.setattr(kernel, "CELLS", cells)
+        st_ = scenario_set(scen)
+        runs.append(effc_lockstep(st_, fam, tables, 2, planner, record_paths=True))
+    a, b = runs
+    assert (a.outcome == b.outcome).all()
+    assert len(set(a.outcome.ravel())) >= 2
+    for f in ("path_length", "time", "min_clearance", "final_distance"):
+        assert np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True), f
+    for p, q in zip(a.paths, b.paths):
+        assert np.array_equal(p, q)

@@ -167,8 +167,14 @@ def test_the_exported_c_filter_is_the_python_filter(tmp_path):
     X = np.column_stack([rng.uniform(0, 2, 400), rng.uniform(0, 2, 400),
                          rng.uniform(-np.pi, np.pi, 400)])
     V = rng.normal(size=(400, 2))
-    want, changed = escape_filter(X, V, speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN,
-                                  radius=np.full(400, R), clearance=clear)
+    # states with no safe candidate (inside or against an obstacle: the most-room rule) and
+    # states that are not finite (every candidate measured)
+    X[-40:-8, :2] = np.array([1.0, 1.0]) + rng.normal(0.0, 0.05, (32, 2))   # in the big circle
+    X[-8:] = [[np.nan, 1, 0], [1, np.inf, 0], [1, 1, np.inf], [1, 1, np.nan],
+              [-np.inf, 1, 0.3], [1, 1, -np.inf], [np.nan, np.nan, np.nan], [1, 1, 1e300]]
+    with np.errstate(invalid="ignore"):
+        want, changed = escape_filter(X, V, speed=SPEED, dt=DT, max_turn=TURN, margin=MARGIN,
+                                      radius=np.full(400, R), clearance=clear)
     assert changed.sum() > 50
     for i in range(400):
         vx, vy = ctypes.c_double(V[i, 0]), ctypes.c_double(V[i, 1])

@@ -77,3 +77,45 @@ def test_lockstep_with_a_stack_equals_the_planner_runs():
         assert res.outcome[e, 0] == r.outcome
         assert res.path_length[e, 0] == pytest.approx(r.path_length, rel=1e-12)
         assert res.min_clearance[e, 0] == pytest.approx(r.min_clearance, rel=1e-12)
+
+
+@pytest.mark.parametrize("per_side", [1, 4, 32])
+def test_cell_candidates_hold_every_nearest_obstacle(per_side):
+    """``WorldStack.cells``: the obstacle nearest to any point of a cell (ties included) is one
+    of the cell's candidates, so a search of the candidates alone answers as the full search."""
+    worlds = [w for w in _worlds() if not any(o.__class__ is MovingCircle for o in w.obstacles)]
+    stack = WorldStack(worlds)
+    geo, off, col = stack.cells(per_side)
+    rng = np.random.default_rng(1)
+    n = 20000
+    env = rng.integers(0, len(worlds), n)
+    ws = stack.ws[env]                                     # the workspace widened by half
+    u = rng.uniform(-0.5, 1.5, (n, 2))
+    P = np.stack([ws[:, 0] + u[:, 0] * (ws[:, 1] - ws[:, 0]),
+                  ws[:, 2] + u[:, 1] * (ws[:, 3] - ws[:, 2])], axis=1)
+    P[:3] = [[2.5, 2.25], [1.0, 1.5], [1.5, 1.5]]          # ties and surface points
+    env[:3] = [0, 0, 1]
+    _, D, *_ = stack._distances(P, env, 0.0, False)
+    kof = stack.column_obstacle()
+    fx = (P[:, 0] - geo[env, 0]) * geo[env, 2]
+    fy = (P[:, 1] - geo[env, 1]) * geo[env, 3]
+    inside = (fx >= 0) & (fx < per_side) & (fy >= 0) & (fy < per_side)
+    assert inside.sum() > n // 2 and (~inside).sum() > 100       # both routes are exercised
+    checked = 0
+    for i in np.flatnonzero(inside & stack.has_obstacles[env]):
+        cell = (env[i] * per_side + int(fy[i])) * per_side + int(fx[i])
+        cand = set(col[off[cell]:off[cell + 1]].tolist())
+        d = D[i, :stack.C + stack.G]
+        best = np.flatnonzero(d == d.min())
+        assert set(best.tolist()) <= cand
+        checked += 1
+        # the first minimum in obstacle order is found among the candidates alone
+        cd = sorted(cand, key=lambda c: (d[c], kof[env[i], c]))
+        full = min(range(stack.C + stack.G), key=lambda c: (d[c], kof[env[i], c]))
+        assert cd[0] == full
+    assert checked > 1000
+
+
+def test_no_cells_with_moving_obstacles():
+    stack = WorldStack(_worlds())
+    assert stack.moving and stack.cells(8) is None

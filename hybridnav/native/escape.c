@@ -49,6 +49,24 @@ static double hn_escape_rem(double a, double b)
     return m;
 }
 
+/* The end (x1, y1) of one cycle turning by d from (x, y, theta), and (qx, qy): the offset of
+ * its left escape circle's centre (the right one's is minus it) */
+static void hn_escape_arc(double x, double y, double theta, double ct, double st, double d,
+                          double step, double rho, double *x1, double *y1, double *qx, double *qy)
+{
+    double th1 = theta + d, c1 = cos(th1), s1 = sin(th1);   /* ct, st: cos, sin of theta */
+    if (fabs(d) < 1e-12) {                         /* the cycle's arc: straight */
+        *x1 = x + step * ct;
+        *y1 = y + step * st;
+    } else {                                       /* the cycle's arc: constant turn rate */
+        double R = step / d;
+        *x1 = x + R * (s1 - st);
+        *y1 = y + R * (ct - c1);
+    }
+    *qx = rho * -s1;
+    *qy = rho * c1;
+}
+
 /* Make the command (vx, vy) of a robot at (x, y) heading theta safe; returns 1 when it changed
  * it (to speed along the chosen heading), 0 when it left it as it was. */
 static int hn_escape_filter(const hn_escape_params *p, double x, double y, double theta,
@@ -63,42 +81,66 @@ static int hn_escape_filter(const hn_escape_params *p, double x, double y, doubl
     double want = hn_escape_rem(atan2(*vy, *vx) - theta + M_PI, 2 * M_PI) - M_PI;
     want = want < -mt ? -mt : (want > mt ? mt : want);
     double d[HN_ESCAPE_CANDIDATES + 1], circle[HN_ESCAPE_CANDIDATES + 1];
-    int ok[HN_ESCAPE_CANDIDATES + 1];
+    double px[HN_ESCAPE_CANDIDATES + 1], py[HN_ESCAPE_CANDIDATES + 1];
+    double qx[HN_ESCAPE_CANDIDATES + 1], qy[HN_ESCAPE_CANDIDATES + 1];
+    int order[HN_ESCAPE_CANDIDATES + 1], has_l[HN_ESCAPE_CANDIDATES + 1];
+    double cl_v[HN_ESCAPE_CANDIDATES + 1];
     d[0] = want;
     double dl = (mt - -mt) / (HN_ESCAPE_CANDIDATES - 1);     /* np.linspace(-mt, mt, 9) */
     for (int i = 0; i < HN_ESCAPE_CANDIDATES; ++i) d[1 + i] = i * dl + -mt;
     d[HN_ESCAPE_CANDIDATES] = mt;
     double need = p->radius + p->margin;
     for (int i = 0; i <= HN_ESCAPE_CANDIDATES; ++i) {
-        double th1 = theta + d[i], x1, y1;
-        if (fabs(d[i]) < 1e-12) {                  /* the cycle's arc: straight */
-            x1 = x + step * cos(theta);
-            y1 = y + step * sin(theta);
-        } else {                                   /* the cycle's arc: constant turn rate */
-            double R = step / d[i];
-            x1 = x + R * (sin(th1) - sin(theta));
-            y1 = y + R * (cos(theta) - cos(th1));
-        }
-        double nx = -sin(th1), ny = cos(th1);
-        double c0 = clearance(x1, y1, ctx);
-        double cl = clearance(x1 + rho * nx, y1 + rho * ny, ctx);
-        double cr = clearance(x1 - rho * nx, y1 - rho * ny, ctx);
-        circle[i] = hn_escape_max(cl, cr) - rho;
-        ok[i] = c0 >= need && circle[i] >= need;
-        if (i == 0 && ok[0]) return 0;             /* the wanted change ends safe */
+        order[i] = i;
+        has_l[i] = 0;
+        circle[i] = NAN;
+        px[i] = NAN;                               /* the arc's end: on first use */
+    }
+    double ct = cos(theta), st = sin(theta);
+#define HN_ESCAPE_ARC(i) do { if (isnan(px[i])) hn_escape_arc(x, y, theta, ct, st, d[i], step, \
+                                                          rho, &px[i], &py[i], &qx[i], &qy[i]); \
+                            } while (0)
+    /* The candidates are tried nearest to the wanted change first (ties: the lower index; the
+     * wanted change itself first), and the first safe one is taken: the pick of scoring them all.
+     * With a finite state every clearance is finite, so a test one value settles needs no other.
+     * A state that is not finite has no safe candidate (every clearance is NaN or -inf): then
+     * every circle is measured for the most-room rule. */
+    int finite = isfinite(x) && isfinite(y) && isfinite(theta);
+    for (int i = 2; i <= HN_ESCAPE_CANDIDATES; ++i) {
+        int o = order[i], j = i;
+        double a = fabs(d[o] - want);
+        while (j > 1 && fabs(d[order[j - 1]] - want) > a) { order[j] = order[j - 1]; --j; }
+        order[j] = o;
     }
     int best = -1;
-    double bs = -INFINITY;
-    for (int i = 0; i <= HN_ESCAPE_CANDIDATES; ++i)
-        if (ok[i] && (best < 0 || -fabs(d[i] - want) > bs)) { bs = -fabs(d[i] - want); best = i; }
+    for (int k = 0; finite && k <= HN_ESCAPE_CANDIDATES; ++k) {
+        int i = order[k];
+        HN_ESCAPE_ARC(i);
+        if (!(clearance(px[i], py[i], ctx) >= need)) continue;     /* unsafe whatever the circles */
+        double cl = clearance(px[i] + qx[i], py[i] + qy[i], ctx);
+        cl_v[i] = cl;
+        has_l[i] = 1;
+        if (cl - rho >= need) { best = i; break; }                 /* max(cl, cr) - rho >= need */
+        double cr = clearance(px[i] - qx[i], py[i] - qy[i], ctx);
+        circle[i] = hn_escape_max(cl, cr) - rho;
+        if (circle[i] >= need) { best = i; break; }
+    }
+    if (best == 0) return 0;                       /* the wanted change ends safe */
     if (best < 0) {                                /* none safe: the most room */
-        bs = -INFINITY;
+        double bs = -INFINITY;
         best = 0;
         for (int i = 0; i <= HN_ESCAPE_CANDIDATES; ++i) {
+            if (!finite || !has_l[i] || isnan(circle[i])) {
+                HN_ESCAPE_ARC(i);
+                double cl = has_l[i] ? cl_v[i] : clearance(px[i] + qx[i], py[i] + qy[i], ctx);
+                double cr = clearance(px[i] - qx[i], py[i] - qy[i], ctx);
+                circle[i] = hn_escape_max(cl, cr) - rho;
+            }
             double v = isnan(circle[i]) ? -INFINITY : circle[i];
             if (v > bs) { bs = v; best = i; }
         }
     }
+#undef HN_ESCAPE_ARC
     double pick = theta + d[best];
     *vx = p->speed * cos(pick);
     *vy = p->speed * sin(pick);

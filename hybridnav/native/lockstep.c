@@ -287,7 +287,54 @@ typedef struct {
     const int64_t *perm;            /* (E, Kp) column of obstacle k in [circles | groups | inf] */
     const uint8_t *has;             /* (E) */
     const double *ws;               /* (E, 4) */
+    const int64_t *g_start;         /* (E, G + 1) edges of group g: [g_start[g], g_start[g + 1]) */
+    int cells;                      /* cells per side of the candidate grid, 0: none */
+    const double *cell_geo;         /* (E, 4) x0, y0, cells per unit x, per unit y */
+    const int64_t *cell_off;        /* (E cells^2 + 1) offsets into cell_col */
+    const int32_t *cell_col;        /* columns that can be nearest somewhere in the cell */
+    const int32_t *kof;             /* (E, C + G) obstacle index (world order) of each column */
 } hn_stack;
+
+/* the candidate columns of the cell holding P (WorldStack.cells), or -1: search them all */
+static int64_t hn_cell(const hn_stack *s, int64_t e, double px, double py)
+{
+    if (!s->cells) return -1;
+    const double *g = s->cell_geo + 4 * (size_t)e;
+    double fx = (px - g[0]) * g[2], fy = (py - g[1]) * g[3];
+    if (!(fx >= 0.0 && fx < s->cells && fy >= 0.0 && fy < s->cells)) return -1;
+    return ((int64_t)e * s->cells + (int64_t)fy) * s->cells + (int64_t)fx;
+}
+
+/* one group's signed distance at P and its nearest edge (first minimum); the same operations
+ * as the full search in hn_columns */
+static void hn_group(const hn_stack *s, int64_t e, int g, double px, double py, double *D,
+                     int *gedge, double *tmp_de, double *tmp_q)
+{
+    const int C = s->C, Ed = s->Ed;
+    const int64_t *gs = s->g_start + (size_t)e * (s->G + 1);
+    double crmin = INFINITY;
+    D[C + g] = INFINITY;
+    gedge[g] = -1;
+    for (int64_t j = gs[g]; j < gs[g + 1]; ++j) {
+        size_t q = (size_t)e * Ed + j;
+        double ax = s->eA[2 * q], ay = s->eA[2 * q + 1];
+        double bx = s->eB[2 * q], by = s->eB[2 * q + 1];
+        double abx = bx - ax, aby = by - ay, apx = px - ax, apy = py - ay;
+        double den = abx * abx + aby * aby, num = apx * abx + apy * aby;
+        double u = den > 0.0 ? num / den : 0.0;
+        u = u < 0.0 ? 0.0 : u;
+        u = u > 1.0 ? 1.0 : u;
+        double qx = ax + u * abx, qy = ay + u * aby;
+        double de = hypot(px - qx, py - qy);
+        tmp_de[j] = de;
+        tmp_q[2 * j] = qx;
+        tmp_q[2 * j + 1] = qy;
+        double cr = abx * apy - aby * apx;
+        if (cr < crmin) crmin = cr;
+        if (gedge[g] < 0 || de < D[C + g]) { D[C + g] = de; gedge[g] = (int)j; }
+    }
+    if (crmin > 0.0 && s->closed[(size_t)e * s->G + g]) D[C + g] = -D[C + g];
+}
 
 /* signed distance of every column (C + G + 1) of world e at P; for groups also the nearest edge
  * index (first minimum) */
@@ -357,6 +404,36 @@ static double hn_nearest(const hn_stack *s, int64_t e, double px, double py, dou
     *nx = NAN;
     *ny = NAN;
     if (!s->Kp || !s->has[e]) return INFINITY;
+    int64_t cell = hn_cell(s, e, px, py);
+    if (cell >= 0) {       /* only the columns that can be nearest here (all finite: P is) */
+        const int C = s->C, CG = s->C + s->G;
+        int bcol = -1, bk = 0;
+        double bd = INFINITY, bh = 0.0;
+        for (int64_t i = s->cell_off[cell]; i < s->cell_off[cell + 1]; ++i) {
+            int c = s->cell_col[i], k = s->kof[(size_t)e * CG + c];
+            double d, h = 0.0;
+            if (c < C) {
+                size_t q = ((size_t)e * C + c);
+                h = hypot(px - s->c0[2 * q], py - s->c0[2 * q + 1]);
+                d = h - s->cr[q];
+            } else {
+                hn_group(s, e, c - C, px, py, D, gedge, tmp_de, tmp_q);
+                d = D[c];
+            }
+            if (bcol < 0 || d < bd || (d == bd && k < bk)) { bcol = c; bk = k; bd = d; bh = h; }
+        }
+        if (bcol < C) {
+            size_t q = (size_t)e * C + bcol;
+            double cx = s->c0[2 * q], cy = s->c0[2 * q + 1], ux = 1.0, uy = 0.0;
+            if (bh != 0.0) { ux = (px - cx) / bh; uy = (py - cy) / bh; }
+            *nx = cx + s->cr[q] * ux;
+            *ny = cy + s->cr[q] * uy;
+        } else {
+            int j = gedge[bcol - C];
+            if (j >= 0) { *nx = tmp_q[2 * j]; *ny = tmp_q[2 * j + 1]; }
+        }
+        return bd;
+    }
     hn_columns(s, e, px, py, t, D, gedge, tmp_de, tmp_q);
     int best = 0;
     double bd = D[s->perm[(size_t)e * s->Kp]];
@@ -625,13 +702,29 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
                     }
                     mx /= (W + 1);
                     my /= (W + 1);
-                    double span = -INFINITY;
+                    /* the largest squared distance settles the test unless it is within
+                     * rounding of the threshold (or NaN): then hypot decides, as NumPy does */
+                    double thr = r->stuck_radius * gr, m2 = 0.0;
                     for (int j = 0; j <= W; ++j) {
-                        double d = hypot(ring[((size_t)j * N + n) * 2] - mx,
-                                         ring[((size_t)j * N + n) * 2 + 1] - my);
-                        if (d > span || isnan(d)) span = isnan(span) ? span : d;
+                        double dx = ring[((size_t)j * N + n) * 2] - mx;
+                        double dy = ring[((size_t)j * N + n) * 2 + 1] - my;
+                        double d2 = dx * dx + dy * dy;
+                        if (!(d2 <= m2)) m2 = d2;     /* NaN sticks */
                     }
-                    if (span < r->stuck_radius * gr) { r->status[n] = STUCK; r->t_end[n] = tn; }
+                    int stuck;
+                    int sure = thr > 0.0 && thr < 1e150;
+                    if (sure && m2 < thr * thr * (1.0 - 1e-9)) stuck = 1;
+                    else if (sure && m2 > thr * thr * (1.0 + 1e-9)) stuck = 0;
+                    else {
+                        double span = -INFINITY;
+                        for (int j = 0; j <= W; ++j) {
+                            double d = hypot(ring[((size_t)j * N + n) * 2] - mx,
+                                             ring[((size_t)j * N + n) * 2 + 1] - my);
+                            if (d > span || isnan(d)) span = isnan(span) ? span : d;
+                        }
+                        stuck = span < thr;
+                    }
+                    if (stuck) { r->status[n] = STUCK; r->t_end[n] = tn; }
                 }
             }
         }

@@ -25,6 +25,9 @@ from hybridnav.fuzzy.spec import And, Not, Or, TermRef
 __all__ = ["available", "effc_run", "family_evaluate"]
 
 _MAX_IN, _MAX_TERMS, _MAX_STACK, _MAX_T = 16, 64, 64, 64
+#: cells per side of the nearest-obstacle candidate grid (``WorldStack.cells``); 0 searches every
+#: obstacle at every query (the same answers, slower)
+CELLS = 32
 
 
 class _Family(Structure):
@@ -41,7 +44,9 @@ class _Stack(Structure):
     _fields_ = [("E", c_int), ("C", c_int), ("G", c_int), ("Ed", c_int), ("Kp", c_int),
                 ("moving", c_int), ("c0", c_void_p), ("cv", c_void_p), ("cr", c_void_p),
                 ("eA", c_void_p), ("eB", c_void_p), ("owner", c_void_p), ("closed", c_void_p),
-                ("perm", c_void_p), ("has", c_void_p), ("ws", c_void_p)]
+                ("perm", c_void_p), ("has", c_void_p), ("ws", c_void_p),
+                ("g_start", c_void_p), ("cells", c_int), ("cell_geo", c_void_p),
+                ("cell_off", c_void_p), ("cell_col", c_void_p), ("kof", c_void_p)]
 
 
 class _Run(Structure):
@@ -276,6 +281,15 @@ def _stack_struct(stack, keep: _Keep) -> _Stack:
     s.perm = keep.ptr(stack.perm, np.int64)
     s.has = keep.ptr(stack.has_obstacles, np.uint8)
     s.ws = keep.ptr(stack.ws, np.float64)
+    s.g_start = keep.ptr(stack.g_start, np.int64)
+    cells = stack.cells(CELLS) if CELLS else None
+    if cells is not None:
+        geo, off, col = cells
+        s.cells = CELLS
+        s.cell_geo = keep.ptr(geo, np.float64)
+        s.cell_off = keep.ptr(off, np.int64)
+        s.cell_col = keep.ptr(col, np.int32)
+        s.kof = keep.ptr(stack.column_obstacle(), np.int32)
     return s
 
 

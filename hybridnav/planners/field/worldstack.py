@@ -62,7 +62,69 @@ class WorldStack:
                 self.owner[e, a:b] = g
             self.closed[e, :w._g_idx.size] = w._g_closed
             self.perm[e, w._g_idx] = C + np.arange(w._g_idx.size)
+        self.g_start = np.zeros((E, G + 1), dtype=np.int64)   # edges of group g: [g_start[g], g_start[g + 1])
+        for e, w in enumerate(self.worlds):
+            ng = w._g_idx.size
+            self.g_start[e, :ng] = w._g_start
+            self.g_start[e, ng:] = len(w._eA)
         self.C, self.G = C, G
+        self._cells: dict[int, tuple | None] = {}
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state.pop("_lockstep_layout", None)       # models and start states: rebuilt on use
+        return state
+
+    def column_obstacle(self) -> np.ndarray:
+        """``(E, C + G)``: the index in its world of the obstacle each column holds (padding
+        columns: ``K``), the inverse of :attr:`perm`."""
+        E, CG = len(self.worlds), self.C + self.G
+        kof = np.full((E, CG), self.K, dtype=np.int64)
+        for e, w in enumerate(self.worlds):
+            k = np.arange(len(w.obstacles))
+            kof[e, self.perm[e, k]] = k
+        return kof
+
+    def cells(self, per_side: int = 32):
+        """Candidate lists for an exact nearest-obstacle search: each world's workspace, widened
+        by a quarter of its size, cut into ``per_side`` x ``per_side`` cells, and for each cell
+        the columns ([circles | groups]) that can be nearest to some point of it.
+
+        Signed distances are 1-Lipschitz, so from a cell's centre ``c`` with half-diagonal ``h``
+        a column ``j`` can be nearest somewhere in the cell only if ``d_j(c) - h <= min_k d_k(c)
+        + h``; the others are strictly farther everywhere in the cell (a tolerance covers
+        rounding), so searching the candidates alone gives the same nearest obstacle, the same
+        distance and the same tie-break as searching all. ``None`` for moving obstacles.
+
+        Returns ``(geo (E, 4): x0, y0, cells per unit x, per unit y; offsets (E * n * n + 1,);
+        columns (int32))``, cell ``(ix, iy)`` of world ``e`` at ``(e * n + iy) * n + ix``.
+        """
+        if per_side in self._cells:
+            return self._cells[per_side]
+        if self.moving or not self.K:
+            self._cells[per_side] = None
+            return None
+        E, n = len(self.worlds), int(per_side)
+        x0, x1, y0, y1 = (self.ws[:, i] for i in range(4))
+        wx, wy = x1 - x0, y1 - y0
+        x0, y0, wx, wy = x0 - wx / 4, y0 - wy / 4, wx * 1.5, wy * 1.5
+        sx, sy = wx / n, wy / n
+        geo = np.stack([x0, y0, 1.0 / sx, 1.0 / sy], axis=1)
+        u = np.arange(n) + 0.5
+        cx = x0[:, None, None] + u[None, None, :] * sx[:, None, None]   # (E, 1, n): ix
+        cy = y0[:, None, None] + u[None, :, None] * sy[:, None, None]   # (E, n, 1): iy
+        P = np.stack(np.broadcast_arrays(cx, cy), axis=-1).reshape(-1, 2)
+        env = np.repeat(np.arange(E), n * n)
+        h = 0.5 * np.hypot(sx, sy)[env]
+        tol = 1e-9 * (1.0 + np.abs(self.ws).max(axis=1) + np.hypot(wx, wy))[env]
+        D = self._distances(P, env, 0.0, False)[1][:, :self.C + self.G]
+        with np.errstate(invalid="ignore"):
+            keep = (D <= (D.min(axis=1) + 2.0 * h + tol)[:, None]) & np.isfinite(D)
+        counts = keep.sum(axis=1)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        columns = np.nonzero(keep)[1].astype(np.int32)
+        self._cells[per_side] = (geo, offsets, columns)
+        return self._cells[per_side]
 
     def _distances(self, P: np.ndarray, env: np.ndarray, t: float, want_points: bool):
         n = len(P)
