@@ -834,3 +834,40 @@ def test_one_and_two_workers_give_the_same_job_outputs(tmp_path):
     assert set(a.heldout.set) == {"validation", "test"}
     for name in ("heldout.csv", "falsification.csv", "evaluations.csv"):
         assert (da / name).read_text() == (db / name).read_text(), name
+
+
+def test_the_path_figure_draws_the_held_out_runs():
+    """``paths.png`` draws lockstep batches (the held-out table's simulation): the same outcome,
+    length, end time and final state as the batch run that judged each system, and the
+    planner's own run where the worlds cannot be batched."""
+    from hybridnav.planners.field.apf import apf_lockstep
+    from hybridnav.fuzzy.family import SystemFamily
+    from hybridnav.tuner.evaluate import lockstep_effc, scenario_set
+    from hybridnav.tuner.heldout import baseline
+    from hybridnav.tuner.run import _lockstep_traces
+    from hybridnav.world import load_scenario
+    from hybridnav.worldgen import WorldGenerator
+
+    scen = [load_scenario("effc-env-a"), load_scenario("effc-env-b")] \
+        + WorldGenerator().generate(3, seed=4)
+    fis = fuzzy.builtin("effc-5rule")
+    settings = {"speed": 0.1, "max_turn": np.pi / 4, "stuck_window": 10.0, "stuck_radius": 2.0,
+                "safety_margin": 0.05}
+    runs = (("start", "effc", {"fis": fis, **settings}), ("apf", "apf", baseline(settings)))
+    traces = _lockstep_traces(scen, runs)
+    st = scenario_set(scen)
+    fam = SystemFamily(fis)
+    ref = [lockstep_effc(st, fam, fam.tables_of([fis]), 1, settings, record_paths=True),
+           apf_lockstep(st, baseline(settings), record_paths=True)]
+    assert len(traces) == len(scen) * 2
+    for e in range(len(scen)):
+        for j, res in enumerate(ref):
+            (tr,) = traces[e * 2 + j]
+            assert tr.outcome == res.outcome[e, 0] and tr.path_length == res.path_length[e, 0]
+            assert tr.t_end == res.time[e, 0]
+            assert len(tr.xy) == round(res.time[e, 0] / 0.1) + 1
+            assert np.array_equal(tr.xy[-1], res.final_states[e, 0, :2])
+    # worlds of two control cycles cannot be batched together: the planners run instead
+    import dataclasses
+
+    assert _lockstep_traces(scen + [dataclasses.replace(scen[0], dt=0.05)], runs) is None

@@ -15,12 +15,14 @@ from hybridnav.plotting.diagnostics import (
     plot_waypoints,
 )
 from hybridnav.plotting.scenes import (
+    Trace,
     draw_scenario,
     plot_result,
+    plot_traces,
     save_figure,
     save_scenario_png,
 )
 
-__all__ = ["draw_scenario", "plot_gain_search", "plot_planned", "plot_potential", "plot_pso_ba",
-           "plot_result", "plot_signals", "plot_steps", "plot_waypoints", "save_figure",
+__all__ = ["Trace", "draw_scenario", "plot_gain_search", "plot_planned", "plot_potential",
+           "plot_pso_ba", "plot_result", "plot_signals", "plot_traces", "plot_steps", "plot_waypoints", "save_figure",
            "save_scenario_png"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,8 @@ from hybridnav.fileio import atomic_path
 from hybridnav.params import short_repr
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
-__all__ = ["draw_scenario", "plot_result", "save_figure", "save_scenario_png"]
+__all__ = ["Trace", "draw_scenario", "plot_result", "plot_traces", "save_figure",
+           "save_scenario_png"]
 
 log = logging.getLogger(__name__)
 
@@ -182,8 +184,61 @@ _OUTCOME_MARK = {"reached": ("*", "green"), "collided": ("X", "red"),
                  "timeout": ("D", "gray")}
 
 
-def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
+@dataclass(frozen=True)
+class Trace:
+    """One robot's run as :func:`plot_traces` draws it: its ``xy`` path ``(n, 2)``, outcome,
+    path length, final state (for the footprint; ``None`` draws none) and end time."""
+
+    name: str
+    xy: np.ndarray
+    outcome: str
+    path_length: float
+    state: np.ndarray | None
+    t_end: float
+
+
+def plot_traces(scenario: Scenario, traces, ax: Axes | None = None) -> Figure:
     """The scenario with every robot's path, its final footprint and outcome marker.
+
+    Moving obstacles are drawn where they are at the end of the longest run.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    traces : sequence of Trace
+        In the order of the scenario's robots (the footprint uses the robot of that name).
+    ax : matplotlib.axes.Axes, optional
+        Draw into it (default: a new figure).
+    """
+    t_end = max((float(r.t_end) for r in traces), default=0.0)
+    if ax is None:
+        fig = Figure(figsize=(6.6, 6.4), layout="constrained")
+        ax = fig.add_subplot()
+    else:
+        fig = ax.figure
+    draw_scenario(scenario, ax=ax, t=t_end)
+    models = {r.name: scenario.model(r, jit=False) for r in scenario.robots}
+    for i, rr in enumerate(traces):
+        col = f"C{i % 10}"
+        xy = rr.xy
+        ax.plot(xy[:, 0], xy[:, 1], color=col, linewidth=1.6, zorder=7,
+                label=f"{rr.name}: {rr.outcome}, length {rr.path_length:.3g}")
+        model = models.get(rr.name)
+        if model is not None and rr.state is not None and len(rr.state) == model.nx:
+            centers, radii = model.footprint(np.asarray(rr.state)[None])
+            for c, rad in zip(centers[0], radii):
+                ax.add_patch(CirclePatch(c, rad, fill=False, edgecolor=col, linewidth=1.0,
+                                         zorder=7))
+        mark, mcol = _OUTCOME_MARK.get(rr.outcome, ("o", "black"))
+        ax.plot(*xy[-1], marker=mark, color=mcol, markersize=11, markeredgecolor="black",
+                zorder=8)
+    ax.legend(loc="upper left", fontsize=8)
+    return fig
+
+
+def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
+    """The scenario with every robot's path, its final footprint and outcome marker
+    (:func:`plot_traces` of a :class:`hybridnav.results.Result`).
 
     Moving obstacles are drawn where they are at the end of the longest run.
 
@@ -194,28 +249,9 @@ def plot_result(scenario: Scenario, result, ax: Axes | None = None) -> Figure:
     ax : matplotlib.axes.Axes, optional
         Draw into it (default: a new figure).
     """
-    t_end = max((float(r.t[-1]) for r in result.robots), default=0.0)
-    if ax is None:
-        fig = Figure(figsize=(6.6, 6.4), layout="constrained")
-        ax = fig.add_subplot()
-    else:
-        fig = ax.figure
-    draw_scenario(scenario, ax=ax, t=t_end)
-    models = {r.name: scenario.model(r, jit=False) for r in scenario.robots}
-    for i, rr in enumerate(result.robots):
-        col = f"C{i % 10}"
-        xy = rr.states[:, :2]
-        ax.plot(xy[:, 0], xy[:, 1], color=col, linewidth=1.6, zorder=7,
-                label=f"{rr.name}: {rr.outcome}, length {rr.path_length:.3g}")
-        model = models.get(rr.name)
-        if model is not None and rr.states.shape[1] == model.nx:
-            centers, radii = model.footprint(rr.states[-1][None])
-            for c, rad in zip(centers[0], radii):
-                ax.add_patch(CirclePatch(c, rad, fill=False, edgecolor=col, linewidth=1.0,
-                                         zorder=7))
-        mark, mcol = _OUTCOME_MARK.get(rr.outcome, ("o", "black"))
-        ax.plot(*xy[-1], marker=mark, color=mcol, markersize=11, markeredgecolor="black",
-                zorder=8)
-    ax.legend(loc="upper left", fontsize=8)
+    traces = [Trace(rr.name, rr.states[:, :2], rr.outcome, rr.path_length, rr.states[-1],
+                    float(rr.t[-1])) for rr in result.robots]
+    fig = plot_traces(scenario, traces, ax=ax)
+    ax = ax if ax is not None else fig.axes[0]
     ax.set_title(f"{scenario.name}: {result.planner} (seed {short_repr(result.seed, 24)})")
     return fig

@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, clean_temporaries, locked_folder
-from hybridnav.plotting import plot_result, save_figure
+from hybridnav.plotting import Trace, plot_traces, save_figure
 from hybridnav.tuner.core import tune
 from hybridnav.tuner.costs import NavigationCost
 from hybridnav.tuner.heldout import summarize
@@ -278,7 +278,8 @@ def _path_run(planner: str, params: dict[str, Any], scenario):
 def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = None
            ) -> list[str]:
     """Start, tuned and ``apf`` on the paper's worlds, on every test world where the tuned
-    system fails, and on a few more generated test worlds (run on ``backend``)."""
+    system fails, and on a few more generated test worlds: lockstep batches, the simulation
+    the held-out tables come from (worlds it cannot batch: planner runs on ``backend``)."""
     test = job.scenarios("test")
     failed: set[str] = set()
     if result.heldout is not None and len(result.heldout):
@@ -303,17 +304,62 @@ def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = 
     runs = (("start", job["cost"]["planner"], {"fis": result.start, **settings}),
             ("tuned", job["cost"]["planner"], {"fis": result.system, **settings}),
             ("apf", "apf", baseline(settings)))          # plain apf, as judged
-    # the runs are independent: on the backend's workers, drawn here in order
-    done = (backend or SerialBackend()).map(
-        _path_run, [(planner, params, s) for _, s in shown for _, planner, params in runs])
+    traces = _lockstep_traces([s for _, s in shown], runs)
+    if traces is None:
+        # the runs are independent: on the backend's workers, drawn here in order
+        done = (backend or SerialBackend()).map(
+            _path_run, [(planner, params, s) for _, s in shown for _, planner, params in runs])
+        traces = [[Trace(rr.name, rr.states[:, :2], rr.outcome, rr.path_length, rr.states[-1],
+                         float(rr.t[-1])) for rr in res.robots] for res in done]
     for row, (kind, s) in enumerate(shown):
         for col, (label, planner, params) in enumerate(runs):
-            res = done[row * len(runs) + col]
-            plot_result(s, res, ax=axes[row, col])
-            outcome = res.robots[0].outcome if res.robots else "-"
+            tr = traces[row * len(runs) + col]
+            plot_traces(s, tr, ax=axes[row, col])
+            outcome = tr[0].outcome if tr else "-"
             axes[row, col].set_title(f"{s.name} ({kind}): {label}, {outcome}", fontsize=9)
-    save_figure(fig, out / "paths.png")
+    save_figure(fig, out / "paths.png", bbox_inches=None)     # constrained layout fits it
     return ["paths.png"]
+
+
+def _lockstep_traces(scen: list, runs) -> list | None:
+    """The runs of :func:`_paths` as lockstep batches (each planner on all the worlds at once,
+    exactly what its planner does run by run), in ``(world, run)`` order; ``None`` where the
+    lockstep simulation does not apply (worlds it cannot batch, a planner without it)."""
+    from hybridnav import planners
+    from hybridnav.fuzzy.family import SystemFamily
+    from hybridnav.tuner.evaluate import scenario_set
+    from hybridnav.tuner.heldout import uniform
+
+    from hybridnav.planners.field.apf import apf_lockstep
+
+    def batched(planner: str, fuzzy: bool):
+        if not fuzzy:                      # the plain baseline
+            return apf_lockstep if planner == "apf" else None
+        return getattr(planners.PLANNERS[planner], "lockstep", None)
+
+    if not uniform(scen) or any(batched(p, "fis" in prm) is None for _, p, prm in runs):
+        return None
+    st = scenario_set(scen)
+    per_run = []
+    for _, planner, params in runs:
+        params = dict(params)
+        fis = params.pop("fis", None)
+        lockstep = batched(planner, fis is not None)
+        if fis is None:
+            res = lockstep(st, params, record_paths=True)
+        else:
+            fam = SystemFamily(fis)
+            res = lockstep(st, fam, fam.tables_of([fis]), 1, params, record_paths=True)
+        per_run.append(res)
+    dt = scen[0].dt
+    traces = []
+    for e, s in enumerate(scen):
+        for res in per_run:
+            n = int(round(res.time[e, 0] / dt))
+            traces.append([Trace(s.robots[0].name, res.paths[e][0, :n + 1], res.outcome[e, 0],
+                                 float(res.path_length[e, 0]), res.final_states[e, 0],
+                                 float(res.time[e, 0]))])
+    return traces
 
 
 def _reweigh(job: Job, result: TuningResult, falsified: dict[str, Any] | None) -> None:

@@ -32,6 +32,7 @@ class LockstepResult:
     min_clearance: np.ndarray
     final_distance: np.ndarray
     paths: list | None = None    # per environment: (n_members, steps + 1, 2), when recorded
+    final_states: np.ndarray | None = None   # (n_env, n_members, nx): each robot's last state
 
 
 def lockstep_field(
@@ -240,6 +241,7 @@ def finish(b: Batch, status: np.ndarray, length: np.ndarray, t_end: np.ndarray,
         min_clearance=min_clear.reshape(shape),
         final_distance=np.hypot(*(b.X[:, :2] - b.goals).T).reshape(shape),
         paths=None if paths is None else [paths[b.env == e] for e in range(b.E)],
+        final_states=b.X.reshape(b.E, b.M, -1).copy(),
     )
 
 
