@@ -260,7 +260,12 @@ class DaskBackend(Backend):
 
     def __init__(self, address: str | Any = "", workers: int = 2,
                  no_workers_timeout: float | None = None) -> None:
-        from distributed import Client, LocalCluster
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise HybridnavError(
+                "--dask: Dask's distributed scheduler is not installed; it is an optional extra: "
+                'pip install "hybridnav[dask]"') from None
 
         if no_workers_timeout is None:
             env = os.environ.get("HYBRIDNAV_DASK_NO_WORKERS_TIMEOUT")

@@ -169,3 +169,24 @@ def test_planners_lists_what_the_paper_profiles_still_do_differently(capsys):
         assert word in block, word
     assert "search window" in out.split("\nfastep-kinematic:")[1].split("\nfuzzy-steer:")[0]
     assert "waypoints: K = 28" in out.split("\nrfd-pso:")[1]
+
+
+def test_python_dash_m_runs_the_command():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "hybridnav", "--help"], capture_output=True,
+                         text=True, check=False)
+    assert out.returncode == 0 and "usage: hybridnav" in out.stdout
+
+
+def test_dask_without_the_extra_names_it(monkeypatch, capsys, tmp_path):
+    """``--dask`` where Dask's distributed is not installed (an optional extra) fails with a
+    message naming the extra, no traceback."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)       # import fails
+    code = main(["compare", "--scenarios", "fastep-s1", "--planners", "apf", "--runs", "1",
+                 "--dask", "tcp://127.0.0.1:8786", "-o", str(tmp_path / "c")])
+    err = capsys.readouterr().err
+    assert code == 2 and 'pip install "hybridnav[dask]"' in err and "Traceback" not in err

@@ -1,0 +1,8 @@
+"""``python -m hybridnav``: the ``hybridnav`` command."""
+
+import sys
+
+from hybridnav.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())
