@@ -1,16 +1,18 @@
-"""Writing scenarios back to TOML: :func:`scenario_to_dict`, a minimal TOML writer, :func:`save_scenario`."""
+"""Writing scenarios back to TOML: :func:`scenario_to_dict`, :func:`toml_dumps` (:mod:`tomli_w`),
+:func:`save_scenario`."""
 
 from __future__ import annotations
 
-import json
-import math
 import os
-import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import tomli_w
+
 from hybridnav import models
+from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
 from hybridnav.world.obstacles import (
     _TYPE_OF,
@@ -82,60 +84,31 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
     return out
 
 
-# --------------------------------------------------------------------------------------------
-# A minimal TOML writer (enough for the scenario schema; no third-party dependency)
-# --------------------------------------------------------------------------------------------
-
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
-
-
-def _toml_key(k: str) -> str:
-    return k if _BARE_KEY.match(k) else json.dumps(k)
-
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
+def _plain(v: Any, key: str) -> Any:
+    """``v`` as the types :mod:`tomli_w` writes; ``key`` names it in errors."""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
     if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return v
     if isinstance(v, Mapping):
-        return "{ " + ", ".join(f"{_toml_key(str(k))} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {type(v).__name__} as TOML")
-
-
-def _is_aot(v: Any) -> bool:
-    return isinstance(v, (list, tuple)) and len(v) > 0 and all(isinstance(x, Mapping) for x in v)
-
-
-def _toml_table(d: Mapping[str, Any], prefix: str, out: list[str]) -> None:
-    for k, v in d.items():
-        if not isinstance(v, Mapping) and not _is_aot(v):
-            out.append(f"{_toml_key(str(k))} = {_toml_value(v)}")
-    for k, v in d.items():
-        if isinstance(v, Mapping):
-            name = prefix + _toml_key(str(k))
-            out += ["", f"[{name}]"]
-            _toml_table(v, name + ".", out)
-    for k, v in d.items():
-        if _is_aot(v):
-            name = prefix + _toml_key(str(k))
-            for item in v:
-                out += ["", f"[[{name}]]"]
-                _toml_table(item, name + ".", out)
+        # a key set to None is a key not set (TOML has no null)
+        return {str(k): _plain(x, f"{key}.{k}" if key else str(k)) for k, x in v.items()
+                if x is not None}
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_plain(x, f"{key}[{i}]") for i, x in enumerate(v)]
+    raise HybridnavError(f"{key or 'data'}: cannot write {type(v).__name__} as TOML; expected a "
+                         "string, number, boolean, array or table")
 
 
 def toml_dumps(data: Mapping[str, Any]) -> str:
-    """Write a mapping as TOML text (strings, numbers, booleans, arrays, tables, arrays of tables).
+    """Write a mapping as TOML text (with :mod:`tomli_w`).
+
+    Keys set to ``None`` are left out (TOML has no null); tuples and NumPy arrays are written as
+    arrays and NumPy scalars as numbers.
 
     Parameters
     ----------
@@ -144,11 +117,14 @@ def toml_dumps(data: Mapping[str, Any]) -> str:
     Returns
     -------
     str
-        Text that :func:`tomllib.loads` reads back to ``data`` (tuples become lists).
+        Text that :func:`tomllib.loads` reads back to ``data``.
+
+    Raises
+    ------
+    HybridnavError
+        For a value TOML cannot hold (``None`` in an array, an object), naming its key.
     """
-    out: list[str] = []
-    _toml_table(data, "", out)
-    return "\n".join(out).lstrip("\n") + "\n"
+    return tomli_w.dumps(_plain(data, ""))
 
 
 def scenario_to_toml(s: Scenario) -> str:
