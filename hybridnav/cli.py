@@ -241,7 +241,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from hybridnav.progress import bar as progress_bar
 
     from hybridnav.analysis.compare import compare, write_comparison
     from hybridnav.planners import parse_assignments
@@ -254,7 +254,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         if not dot or not planner or not name:
             raise HybridnavError(f"--set {key}={value}: expected label.parameter=value")
         params.setdefault(planner, {})[name] = value
-    bar = tqdm(total=len(plans) * len(scens) * args.runs, unit="run", desc="compare")
+    bar = progress_bar(len(plans) * len(scens) * args.runs, "run", "compare")
 
     def progress(done, total):
         bar.update(done - bar.n)
@@ -276,7 +276,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from hybridnav.progress import bar as progress_bar
 
     from hybridnav.reproduce import PROTOCOLS, reproduce, variants
 
@@ -315,7 +315,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         total = len(variants(protocol)) * rows * max(runs, 0)
         views = ["paper profile", "hybridnav profile"]
         unit = "run"
-    bar = tqdm(total=total, unit=unit, desc=args.name)
+    bar = progress_bar(total, unit, args.name)
 
     def progress(done, total):
         if total != bar.total:               # the layout-sensitivity runs join the count
@@ -362,7 +362,8 @@ def _cmd_fis(args: argparse.Namespace) -> int:
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from hybridnav.progress import bar as progress_bar
+    from hybridnav.progress import phase
 
     from hybridnav.tuner.job import load_job, quick
     from hybridnav.tuner.run import run_job
@@ -373,7 +374,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     job = job.with_backend(workers=args.workers, dask=args.dask)
     total = (job.optimizer().generations + 1) * max(1, job["validation"]["kfold"]) \
         * (2 if job["learning"]["max_rules"] else 1)
-    bar = tqdm(total=total, unit="gen", desc=f"tune {job.name}")
+    bar = progress_bar(total, "gen", f"tune {job.name}")
     evals = {"n": 0, "t": 0.0}
 
     def progress(row):
@@ -386,7 +387,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
 
     try:
         result = run_job(job, args.out, resume=args.resume, force=args.force,
-                         progress=progress)
+                         progress=progress, phase=lambda msg: (bar.close(), phase(msg)))
     finally:
         bar.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "

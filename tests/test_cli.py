@@ -190,3 +190,24 @@ def test_dask_without_the_extra_names_it(monkeypatch, capsys, tmp_path):
                  "--dask", "tcp://127.0.0.1:8786", "-o", str(tmp_path / "c")])
     err = capsys.readouterr().err
     assert code == 2 and 'pip install "hybridnav[dask]"' in err and "Traceback" not in err
+
+
+def test_progress_is_plain_lines_when_not_a_terminal():
+    """In a log file the progress is whole lines (no carriage returns): one per tenth of the
+    work and the last, with the postfix."""
+    import io
+
+    from hybridnav.progress import PlainProgress, bar
+
+    buf = io.StringIO()
+    b = bar(25, "gen", "tune x", file=buf)
+    assert isinstance(b, PlainProgress)
+    for i in range(25):
+        b.set_postfix(gen=i)
+        b.update(1)
+    b.close()
+    text = buf.getvalue()
+    assert "\r" not in text
+    lines = text.splitlines()
+    assert 9 <= len(lines) <= 11 and lines[-1].startswith("tune x: 25/25 gen")
+    assert lines[-1].endswith("gen=24")

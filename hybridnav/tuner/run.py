@@ -104,7 +104,8 @@ def clear_outputs(out: str | Path) -> list[Path]:
 
 def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = False,
             progress: Callable[[dict[str, Any]], None] | None = None,
-            dask_client: Any = None, stop_after: int | None = None) -> TuningResult:
+            dask_client: Any = None, stop_after: int | None = None,
+            phase: Callable[[str], None] | None = None) -> TuningResult:
     """Run ``job`` on its backend and write every output into ``out``.
 
     The job's objects (:meth:`Job.tunable`, :meth:`Job.cost`, :meth:`Job.optimizer`) go to
@@ -129,6 +130,9 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = Fa
         Run on this client instead of the job's backend settings.
     stop_after : int, optional
         Stop after this many generations, before writing outputs (tests of interruption).
+    phase : callable, optional
+        ``phase(message)`` as each phase after the optimizer starts (falsification, figures,
+        exports, the C check, the report).
 
     Raises
     ------
@@ -151,11 +155,11 @@ locked_folder`); ``out`` cannot be written.
                     "over and removes its outputs, or choose another --out")
         if force:
             clear_outputs(out)
-        return _run_job(job, out, resume, progress, dask_client, stop_after)
+        return _run_job(job, out, resume, progress, dask_client, stop_after, phase)
 
 
 def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
-             stop_after: int | None) -> TuningResult:
+             stop_after: int | None, phase=None) -> TuningResult:
     be = job["backend"]
     with make_backend(be["workers"], dask_client or be["dask"]) as backend:
         kw = job.tune_kwargs()
@@ -185,12 +189,13 @@ def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
                                        stop_after)
         if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
-        result.files = write_outputs(job, result, out, backend=backend)
+        result.files = write_outputs(job, result, out, backend=backend, phase=phase)
     return result
 
 
 def write_outputs(job: Job, result: TuningResult, out: Path,
-                  backend: Backend | None = None) -> list[str]:
+                  backend: Backend | None = None,
+                  phase: Callable[[str], None] | None = None) -> list[str]:
     """Write the result (:meth:`TuningResult.save`), its plots, the deployment exports and
     ``report.md``; for a navigation job also the held-out summary, the falsification search,
     the coverage and path figures and the software-in-the-loop check of the C export.
@@ -205,7 +210,10 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     backend : Backend, optional
         Runs the falsification searches and their ``apf`` runs and the path figure's runs
         (default: this process).
+    phase : callable, optional
+        ``phase(message)`` as each phase starts.
     """
+    say = phase or (lambda msg: None)
     from hybridnav.fuzzy import plots
 
     backend = backend or SerialBackend()
@@ -215,8 +223,13 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     falsified = None
     if nav:
         # the falsification search's rates belong to the verdict: before result.json is written
+        cfg = job["falsify"]
+        if cfg["budget"]:
+            say(f"falsification search: {cfg['budget']} worlds against each of tuned, start "
+                "and apf")
         falsified = _falsify(job, job.cost("train"), result, backend, out)
         _reweigh(job, result, falsified)
+    say("writing the tuned system, tables and figures")
     files = result.save(out)
     start = result.start
     save_figure(_convergence(result), out / "convergence.png")
@@ -251,8 +264,10 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
             save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
                         out / "coverage.png")
             files.append("coverage.png")
+        say("path figure: start, tuned and apf on the paper's and some test worlds")
         files += _paths(job, result, out, backend)
     effc = nav and job["cost"]["planner"] == "effc"
+    say("exports (FLL, FIS, FCL, C)")
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
     if nav:                                   # the settings (and filter) it was judged with
         from hybridnav.planners.field.deploy import write_deployment
@@ -261,7 +276,10 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         files += write_deployment(out, C_BASENAME if effc else "fis", job["cost"]["planner"],
                                   dict(job["planner"]), dt=first.dt,
                                   radius=float(first.robots[0].radius))
-    sil = _sil_lines(job, result.system, out) if effc and f"{C_BASENAME}.c" in files else []
+    sil = []
+    if effc and f"{C_BASENAME}.c" in files:
+        say("software-in-the-loop check: the exported C compiled and run against evaluate")
+        sil = _sil_lines(job, result.system, out)
     atomic_write_text(out / "report.md", _report(job, result, summary, unc, files, falsified,
                                                  sil))
     files.append("report.md")

@@ -1,0 +1,70 @@
+"""Progress for the command line: a tqdm bar on a terminal, plain lines otherwise.
+
+In a log file (output redirected, CI) tqdm's carriage-return updates run together on one line;
+:func:`bar` gives the same interface (``update``, ``set_postfix``, ``total``, ``n``, ``refresh``,
+``close``) printing one line per tenth of the work (and the last), with the postfix.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any, TextIO
+
+__all__ = ["PlainProgress", "bar", "phase"]
+
+
+class PlainProgress:
+    """A progress counter writing whole lines to ``file`` (no carriage returns)."""
+
+    def __init__(self, total: int, unit: str, desc: str, file: TextIO | None = None,
+                 every: float = 0.1) -> None:
+        self.total, self.unit, self.desc = total, unit, desc
+        self.file = file if file is not None else sys.stderr
+        self.every = every
+        self.n = 0
+        self.postfix: dict[str, Any] = {}
+        self._shown = -1.0
+        self._t0 = time.perf_counter()
+        self._closed = False
+
+    def set_postfix(self, **kw: Any) -> None:
+        self.postfix = kw
+
+    def refresh(self) -> None:
+        pass
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+        frac = self.n / self.total if self.total else 1.0
+        if frac >= 1.0 or frac - self._shown >= self.every - 1e-12:
+            self._line()
+            self._shown = frac
+
+    def _line(self) -> None:
+        extra = ", ".join(f"{k}={v}" for k, v in self.postfix.items())
+        total = f"/{self.total}" if self.total else ""
+        print(f"{self.desc}: {self.n}{total} {self.unit} "
+              f"({time.perf_counter() - self._t0:.1f} s){'; ' + extra if extra else ''}",
+              file=self.file, flush=True)
+
+    def close(self) -> None:
+        if not self._closed and self.n and self._shown < (self.n / self.total
+                                                         if self.total else 1.0):
+            self._line()
+        self._closed = True
+
+
+def bar(total: int, unit: str, desc: str, file: TextIO | None = None):
+    """A tqdm bar when ``file`` (default stderr) is a terminal, else a :class:`PlainProgress`."""
+    file = file if file is not None else sys.stderr
+    if getattr(file, "isatty", lambda: False)():
+        from tqdm import tqdm
+
+        return tqdm(total=total, unit=unit, desc=desc, file=file)
+    return PlainProgress(total, unit, desc, file=file)
+
+
+def phase(msg: str, file: TextIO | None = None) -> None:
+    """One line naming a long phase as it starts (``"  <msg> ..."``)."""
+    print(f"  {msg} ...", file=file if file is not None else sys.stdout, flush=True)
