@@ -2,7 +2,7 @@
 
 Robot kinematics written once in CasADi, swarm and potential-field planners that call the compiled
 kinematics, Lyapunov/linearization analysis of the same models, and a GA tuner for Mamdani fuzzy
-systems. See ``README.md`` and ``DESIGN.md``.
+systems. See ``README.md`` and the documentation built from ``docs/``.
 """
 
 from importlib.metadata import PackageNotFoundError

@@ -68,7 +68,7 @@ def test_design_example_loads_and_round_trips(tmp_path):
     fs = FuzzySystem.from_dict(base())
     assert fs.input_names == ("dtheta", "alpha")
     d = fs.to_dict()
-    assert d == base()  # the DESIGN.md example is already in canonical form
+    assert d == base()  # the README's example is already in canonical form
     path = fs.save(tmp_path / "sub" / "sys.json")
     again = fuzzy.load(path)
     assert again == fs and again.to_dict() == d

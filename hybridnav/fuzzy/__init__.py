@@ -4,7 +4,7 @@
 >>> fis = fuzzy.builtin("effc-2rule")
 >>> w = fis.evaluate(dtheta=[0.1, 1.4], alpha=[0.2, 1.0])   # batched, any broadcastable shapes
 
-:class:`FuzzySystem` reads and writes the JSON contract of ``DESIGN.md`` (``load``, ``loads``,
+:class:`FuzzySystem` reads and writes the ``hybridnav-fis/1`` JSON format (``load``, ``loads``,
 ``FuzzySystem.from_dict``, ``to_dict``, ``save``), converts to a scikit-fuzzy ``ControlSystem``
 (``to_skfuzzy``), and evaluates batches with scikit-fuzzy's exact semantics (``evaluate``).
 Plots live in :mod:`hybridnav.fuzzy.plots` (imported on demand: it needs matplotlib).
