@@ -36,10 +36,11 @@ from hybridnav.fuzzy.spec import (
     TermRef,
     Variable,
 )
+from hybridnav.fuzzy.skfuzzy_import import from_skfuzzy
 from hybridnav.fuzzy.system import FuzzySystem, builtin, builtin_names, load, loads
 
 __all__ = [
     "FORMAT", "MF_PARAMS", "FuzzySystem", "load", "loads", "builtin", "builtin_names",
     "Term", "Variable", "OutputVariable", "Rule", "TermRef", "And", "Or", "Not",
-    "export", "export_to_file", "load_any", "read_fll", "read_fis",
+    "export", "export_to_file", "load_any", "read_fll", "read_fis", "from_skfuzzy",
 ]

@@ -177,6 +177,28 @@ class FuzzySystem:
 
     # ------------------------------------------------------------------------- scikit-fuzzy
 
+    @classmethod
+    def from_skfuzzy(cls, system: ControlSystem, *, name: str | None = None,
+                     default: float | None = None, description: str = "") -> FuzzySystem:
+        """A scikit-fuzzy ``ControlSystem`` as a hybridnav system (see
+        :func:`hybridnav.fuzzy.from_skfuzzy`, which this calls).
+
+        Parameters
+        ----------
+        system : skfuzzy.control.ControlSystem
+        name : str, optional
+        default : float, optional
+            The output when no rule fires (default: the middle of the output universe).
+        description : str
+
+        Returns
+        -------
+        FuzzySystem
+        """
+        from hybridnav.fuzzy.skfuzzy_import import from_skfuzzy
+
+        return from_skfuzzy(system, name=name, default=default, description=description)
+
     def to_skfuzzy(self) -> ControlSystem:
         """The equivalent scikit-fuzzy ``ControlSystem``.
 

@@ -236,12 +236,15 @@ def read_text(text: str, format: str, source: str | None = None, *,
 
 
 def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POINTS) -> FuzzySystem:
-    """Load a system from a ``.json``, ``.fll`` or ``.fis`` file, or a built-in one by name.
+    """Load a system from a ``.json``, ``.fll`` or ``.fis`` file, a built-in one by name, or a
+    scikit-fuzzy ``ControlSystem`` in Python code (``module:NAME`` or ``path/file.py:NAME``;
+    :func:`hybridnav.fuzzy.from_skfuzzy`).
 
     Parameters
     ----------
     name_or_path : str or path-like
-        A file (the suffix picks the reader) or a built-in name (``effc-5rule``).
+        A file (the suffix picks the reader), a built-in name (``effc-5rule``), or
+        ``module:NAME`` / ``file.py:NAME`` naming a ``ControlSystem`` (the code is run).
     points : int
         Universe points for FLL / .fis files without hybridnav metadata (default 101).
 
@@ -256,6 +259,9 @@ def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POIN
         named).
     """
     s = os.fspath(name_or_path)
+    if isinstance(name_or_path, str) and ":" in s and not s.endswith((".json", ".fll", ".fis")) \
+            and not os.path.exists(s):
+        return _from_python(s)
     suffix = Path(s).suffix.lower()
     fmt = {".json": "json", ".fll": "fll", ".fis": "fis"}.get(suffix)
     if fmt is None:
@@ -266,3 +272,33 @@ def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POIN
     text = read_text_file(s, "fuzzy system file")
     log.debug("loading fuzzy system from %s (%s)", s, fmt)
     return read_text(text, fmt, s, points=points)
+
+
+def _from_python(spec: str) -> FuzzySystem:
+    """The scikit-fuzzy ``ControlSystem`` ``module:NAME`` or ``file.py:NAME`` names, converted."""
+    import importlib
+    import importlib.util
+
+    from hybridnav.fuzzy.skfuzzy_import import from_skfuzzy
+
+    where, _, attr = spec.rpartition(":")
+    if not where or not attr:
+        raise HybridnavError(f"{spec}: expected module:NAME or file.py:NAME")
+    try:
+        if where.endswith(".py"):
+            if not os.path.isfile(where):
+                raise HybridnavError(f"{where}: no such file")
+            mod_spec = importlib.util.spec_from_file_location(Path(where).stem, where)
+            module = importlib.util.module_from_spec(mod_spec)
+            mod_spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(where)
+    except HybridnavError:
+        raise
+    except Exception as exc:                   # any error in the user's code
+        raise HybridnavError(f"{spec}: cannot import {where!r} ({type(exc).__name__}: "
+                             f"{exc})") from None
+    obj = getattr(module, attr, None)
+    if obj is None:
+        raise HybridnavError(f"{spec}: {where!r} has no {attr!r}")
+    return from_skfuzzy(obj, name=attr)
