@@ -6,6 +6,7 @@ verdicts, where no compiler is found."""
 
 from __future__ import annotations
 
+import ctypes
 import os
 from unittest import mock
 
@@ -167,7 +168,7 @@ def test_feasible_steps_without_a_compiler_are_the_same(name, kw, x0, steps, mon
     rng = np.random.default_rng(steps)
     P = rng.uniform(1.0, 49.0, size=(300, 2))
     x0 = np.array(x0)
-    kws = dict(steps=steps, reach=2.0, margin=0.3)
+    kws = {"steps": steps, "reach": 2.0, "margin": 0.3}
     want = [feasible_steps(m, x0, P, _env(t), **kws) for t in (0.0, 7.5)]
     monkeypatch.setenv("HYBRIDNAV_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
@@ -177,3 +178,30 @@ def test_feasible_steps_without_a_compiler_are_the_same(name, kw, x0, steps, mon
     assert boxes.reach_first(np.zeros((1, 9, 2)), np.zeros((1, 2)), 1, 8, 1.0, 1.0) is None
     for t, w in zip((0.0, 7.5), want):
         assert np.array_equal(feasible_steps(m, x0, P, _env(t), **kws), w)
+
+
+@needs_kernel
+def test_the_extension_and_ctypes_call_the_same_functions(monkeypatch):
+    """pycall's generated entry point and the ctypes binding call the same compiled code: the
+    same boxes; arguments it cannot take are refused, not misread."""
+    from hybridnav.native import pycall
+
+    ext = pycall._from_extension("boxes", boxes._SIGNATURES)
+    if ext is None:
+        pytest.skip("no Python.h: the ctypes binding is the only one")
+    lib = pycall._from_ctypes("boxes", boxes._SIGNATURES)
+    rng = np.random.default_rng(5)
+    traj, P = _trajectories(rng, 20, 33, 4, True)
+    outs = []
+    for fns in (ext, lib):
+        lo, hi, first = np.empty((20, 4, 2)), np.empty((20, 4, 2)), np.empty(20, dtype=np.int64)
+        fns["hn_reach_first"](20, 33, 4, sweep._STRIDE, traj, 33 * 4, 4, P, 2.5, 6.25, lo, hi,
+                              first)
+        outs.append((lo, hi, first))
+    _same(outs[0], outs[1])
+    with pytest.raises(TypeError):
+        ext["hn_reach_first"](20, 33)
+    with pytest.raises(TypeError):
+        ext["hn_reach_first"](20, 33, 4, sweep._STRIDE, "not an array", 33 * 4, 4, P, 2.5, 6.25,
+                              lo, hi, first)
+    assert pycall._wrapper("m", {"f": ([ctypes.c_int], None)}) is None

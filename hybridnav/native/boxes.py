@@ -14,12 +14,12 @@ shapes), and the caller runs its NumPy path.
 
 from __future__ import annotations
 
-import ctypes
+from collections.abc import Callable
 from ctypes import c_double, c_int64, c_void_p
 
 import numpy as np
 
-from hybridnav import native
+from hybridnav.native import pycall
 
 __all__ = ["boxes_near", "disks_near", "near_any", "reach_first", "stretch_boxes"]
 
@@ -37,9 +37,10 @@ _SIGNATURES = {
                         c_double, c_void_p, c_void_p, c_void_p], None)}
 
 
-def _library() -> ctypes.CDLL | None:
-    """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
-    return native.kernel("boxes", _SIGNATURES)
+def _library() -> dict[str, Callable] | None:
+    """The kernel's functions by symbol, built and loaded once per process (``None``:
+    unavailable or switched off; :func:`hybridnav.native.pycall.functions`)."""
+    return pycall.functions("boxes", _SIGNATURES)
 
 
 def _operands(lo, hi, o_lo, o_hi, o_pad, thr):
@@ -69,8 +70,7 @@ def boxes_near(lo, hi, o_lo, o_hi, o_pad, thr) -> np.ndarray | None:
     K, M = o_lo.shape[0], lo.size // 2
     out = np.empty((K, M), dtype=bool)              # obstacle by obstacle: a view transposed
     if M and K:
-        lib.hn_boxes_near(M, K, lo.ctypes.data, hi.ctypes.data, o_lo.ctypes.data,
-                          o_hi.ctypes.data, o_pad.ctypes.data, float(thr), out.ctypes.data)
+        lib["hn_boxes_near"](M, K, lo, hi, o_lo, o_hi, o_pad, float(thr), out)
     return out.T.reshape(lo.shape[:-1] + (K,))
 
 
@@ -90,8 +90,8 @@ def stretch_boxes(pts: np.ndarray, nst: int, stride: int):
     st = pts.strides
     if not (n1 and m) or st[3] != 8 or min(st) < 0 or any(s % 8 for s in st):
         return None
-    lib.hn_stretch_boxes(na, n1, m, nst, stride, pts.ctypes.data, st[0] // 8, st[1] // 8,
-                         st[2] // 8, lo.ctypes.data, hi.ctypes.data)
+    lib["hn_stretch_boxes"](na, n1, m, nst, stride, pts, st[0] // 8, st[1] // 8, st[2] // 8,
+                            lo, hi)
     return lo, hi
 
 
@@ -107,9 +107,8 @@ def near_any(lo, hi, thr, workspace, o_lo, o_hi, o_pad) -> np.ndarray | None:
     out = np.empty(lo.shape[:-1], dtype=bool)
     if out.size:
         xmin, xmax, ymin, ymax = (float(v) for v in workspace)
-        lib.hn_near_any(out.size, lo.ctypes.data, hi.ctypes.data, float(thr), xmin, xmax, ymin,
-                        ymax, K, o_lo.ctypes.data, o_hi.ctypes.data, o_pad.ctypes.data,
-                        out.ctypes.data)
+        lib["hn_near_any"](out.size, lo, hi, float(thr), xmin, xmax, ymin, ymax, K, o_lo, o_hi,
+                           o_pad, out)
     return out
 
 
@@ -146,9 +145,8 @@ def disks_near(C: np.ndarray, thr: np.ndarray, workspace, o_lo, o_hi, o_pad):
     out = np.empty((ns, nd), dtype=bool)
     if out.size:
         xmin, xmax, ymin, ymax = (float(v) for v in workspace)
-        lib.hn_disks_near(ns, n1, nd, C.ctypes.data, st[0], st[1], st[2], thr.ctypes.data, xmin,
-                          xmax, ymin, ymax, o_lo.shape[0], o_lo.ctypes.data, o_hi.ctypes.data,
-                          o_pad.ctypes.data, lo.ctypes.data, hi.ctypes.data, out.ctypes.data)
+        lib["hn_disks_near"](ns, n1, nd, C, st[0], st[1], st[2], thr, xmin, xmax, ymin, ymax,
+                             o_lo.shape[0], o_lo, o_hi, o_pad, lo, hi, out)
     return lo, hi, out
 
 
@@ -172,7 +170,6 @@ def reach_first(traj: np.ndarray, P: np.ndarray, nst: int, stride: int, reach: f
     lo, hi = np.empty((na, nst, 2)), np.empty((na, nst, 2))
     first = np.empty(na, dtype=np.int64)
     if na:
-        lib.hn_reach_first(na, n1, nst, stride, traj.ctypes.data, st[0], st[1], P.ctypes.data,
-                           float(reach), float(reach2), lo.ctypes.data, hi.ctypes.data,
-                           first.ctypes.data)
+        lib["hn_reach_first"](na, n1, nst, stride, traj, st[0], st[1], P, float(reach),
+                              float(reach2), lo, hi, first)
     return lo, hi, first
