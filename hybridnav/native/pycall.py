@@ -5,8 +5,9 @@ conversion per argument): more than a small batch's work in the sweep's box kern
 :func:`functions` builds the same C source, once per machine, as a CPython extension with one
 generated entry point, ``call(index, *args)``, that converts each argument as the function's
 ctypes signature says (``c_int64``: an integer, ``c_double``: a float, ``c_void_p``: an object
-with the buffer protocol, e.g. an ndarray, passed as the address of its first element) and calls
-the function -- the same compiled function, so the same results. Where ``Python.h`` is missing
+with the buffer protocol, e.g. an ndarray or a ctypes structure, passed as the address of its
+first byte) and calls the function (returning nothing or an ``c_int64``) -- the same compiled
+function, so the same results. Where ``Python.h`` is missing
 or the extension cannot be built it binds the functions through :func:`hybridnav.native.kernel`
 instead (the same calls, the arrays' ``ctypes.data``); ``None`` where neither is available.
 """
@@ -71,13 +72,15 @@ def _wrapper(module: str, signatures: dict[str, tuple[list, Any]]) -> str | None
     cases = []
     for k, (symbol, (argtypes, restype)) in enumerate(signatures.items()):
         kinds = [_CONVERT.get(t) for t in argtypes]
-        if None in kinds or restype is not None:
+        if None in kinds or restype not in (None, c_int64):
             return None
         conv = "".join(f"  if (hn_arg_{c}(a[{i + 1}], &v[{i}], &b[{i}])) goto done;\n"
                        for i, c in enumerate(kinds))
         args = ", ".join(f"v[{i}].{c.lower()}" for i, c in enumerate(kinds))
+        call = (f"{symbol}({args});\n  ret = Py_None;\n  Py_INCREF(ret);" if restype is None
+                else f"ret = PyLong_FromLongLong({symbol}({args}));")
         cases.append(f"  case {k}:\n  if (na != {len(kinds) + 1}) goto arity;\n{conv}"
-                     f"  {symbol}({args});\n  break;\n")
+                     f"  {call}\n  goto done;\n")
     n_max = max((len(a) for a, _ in signatures.values()), default=0) + 1
     return _PY.format(N=n_max, CASES="".join(cases), MODULE=module)
 
@@ -122,9 +125,6 @@ static PyObject *hn_py_call(PyObject *self, PyObject *const *a, Py_ssize_t na)
     PyErr_SetString(PyExc_ValueError, "call(): no such function");
     goto done;
   }}
-  ret = Py_None;
-  Py_INCREF(ret);
-  goto done;
 arity:
   PyErr_SetString(PyExc_TypeError, "call(): wrong number of arguments");
 done:
@@ -163,7 +163,8 @@ def _from_ctypes(name: str, signatures) -> dict[str, Callable] | None:
 
     def bind(fn: ctypes._CFuncPtr) -> Callable:
         def call(*args):
-            return fn(*(a.ctypes.data if isinstance(a, np.ndarray) else a for a in args))
+            return fn(*(a.ctypes.data if isinstance(a, np.ndarray) else ctypes.addressof(a)
+                        if isinstance(a, ctypes.Structure) else a for a in args))
         return call
 
     return {symbol: bind(getattr(lib, symbol)) for symbol in signatures}
