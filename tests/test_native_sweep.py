@@ -136,6 +136,38 @@ def test_compiled_disks_near_equals_numpy(ns, n1, nd, K, special, monkeypatch):
         _same(got, _numpy_disks_near(monkeypatch, C, thr, workspace, o_lo, o_hi, o_pad))
 
 
+@needs_kernel
+@pytest.mark.parametrize("special", [False, True])
+@pytest.mark.parametrize("M,K", [(60, 9), (7, 1), (0, 4), (5, 0)])
+def test_compiled_pieces_near_equals_numpy(M, K, special, monkeypatch):
+    """The pieces' boxes, border and obstacle flags of _Sweep.touches's pruning
+    (_Sweep._near_each on np.minimum / np.maximum of the end points)."""
+    rng = np.random.default_rng([M, K, special, 3])
+    workspace = (-3.0, 3.0, -2.5, 3.5)
+    for _ in range(20):
+        A = rng.integers(-8, 8, (M, 2)).astype(float) * 0.5
+        B = np.where(rng.random((M, 2)) < 0.2, A, rng.integers(-8, 8, (M, 2)) * 0.5)  # points
+        o_lo = rng.integers(-6, 6, (K, 2)).astype(float) * 0.5
+        o_hi = o_lo + rng.integers(0, 3, (K, 2)) * 0.5
+        o_pad = rng.integers(0, 3, K) * 0.5
+        if special:
+            for a in (A, B, o_lo):
+                flat = a.reshape(-1)
+                flat[rng.random(flat.size) < 0.05] = np.nan
+                flat[rng.random(flat.size) < 0.03] = -np.inf
+        thr = float(rng.choice([0.0, 0.5, 1.0 + 1e-9]))
+        got = boxes.pieces_near(A, B, thr, workspace, o_lo, o_hi, o_pad)
+        assert got is not None
+        lo, hi = np.minimum(A, B), np.maximum(A, B)
+        xmin, xmax, ymin, ymax = workspace
+        border = ~((lo[:, 0] - xmin >= thr) & (xmax - hi[:, 0] >= thr)
+                   & (lo[:, 1] - ymin >= thr) & (ymax - hi[:, 1] >= thr))
+        with monkeypatch.context() as mp:
+            mp.setenv(native.ENV, "0")
+            frozen = sweep._boxes_near(lo, hi, o_lo, o_hi, o_pad, thr)
+        _same(got, (lo, hi, border, frozen))
+
+
 def test_other_arrays_go_to_numpy():
     assert boxes.reach_first(np.zeros((3, 5, 1)), np.zeros((3, 2)), 1, 8, 1.0, 1.0) is None
     assert boxes.reach_first(np.zeros((3, 5, 2)), np.zeros((2, 2)), 1, 8, 1.0, 1.0) is None

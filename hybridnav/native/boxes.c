@@ -173,3 +173,26 @@ void hn_reach_first(long long na, long long n1, long long nst, long long stride,
         }
     }
 }
+
+/* The pruning of sweep._Sweep.touches for pieces A -> B (M, 2 each): their boxes lo, hi (M, 2;
+   np.minimum and np.maximum: a NaN coordinate gives NaN), whether each comes within thr of the
+   workspace border, border (M), and of each obstacle box, out (K, M) as hn_boxes_near. */
+void hn_pieces_near(long long M, const double *restrict A, const double *restrict B, double thr,
+                    double xmin, double xmax, double ymin, double ymax, long long K,
+                    const double *restrict olo, const double *restrict ohi,
+                    const double *restrict opad, double *restrict lo, double *restrict hi,
+                    unsigned char *restrict border, unsigned char *restrict out)
+{
+    const double nan = __builtin_nan("");
+    for (long long i = 0; i < 2 * M; i++) {
+        const double a = A[i], b = B[i];
+        const int n = (a != a) | (b != b);
+        lo[i] = n ? nan : a < b ? a : b;
+        hi[i] = n ? nan : a > b ? a : b;
+    }
+    for (long long i = 0; i < M; i++)
+        border[i] = (unsigned char)!((lo[2 * i] - xmin >= thr) & (xmax - hi[2 * i] >= thr)
+                                     & (lo[2 * i + 1] - ymin >= thr)
+                                     & (ymax - hi[2 * i + 1] >= thr));
+    hn_boxes_near(M, K, lo, hi, olo, ohi, opad, thr, out);
+}

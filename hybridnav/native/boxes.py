@@ -6,7 +6,9 @@ set of obstacle boxes, in one pass instead of a dozen NumPy operations over (box
 maxima, NaN where a coordinate is NaN); :func:`disks_near` is, for every footprint disk of the
 stretches the sweep checks, its box along the stretch and :func:`near_any` with its own threshold,
 in one pass; :func:`reach_first` is, for one block of rollout samples, the stretch boxes and the
-first sample within reach of each target (:func:`hybridnav.planners.step.sweep._reach_first`).
+first sample within reach of each target (:func:`hybridnav.planners.step.sweep._reach_first`);
+:func:`pieces_near` is the pruning of :meth:`~hybridnav.planners.step.sweep._Sweep.touches`
+(the pieces' boxes, the border test and :func:`boxes_near`) in one pass.
 The same IEEE operations in the same order: the same booleans, NaN boxes included (the tests
 compare them). ``None`` where it does not apply (no compiler, kernels switched off, arrays of other
 shapes), and the caller runs its NumPy path.
@@ -21,7 +23,8 @@ import numpy as np
 
 from hybridnav.native import pycall
 
-__all__ = ["boxes_near", "disks_near", "near_any", "reach_first", "stretch_boxes"]
+__all__ = ["boxes_near", "disks_near", "near_any", "pieces_near", "reach_first",
+           "stretch_boxes"]
 
 #: the kernel's functions: symbol -> (argtypes, restype)
 _SIGNATURES = {
@@ -33,6 +36,8 @@ _SIGNATURES = {
         c_int64, c_void_p, c_void_p, c_void_p, c_void_p], None),
     "hn_disks_near": ([c_int64] * 3 + [c_void_p] + [c_int64] * 3 + [c_void_p] + [c_double] * 4
                       + [c_int64] + [c_void_p] * 6, None),
+    "hn_pieces_near": ([c_int64, c_void_p, c_void_p] + [c_double] * 5 + [c_int64]
+                       + [c_void_p] * 7, None),
     "hn_reach_first": ([c_int64] * 4 + [c_void_p, c_int64, c_int64, c_void_p, c_double,
                         c_double, c_void_p, c_void_p, c_void_p], None)}
 
@@ -173,3 +178,27 @@ def reach_first(traj: np.ndarray, P: np.ndarray, nst: int, stride: int, reach: f
         lib["hn_reach_first"](na, n1, nst, stride, traj, st[0], st[1], P, float(reach),
                               float(reach2), lo, hi, first)
     return lo, hi, first
+
+
+def pieces_near(A: np.ndarray, B: np.ndarray, thr: float, workspace, o_lo, o_hi, o_pad):
+    """For the pieces ``A -> B`` (M, 2 each): their boxes ``lo, hi`` (``np.minimum``,
+    ``np.maximum``), whether each comes within the scalar ``thr`` of the border of
+    ``workspace`` (M,) and of each obstacle box (K, 2) padded by ``o_pad`` (M, K), as
+    :func:`near_any` and :func:`boxes_near` test them; ``None`` without the kernel or for other
+    shapes."""
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    B = np.ascontiguousarray(B, dtype=np.float64)
+    if A.ndim != 2 or A.shape[1:] != (2,) or B.shape != A.shape:
+        return None
+    args = _operands(A, B, o_lo, o_hi, o_pad, thr)
+    if args is None:
+        return None
+    lib, A, B, o_lo, o_hi, o_pad = args
+    M, K = len(A), len(o_lo)
+    lo, hi = np.empty((M, 2)), np.empty((M, 2))
+    border, out = np.empty(M, dtype=bool), np.empty((K, M), dtype=bool)
+    if M:
+        xmin, xmax, ymin, ymax = (float(v) for v in workspace)
+        lib["hn_pieces_near"](M, A, B, float(thr), xmin, xmax, ymin, ymax, K, o_lo, o_hi, o_pad,
+                              lo, hi, border, out)
+    return lo, hi, border, out.T

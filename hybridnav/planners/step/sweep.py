@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from hybridnav.native.boxes import boxes_near as compiled_boxes_near
 from hybridnav.native.boxes import disks_near as compiled_disks_near
 from hybridnav.native.boxes import near_any as compiled_near_any
+from hybridnav.native.boxes import pieces_near as compiled_pieces_near
 from hybridnav.native.boxes import reach_first as compiled_reach_first
 from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
@@ -145,12 +146,15 @@ class _Sweep:
         border = ~((lo[..., 0] - xmin >= thr) & (xmax - hi[..., 0] >= thr)   # NaN: near
                    & (lo[..., 1] - ymin >= thr) & (ymax - hi[..., 1] >= thr))
         frozen = _boxes_near(lo, hi, self.f_lo, self.f_hi, self.f_pad, thr)
+        return border, frozen, self._near_moving(lo, hi, thr, t0, t1)
+
+    def _near_moving(self, lo: FloatArray, hi: FloatArray, thr, t0, t1) -> NDArray[np.bool_]:
+        """Whether each moving circle may come within ``thr`` (the slack included) of the boxes
+        between the times ``t0`` and ``t1``: (..., M)."""
         if self.movers:
             m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
-            moving = _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr)
-        else:
-            moving = np.zeros(border.shape + (0,), dtype=bool)
-        return border, frozen, moving
+            return _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr)
+        return np.zeros(lo.shape[:-1] + (0,), dtype=bool)
 
     def _near(self, lo: FloatArray, hi: FloatArray, reach: float, t0, t1) -> NDArray[np.bool_]:
         """Whether anything may come within ``reach`` of the boxes (see :meth:`_near_each`):
@@ -273,16 +277,23 @@ class _Sweep:
         the times ``t``) touches an obstacle or another robot's disk, or (``border``) ends
         outside the workspace shrunk by ``need``: exactly the tests of the whole world, each
         obstacle's only where the boxes say it may touch."""
-        lo, hi = np.minimum(A, B), np.maximum(A, B)
         out = np.zeros(len(A), dtype=bool)
-        if len(A) * self.n_static < _MAP_FROM:
-            near = slice(None)
-        else:                 # the clear map first, each obstacle's box for the rest
-            near = np.flatnonzero(self._near(lo, hi, need, t, t))
-            if not len(near):
-                return out
-            A, B, t, lo, hi = A[near], B[near], t[near], lo[near], hi[near]
-        at_border, frozen, moving = self._near_each(lo, hi, need, t, t)
+        few = len(A) * self.n_static < _MAP_FROM
+        thr = np.asarray(need) + self.slack
+        got = few and compiled_pieces_near(A, B, thr, self.world.workspace, self.f_lo,
+                                           self.f_hi, self.f_pad)
+        near = slice(None)
+        if got:               # compiled: the pieces' boxes and the tests of _near_each
+            lo, hi, at_border, frozen = got
+            moving = self._near_moving(lo, hi, thr, t, t)
+        else:
+            lo, hi = np.minimum(A, B), np.maximum(A, B)
+            if not few:       # the clear map first, each obstacle's box for the rest
+                near = np.flatnonzero(self._near(lo, hi, need, t, t))
+                if not len(near):
+                    return out
+                A, B, t, lo, hi = A[near], B[near], t[near], lo[near], hi[near]
+            at_border, frozen, moving = self._near_each(lo, hi, need, t, t)
         hit = np.zeros(len(A), dtype=bool)
         at = np.flatnonzero(at_border)
         if border and len(at):
