@@ -62,7 +62,8 @@ def _trajectories(rng, na, n1, nx, special):
 def test_compiled_reach_first_equals_numpy(na, n1, nx, special, monkeypatch):
     rng = np.random.default_rng([na, n1, nx, special])
     nst = -(-(n1 - 1) // sweep._STRIDE)
-    for reach in (2.5, 0.0, 1.0, 1e-9, 4.0):
+    for reach in (2.5, 0.0, 1.0, 1e-9, 4.0, 2.5 * (1 + 2e-16), 2.5 * (1 - 2e-16), 1e-160, np.inf,
+                  -1.0, np.nan):
         traj, P = _trajectories(rng, na, n1, nx, special)
         reach2 = reach * reach * (1.0 + 1e-9)
         got = boxes.reach_first(traj, P, nst, sweep._STRIDE, reach, reach2)
@@ -70,6 +71,18 @@ def test_compiled_reach_first_equals_numpy(na, n1, nx, special, monkeypatch):
         want = _numpy_reach_first(monkeypatch, traj, P, nst, reach, reach2)
         _same(got, want)
         _same(sweep._reach_first(traj, P, nst, reach, reach2), want)   # the caller's choice
+    # samples a hair inside and outside reach (where only hypot decides), huge and tiny ones
+    P = np.zeros((1, 2))
+    for reach in (1.0, 3.0, 1e-140, 1e140):
+        for scale in (1 - 4e-16, 1 - 2e-16, 1.0, 1 + 2e-16, 1 + 4e-16, 1 + 1e-10):
+            d = reach * scale
+            traj = np.array([[[5 * reach, 0.0], [d * 0.6, d * 0.8], [d / np.sqrt(2), -d / np.sqrt(2)],
+                              [d, 0.0], [1e300, 1e300], [0.0, 0.0]]])
+            for a, b in ((1, 6), (2, 6), (3, 6), (4, 6)):
+                part = np.ascontiguousarray(np.concatenate([traj[:, :1], traj[:, a:b]], axis=1))
+                reach2 = reach * reach * (1.0 + 1e-9)
+                _same(boxes.reach_first(part, P, 1, sweep._STRIDE, reach, reach2),
+                      _numpy_reach_first(monkeypatch, part, P, 1, reach, reach2))
     # the prefilter decides which rows are looked at: a box just out of reach2 hides a sample
     traj = np.array([[[0.0, 0.0], [3.0, 0.0]]])
     P = np.array([[0.0, 0.0]])

@@ -144,6 +144,8 @@ void hn_reach_first(long long na, long long n1, long long nst, long long stride,
                     const double *restrict P, double reach, double reach2,
                     double *restrict lo, double *restrict hi, long long *restrict first)
 {
+    const int far = reach > 1e-150 && reach < 1e150;
+    const double far2 = reach * reach * (1.0 + 1e-9);
     for (long long a = 0; a < na; a++) {
         const double *row = traj + a * s0;
         const double px = P[2 * a], py = P[2 * a + 1];
@@ -166,7 +168,14 @@ void hn_reach_first(long long na, long long n1, long long nst, long long stride,
             continue;
         for (long long k = 1; k < n1; k++) {
             const double *p = row + k * s1;
-            if (hypot(p[0] - px, p[1] - py) <= reach) {
+            const double dx = p[0] - px, dy = p[1] - py;
+            /* hypot (within an ulp of the distance) exceeds reach wherever the squares' sum
+               (within a few ulps of its square) exceeds far2 = reach^2 (1 + 1e-9): asked only
+               where it may not (an inf or NaN sum: hypot is inf or NaN too). Only for reach
+               whose square is far from subnormal, where the sums' error is relative. */
+            if (far && dx * dx + dy * dy > far2)
+                continue;
+            if (hypot(dx, dy) <= reach) {
                 first[a] = k - 1;
                 break;
             }
