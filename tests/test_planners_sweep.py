@@ -252,6 +252,19 @@ def test_tractor_trailer_footprint_is_the_broadcast_formula_bit_for_bit():
     assert np.array_equal(radii, np.concatenate([np.full(nt, rt), np.full(nr, rr)]))
 
 
+def test_tractor_trailer_footprint_follows_a_changed_parameter():
+    """The disk layout is kept between calls, but not past a change of the parameters."""
+    m = models.get("tractor_trailer")
+    X = np.random.default_rng(4).uniform(-5, 5, (50, 5))
+    m.footprint(X)
+    m.values["Lt"] = m.values["Lt"] * 2.5
+    C, radii = m.footprint(X)
+    C2, radii2 = models.get("tractor_trailer", Lt=m.values["Lt"]).footprint(X)
+    assert np.array_equal(C, C2) and np.array_equal(radii, radii2)
+    radii[:] = 0.0                                   # the caller's copy
+    assert np.array_equal(m.footprint(X)[1], radii2)
+
+
 # ---- whole runs are the same as before ---------------------------------------------------------
 
 # recorded from the code before the pruned check (commit e216dda): per robot, outcome, states,

@@ -49,13 +49,19 @@ def _values(rng, n, kind):
     return F
 
 
-@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("compiled", [True, "ctypes", False])
 @pytest.mark.parametrize("kind", ["plain", "ties", "special", "mixed", "equal", "nan"])
 @pytest.mark.parametrize("d", [1, 2, 3])
 def test_attraction_moves_equal_the_loop_bit_for_bit(kind, d, compiled, monkeypatch):
-    """Both paths: the compiled loop (d <= 2, where a compiler is) and the NumPy loop."""
+    """Every path: the compiled loop (d <= 2, where a compiler is) called through the generated
+    extension or through ctypes, and the NumPy loop."""
     if not compiled:
         monkeypatch.setenv(native.ENV, "0")
+    elif compiled == "ctypes":
+        from hybridnav.native import pycall
+
+        monkeypatch.setitem(native._KERNELS, "attract:functions",
+                            pycall._from_ctypes("attract", attract._SIGNATURES))
     rng = np.random.default_rng([d, len(kind)])
     for trial in range(40):
         n = int(rng.integers(1, 60))

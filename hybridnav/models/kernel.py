@@ -42,15 +42,12 @@ module does not emit, :func:`get` returns ``None`` and the model uses CasADi's `
 from __future__ import annotations
 
 import ctypes
-import importlib.machinery
-import importlib.util
 import logging
 import math
 import multiprocessing
 import os
 import platform
 import sys
-import sysconfig
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from ctypes import c_int, c_int64, c_void_p
@@ -59,6 +56,7 @@ import casadi as cs
 import numpy as np
 
 from hybridnav import native
+from hybridnav.native import pycall
 
 log = logging.getLogger(__name__)
 
@@ -646,32 +644,13 @@ def get(model, variant: str | None = None) -> Kernel | None:
     return k
 
 
-_MODULES: dict[str, object] = {}
-
-
 def _load_extension(name: str, code: str, options: tuple[str, ...]):
     """The kernel built as a CPython extension: ``(run, variants, slots, path)``, or None (no
     ``Python.h``, a failed build or load)."""
-    include = sysconfig.get_paths().get("include")
-    suffix = sysconfig.get_config_var("EXT_SUFFIX")
-    if not include or not suffix or not os.path.isfile(os.path.join(include, "Python.h")):
+    path = pycall.extension_file(name, code, options)
+    mod = None if path is None else pycall.load_extension(path, "_hn_rollout")
+    if mod is None:
         return None
-    path = native.build_file(name, code, (f"-I{include}", "-DHN_PYTHON", *options), suffix)
-    if path is None:
-        return None
-    with _LOCK:
-        mod = _MODULES.get(str(path))
-        if mod is None:
-            try:
-                loader = importlib.machinery.ExtensionFileLoader("_hn_rollout", str(path))
-                spec = importlib.util.spec_from_file_location("_hn_rollout", str(path),
-                                                              loader=loader)
-                mod = importlib.util.module_from_spec(spec)
-                loader.exec_module(mod)
-            except (ImportError, OSError) as exc:
-                log.info("cannot load %s: %s", path, exc)
-                return None
-            _MODULES[str(path)] = mod
     return mod.run, mod.variants, mod.slots, path
 
 

@@ -158,23 +158,36 @@ class TractorTrailer(Model):
         radii : ndarray, shape (m,)
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        q = self.values
-        (lt, nt, rt), (lr, nr, rr) = self._bodies()
+        s_t, s_r, back, radii = self._disk_layout()
+        nt = len(s_t)
         c0, s0 = np.cos(X[:, 2]), np.sin(X[:, 2])
         c1, s1 = np.cos(X[:, 3]), np.sin(X[:, 3])
         px, py = X[:, 0], X[:, 1]
         # tractor: centred on (x, y); trailer: from the hitch back to the trailer axle (one
         # coordinate at a time: NumPy is slow on a last axis of length 2)
-        s_t = (np.arange(nt) + 0.5) / nt * lt - lt / 2
-        back = q["L"] / 2 + q["c"]
         hx, hy = px - back * c0, py - back * s0
-        s_r = (np.arange(nr) + 0.5) / nr * lr
-        centers = np.empty((len(X), nt + nr, 2))
+        centers = np.empty((len(X), nt + len(s_r), 2))
         for i, s in enumerate(s_t):
             centers[:, i, 0] = px + s * c0
             centers[:, i, 1] = py + s * s0
         for i, s in enumerate(s_r):
             centers[:, nt + i, 0] = hx - s * c1
             centers[:, nt + i, 1] = hy - s * s1
-        radii = np.concatenate([np.full(nt, rt), np.full(nr, rr)])
-        return centers, radii
+        return centers, radii.copy()
+
+    def _disk_layout(self) -> tuple[list[float], list[float], float, np.ndarray]:
+        """The footprint's disks, which depend on the parameters only: offsets of the tractor's
+        disk centres along its axis from ``(x, y)`` and of the trailer's from the hitch, the
+        hitch's distance behind ``(x, y)``, the radii (kept until a parameter changes: the sweep
+        asks for footprints hundreds of times a step)."""
+        q = self.values
+        key = (q["L"], q["Lt"], q["b"], q["c"])
+        got = self.__dict__.get("_disk_layout_cache")
+        if got is None or got[0] != key:
+            (lt, nt, rt), (lr, nr, rr) = self._bodies()
+            s_t = ((np.arange(nt) + 0.5) / nt * lt - lt / 2).tolist()
+            s_r = ((np.arange(nr) + 0.5) / nr * lr).tolist()
+            radii = np.concatenate([np.full(nt, rt), np.full(nr, rr)])
+            got = (key, (s_t, s_r, q["L"] / 2 + q["c"], radii))
+            self.__dict__["_disk_layout_cache"] = got
+        return got[1]

@@ -10,12 +10,12 @@ the caller runs its NumPy loop.
 
 from __future__ import annotations
 
-import ctypes
-from ctypes import POINTER, Structure, c_double, c_int64, c_void_p
+from collections.abc import Callable
+from ctypes import Structure, c_double, c_int64, c_void_p
 
 import numpy as np
 
-from hybridnav import native
+from hybridnav.native import pycall
 
 __all__ = ["moves"]
 
@@ -28,10 +28,14 @@ class _Attract(Structure):
                 ("neg_gamma", c_double), ("scale", c_double), ("beta_min", c_double)]
 
 
-def _library() -> ctypes.CDLL | None:
-    """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
-    return native.kernel("attract", {"hn_attract_step": ([POINTER(_Attract), c_int64, c_int64],
-                                                         c_int64)})
+#: the kernel's function (the structure passed by its address)
+_SIGNATURES = {"hn_attract_step": ([c_void_p, c_int64, c_int64], c_int64)}
+
+
+def _library() -> dict[str, Callable] | None:
+    """The kernel's function by symbol, built and loaded once per process (``None``:
+    unavailable or switched off; :func:`hybridnav.native.pycall.functions`)."""
+    return pycall.functions("attract", _SIGNATURES)
 
 
 def moves(Xs: np.ndarray, Ys: np.ndarray, E: np.ndarray, order: np.ndarray, first: np.ndarray,
@@ -59,8 +63,8 @@ def moves(Xs: np.ndarray, Ys: np.ndarray, E: np.ndarray, order: np.ndarray, firs
                  first.ctypes.data, diff.ctypes.data, arg.ctypes.data, ex.ctypes.data,
                  row.ctypes.data, rank.ctypes.data, 0, float(inv_diag2), -gamma,
                  beta0 - beta_min, float(beta_min))
-    ref = ctypes.byref(a)
-    step, exp = lib.hn_attract_step, np.exp
+    ref = a
+    step, exp = lib["hn_attract_step"], np.exp
     J = len(first)
     k = step(ref, 0, J)
     for p in range(1, J + 1):

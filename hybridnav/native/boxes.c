@@ -1,3 +1,5 @@
+#include <math.h>
+
 /* The box-to-box pruning test of hybridnav.planners.step.sweep._boxes_near: whether each
    obstacle box [olo, ohi] (K, 2), padded by opad, is closer than thr to each box [lo, hi] (M, 2).
    Operation for operation NumPy's (compiled with -ffp-contract=off): the gaps are
@@ -29,42 +31,73 @@ void hn_boxes_near(long long M, long long K, const double *restrict lo,
     }
 }
 
+/* The box lo, hi (2 each) of the points row[k * s1 + j * s2 + {0, 1}] of samples k0..k1 (all
+   m points): minima and maxima are exact; a NaN coordinate makes that coordinate of the box NaN,
+   as np.min does. */
+static inline void stretch_box(const double *restrict row, long long k0, long long k1,
+                               long long s1, long long m, long long s2, double *restrict L,
+                               double *restrict H)
+{
+    const double nan = __builtin_nan("");
+    double lx = row[k0 * s1], ly = row[k0 * s1 + 1], hx = lx, hy = ly;
+    int nx = 0, ny = 0;
+    for (long long k = k0; k <= k1; k++) {
+        const double *p = row + k * s1;
+        for (long long j = 0; j < m; j++, p += s2) {
+            const double x = p[0], y = p[1];
+            nx |= x != x;
+            ny |= y != y;
+            lx = x < lx ? x : lx;
+            hx = x > hx ? x : hx;
+            ly = y < ly ? y : ly;
+            hy = y > hy ? y : hy;
+        }
+    }
+    L[0] = nx ? nan : lx;
+    H[0] = nx ? nan : hx;
+    L[1] = ny ? nan : ly;
+    H[1] = ny ? nan : hy;
+}
+
 /* The boxes of hybridnav.planners.step.sweep._stretch_boxes: lo, hi (na, nst, 2) of the points
    pts[a, s, j, :] (na, n1, m, 2; element strides s0, s1, s2, the coordinates adjacent) of each
-   stretch g, samples g * stride to min((g + 1) * stride, n1 - 1), all m points. Minima and maxima
-   are exact; a NaN coordinate makes that coordinate of the box NaN, as np.min does. */
+   stretch g, samples g * stride to min((g + 1) * stride, n1 - 1), all m points. */
 void hn_stretch_boxes(long long na, long long n1, long long m, long long nst, long long stride,
                       const double *restrict pts, long long s0, long long s1, long long s2,
                       double *restrict lo, double *restrict hi)
 {
-    const double nan = __builtin_nan("");
     for (long long a = 0; a < na; a++) {
-        const double *row = pts + a * s0;
         for (long long g = 0; g < nst; g++) {
             long long k0 = g * stride, k1 = k0 + stride;
             if (k1 > n1 - 1)
                 k1 = n1 - 1;
-            double lx = row[k0 * s1], ly = row[k0 * s1 + 1], hx = lx, hy = ly;
-            int nx = 0, ny = 0;
-            for (long long k = k0; k <= k1; k++) {
-                const double *p = row + k * s1;
-                for (long long j = 0; j < m; j++, p += s2) {
-                    const double x = p[0], y = p[1];
-                    nx |= x != x;
-                    ny |= y != y;
-                    lx = x < lx ? x : lx;
-                    hx = x > hx ? x : hx;
-                    ly = y < ly ? y : ly;
-                    hy = y > hy ? y : hy;
-                }
-            }
-            double *L = lo + (a * nst + g) * 2, *H = hi + (a * nst + g) * 2;
-            L[0] = nx ? nan : lx;
-            H[0] = nx ? nan : hx;
-            L[1] = ny ? nan : ly;
-            H[1] = ny ? nan : hy;
+            stretch_box(pts + a * s0, k0, k1, s1, m, s2, lo + (a * nst + g) * 2,
+                        hi + (a * nst + g) * 2);
         }
     }
+}
+
+/* Whether the box [lx, hx] x [ly, hy] comes within thr of the workspace border (xmin, xmax,
+   ymin, ymax; a NaN corner is near it) or of one of the K obstacle boxes [olo, ohi] padded by
+   opad, as hn_boxes_near tests each. */
+static inline int near_box(double lx, double ly, double hx, double hy, double thr, double xmin,
+                           double xmax, double ymin, double ymax, long long K,
+                           const double *restrict olo, const double *restrict ohi,
+                           const double *restrict opad)
+{
+    int near = !((lx - xmin >= thr) & (xmax - hx >= thr) & (ly - ymin >= thr)
+                 & (ymax - hy >= thr));
+    for (long long k = 0; k < K && !near; k++) {
+        double reach = thr + opad[k];
+        double ax = olo[2 * k] - hx, bx = lx - ohi[2 * k];
+        double ay = olo[2 * k + 1] - hy, by = ly - ohi[2 * k + 1];
+        int nan = (ax != ax) | (bx != bx) | (ay != ay) | (by != by);
+        double gx = ax > bx ? ax : bx, gy = ay > by ? ay : by;
+        gx = gx > 0.0 ? gx : 0.0;
+        gy = gy > 0.0 ? gy : 0.0;
+        near = nan | !(gx * gx + gy * gy >= reach * reach);
+    }
+    return near;
 }
 
 /* Whether anything may come within thr of each box [lo, hi] (M, 2): the workspace border
@@ -75,20 +108,100 @@ void hn_near_any(long long M, const double *restrict lo, const double *restrict 
                  const double *restrict olo, const double *restrict ohi,
                  const double *restrict opad, unsigned char *restrict out)
 {
-    for (long long i = 0; i < M; i++) {
-        const double lx = lo[2 * i], ly = lo[2 * i + 1], hx = hi[2 * i], hy = hi[2 * i + 1];
-        int near = !((lx - xmin >= thr) & (xmax - hx >= thr) & (ly - ymin >= thr)
-                     & (ymax - hy >= thr));
-        for (long long k = 0; k < K && !near; k++) {
-            double reach = thr + opad[k];
-            double ax = olo[2 * k] - hx, bx = lx - ohi[2 * k];
-            double ay = olo[2 * k + 1] - hy, by = ly - ohi[2 * k + 1];
+    for (long long i = 0; i < M; i++)
+        out[i] = (unsigned char)near_box(lo[2 * i], lo[2 * i + 1], hi[2 * i], hi[2 * i + 1], thr,
+                                         xmin, xmax, ymin, ymax, K, olo, ohi, opad);
+}
+
+/* Each footprint disk's box along a stretch and whether anything frozen may come near it: the
+   disk centres C[i, k, j, :] (ns, n1, nd, 2; element strides s0, s1, s2, the coordinates
+   adjacent) give, per stretch i and disk j, the box lo, hi (ns, nd, 2) of samples 0..n1-1
+   (as hn_stretch_boxes) and near (ns, nd) as hn_near_any with the disk's threshold thr[j]. */
+void hn_disks_near(long long ns, long long n1, long long nd, const double *restrict C,
+                   long long s0, long long s1, long long s2, const double *restrict thr,
+                   double xmin, double xmax, double ymin, double ymax, long long K,
+                   const double *restrict olo, const double *restrict ohi,
+                   const double *restrict opad, double *restrict lo, double *restrict hi,
+                   unsigned char *restrict out)
+{
+    for (long long i = 0; i < ns; i++)
+        for (long long j = 0; j < nd; j++) {
+            double *L = lo + (i * nd + j) * 2, *H = hi + (i * nd + j) * 2;
+            stretch_box(C + i * s0 + j * s2, 0, n1 - 1, s1, 1, s2, L, H);
+            out[i * nd + j] = (unsigned char)near_box(L[0], L[1], H[0], H[1], thr[j], xmin,
+                                                      xmax, ymin, ymax, K, olo, ohi, opad);
+        }
+}
+
+/* The end of each move in one block of sweep._integrate: the rollout samples traj[a, k, :]
+   (na, n1; element strides s0, s1, the position first) towards the targets P (na, 2) give the
+   boxes lo, hi (na, nst, 2) of the positions along each stretch (as hn_stretch_boxes) and, for
+   a row where one of those boxes comes within reach2 of its target (np.maximum's NaN: not
+   within), first[a]: the first of the samples 1..n1-1 with hypot(x - px, y - py) <= reach, minus
+   one; -1 where there is none. */
+void hn_reach_first(long long na, long long n1, long long nst, long long stride,
+                    const double *restrict traj, long long s0, long long s1,
+                    const double *restrict P, double reach, double reach2,
+                    double *restrict lo, double *restrict hi, long long *restrict first)
+{
+    const int far = reach > 1e-150 && reach < 1e150;
+    const double far2 = reach * reach * (1.0 + 1e-9);
+    for (long long a = 0; a < na; a++) {
+        const double *row = traj + a * s0;
+        const double px = P[2 * a], py = P[2 * a + 1];
+        int close = 0;
+        for (long long g = 0; g < nst; g++) {
+            long long k0 = g * stride, k1 = k0 + stride;
+            if (k1 > n1 - 1)
+                k1 = n1 - 1;
+            double *L = lo + (a * nst + g) * 2, *H = hi + (a * nst + g) * 2;
+            stretch_box(row, k0, k1, s1, 1, 2, L, H);
+            double ax = L[0] - px, bx = px - H[0], ay = L[1] - py, by = py - H[1];
             int nan = (ax != ax) | (bx != bx) | (ay != ay) | (by != by);
             double gx = ax > bx ? ax : bx, gy = ay > by ? ay : by;
             gx = gx > 0.0 ? gx : 0.0;
             gy = gy > 0.0 ? gy : 0.0;
-            near = nan | !(gx * gx + gy * gy >= reach * reach);
+            close |= !nan & (gx * gx + gy * gy <= reach2);
         }
-        out[i] = (unsigned char)near;
+        first[a] = -1;
+        if (!close)
+            continue;
+        for (long long k = 1; k < n1; k++) {
+            const double *p = row + k * s1;
+            const double dx = p[0] - px, dy = p[1] - py;
+            /* hypot (within an ulp of the distance) exceeds reach wherever the squares' sum
+               (within a few ulps of its square) exceeds far2 = reach^2 (1 + 1e-9): asked only
+               where it may not (an inf or NaN sum: hypot is inf or NaN too). Only for reach
+               whose square is far from subnormal, where the sums' error is relative. */
+            if (far && dx * dx + dy * dy > far2)
+                continue;
+            if (hypot(dx, dy) <= reach) {
+                first[a] = k - 1;
+                break;
+            }
+        }
     }
+}
+
+/* The pruning of sweep._Sweep.touches for pieces A -> B (M, 2 each): their boxes lo, hi (M, 2;
+   np.minimum and np.maximum: a NaN coordinate gives NaN), whether each comes within thr of the
+   workspace border, border (M), and of each obstacle box, out (K, M) as hn_boxes_near. */
+void hn_pieces_near(long long M, const double *restrict A, const double *restrict B, double thr,
+                    double xmin, double xmax, double ymin, double ymax, long long K,
+                    const double *restrict olo, const double *restrict ohi,
+                    const double *restrict opad, double *restrict lo, double *restrict hi,
+                    unsigned char *restrict border, unsigned char *restrict out)
+{
+    const double nan = __builtin_nan("");
+    for (long long i = 0; i < 2 * M; i++) {
+        const double a = A[i], b = B[i];
+        const int n = (a != a) | (b != b);
+        lo[i] = n ? nan : a < b ? a : b;
+        hi[i] = n ? nan : a > b ? a : b;
+    }
+    for (long long i = 0; i < M; i++)
+        border[i] = (unsigned char)!((lo[2 * i] - xmin >= thr) & (xmax - hi[2 * i] >= thr)
+                                     & (lo[2 * i + 1] - ymin >= thr)
+                                     & (ymax - hi[2 * i + 1] >= thr));
+    hn_boxes_near(M, K, lo, hi, olo, ohi, opad, thr, out);
 }

@@ -3,7 +3,12 @@
 set of obstacle boxes, in one pass instead of a dozen NumPy operations over (boxes, obstacles);
 :func:`near_any` is the border test and the any over the obstacles of
 :meth:`~hybridnav.planners.step.sweep._Sweep._near_each` in one pass; :func:`stretch_boxes` is :func:`~hybridnav.planners.step.sweep._stretch_boxes` (exact minima and
-maxima, NaN where a coordinate is NaN).
+maxima, NaN where a coordinate is NaN); :func:`disks_near` is, for every footprint disk of the
+stretches the sweep checks, its box along the stretch and :func:`near_any` with its own threshold,
+in one pass; :func:`reach_first` is, for one block of rollout samples, the stretch boxes and the
+first sample within reach of each target (:func:`hybridnav.planners.step.sweep._reach_first`);
+:func:`pieces_near` is the pruning of :meth:`~hybridnav.planners.step.sweep._Sweep.touches`
+(the pieces' boxes, the border test and :func:`boxes_near`) in one pass.
 The same IEEE operations in the same order: the same booleans, NaN boxes included (the tests
 compare them). ``None`` where it does not apply (no compiler, kernels switched off, arrays of other
 shapes), and the caller runs its NumPy path.
@@ -11,24 +16,36 @@ shapes), and the caller runs its NumPy path.
 
 from __future__ import annotations
 
-import ctypes
+from collections.abc import Callable
 from ctypes import c_double, c_int64, c_void_p
 
 import numpy as np
 
-from hybridnav import native
+from hybridnav.native import pycall
 
-__all__ = ["boxes_near", "near_any", "stretch_boxes"]
+__all__ = ["boxes_near", "disks_near", "near_any", "pieces_near", "reach_first",
+           "stretch_boxes"]
 
-def _library() -> ctypes.CDLL | None:
-    """The kernel, built and loaded once per process (``None``: unavailable or switched off)."""
-    return native.kernel("boxes", {
-        "hn_boxes_near": ([c_int64, c_int64, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p,
-                           c_double, c_void_p], None),
-        "hn_stretch_boxes": ([c_int64] * 5 + [c_void_p] + [c_int64] * 3 + [c_void_p, c_void_p],
-                             None),
-        "hn_near_any": ([c_int64, c_void_p, c_void_p] + [c_double] * 5 + [
-            c_int64, c_void_p, c_void_p, c_void_p, c_void_p], None)})
+#: the kernel's functions: symbol -> (argtypes, restype)
+_SIGNATURES = {
+    "hn_boxes_near": ([c_int64, c_int64, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p,
+                       c_double, c_void_p], None),
+    "hn_stretch_boxes": ([c_int64] * 5 + [c_void_p] + [c_int64] * 3 + [c_void_p, c_void_p],
+                         None),
+    "hn_near_any": ([c_int64, c_void_p, c_void_p] + [c_double] * 5 + [
+        c_int64, c_void_p, c_void_p, c_void_p, c_void_p], None),
+    "hn_disks_near": ([c_int64] * 3 + [c_void_p] + [c_int64] * 3 + [c_void_p] + [c_double] * 4
+                      + [c_int64] + [c_void_p] * 6, None),
+    "hn_pieces_near": ([c_int64, c_void_p, c_void_p] + [c_double] * 5 + [c_int64]
+                       + [c_void_p] * 7, None),
+    "hn_reach_first": ([c_int64] * 4 + [c_void_p, c_int64, c_int64, c_void_p, c_double,
+                        c_double, c_void_p, c_void_p, c_void_p], None)}
+
+
+def _library() -> dict[str, Callable] | None:
+    """The kernel's functions by symbol, built and loaded once per process (``None``:
+    unavailable or switched off; :func:`hybridnav.native.pycall.functions`)."""
+    return pycall.functions("boxes", _SIGNATURES)
 
 
 def _operands(lo, hi, o_lo, o_hi, o_pad, thr):
@@ -58,8 +75,7 @@ def boxes_near(lo, hi, o_lo, o_hi, o_pad, thr) -> np.ndarray | None:
     K, M = o_lo.shape[0], lo.size // 2
     out = np.empty((K, M), dtype=bool)              # obstacle by obstacle: a view transposed
     if M and K:
-        lib.hn_boxes_near(M, K, lo.ctypes.data, hi.ctypes.data, o_lo.ctypes.data,
-                          o_hi.ctypes.data, o_pad.ctypes.data, float(thr), out.ctypes.data)
+        lib["hn_boxes_near"](M, K, lo, hi, o_lo, o_hi, o_pad, float(thr), out)
     return out.T.reshape(lo.shape[:-1] + (K,))
 
 
@@ -79,8 +95,8 @@ def stretch_boxes(pts: np.ndarray, nst: int, stride: int):
     st = pts.strides
     if not (n1 and m) or st[3] != 8 or min(st) < 0 or any(s % 8 for s in st):
         return None
-    lib.hn_stretch_boxes(na, n1, m, nst, stride, pts.ctypes.data, st[0] // 8, st[1] // 8,
-                         st[2] // 8, lo.ctypes.data, hi.ctypes.data)
+    lib["hn_stretch_boxes"](na, n1, m, nst, stride, pts, st[0] // 8, st[1] // 8, st[2] // 8,
+                            lo, hi)
     return lo, hi
 
 
@@ -96,7 +112,93 @@ def near_any(lo, hi, thr, workspace, o_lo, o_hi, o_pad) -> np.ndarray | None:
     out = np.empty(lo.shape[:-1], dtype=bool)
     if out.size:
         xmin, xmax, ymin, ymax = (float(v) for v in workspace)
-        lib.hn_near_any(out.size, lo.ctypes.data, hi.ctypes.data, float(thr), xmin, xmax, ymin,
-                        ymax, K, o_lo.ctypes.data, o_hi.ctypes.data, o_pad.ctypes.data,
-                        out.ctypes.data)
+        lib["hn_near_any"](out.size, lo, hi, float(thr), xmin, xmax, ymin, ymax, K, o_lo, o_hi,
+                           o_pad, out)
     return out
+
+
+def _strides(a: np.ndarray) -> tuple[int, ...] | None:
+    """The element strides of a float64 array whose last axis is adjacent, else ``None`` (an
+    empty array: zeros, nothing is read)."""
+    st = a.strides
+    if a.dtype == np.float64 and not a.size:
+        return (0,) * a.ndim
+    if a.dtype != np.float64 or (a.shape[-1] > 1 and st[-1] != 8) or min(st) < 0 or any(
+            s % 8 for s in st):
+        return None
+    return tuple(s // 8 for s in st)
+
+
+def disks_near(C: np.ndarray, thr: np.ndarray, workspace, o_lo, o_hi, o_pad):
+    """For the footprint disk centres ``C`` (ns, samples, nd, 2) along ``ns`` stretches: each
+    disk's box ``lo, hi`` (ns, nd, 2) over the samples and whether the border or an obstacle box
+    (K, 2) padded by ``o_pad`` may come within ``thr[j]`` of disk ``j``'s box, (ns, nd): for
+    every disk :func:`stretch_boxes` of one stretch and :func:`near_any`. ``None`` without the
+    kernel or for other shapes."""
+    if C.ndim != 4 or C.shape[3] != 2 or not C.shape[1]:
+        return None
+    args = _operands(np.empty((0, 2)), np.empty((0, 2)), o_lo, o_hi, o_pad, 0.0)
+    st = _strides(C)
+    if args is None or st is None:
+        return None
+    lib, _, _, o_lo, o_hi, o_pad = args
+    ns, n1, nd, _ = C.shape
+    thr = np.ascontiguousarray(thr, dtype=np.float64)
+    if thr.shape != (nd,):
+        return None
+    lo, hi = np.empty((ns, nd, 2)), np.empty((ns, nd, 2))
+    out = np.empty((ns, nd), dtype=bool)
+    if out.size:
+        xmin, xmax, ymin, ymax = (float(v) for v in workspace)
+        lib["hn_disks_near"](ns, n1, nd, C, st[0], st[1], st[2], thr, xmin, xmax, ymin, ymax,
+                             o_lo.shape[0], o_lo, o_hi, o_pad, lo, hi, out)
+    return lo, hi, out
+
+
+def reach_first(traj: np.ndarray, P: np.ndarray, nst: int, stride: int, reach: float,
+                reach2: float):
+    """For rollout samples ``traj`` (na, n1, nx) towards the targets ``P`` (na, 2): the boxes
+    ``lo, hi`` (na, nst, 2) of the positions along each stretch of ``stride`` pieces, and per
+    row the first of the samples ``1 ..`` within ``reach`` of its target, minus one (-1: none;
+    only looked for where a box comes within ``reach2``). ``None`` without the kernel or for
+    other arrays."""
+    if traj.ndim != 3 or traj.shape[2] < 2 or not traj.shape[1]:
+        return None
+    lib = _library()
+    st = _strides(traj)
+    if lib is None or st is None:
+        return None
+    na, n1, _ = traj.shape
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    if P.shape != (na, 2):
+        return None
+    lo, hi = np.empty((na, nst, 2)), np.empty((na, nst, 2))
+    first = np.empty(na, dtype=np.int64)
+    if na:
+        lib["hn_reach_first"](na, n1, nst, stride, traj, st[0], st[1], P, float(reach),
+                              float(reach2), lo, hi, first)
+    return lo, hi, first
+
+
+def pieces_near(A: np.ndarray, B: np.ndarray, thr: float, workspace, o_lo, o_hi, o_pad):
+    """For the pieces ``A -> B`` (M, 2 each): their boxes ``lo, hi`` (``np.minimum``,
+    ``np.maximum``), whether each comes within the scalar ``thr`` of the border of
+    ``workspace`` (M,) and of each obstacle box (K, 2) padded by ``o_pad`` (M, K), as
+    :func:`near_any` and :func:`boxes_near` test them; ``None`` without the kernel or for other
+    shapes."""
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    B = np.ascontiguousarray(B, dtype=np.float64)
+    if A.ndim != 2 or A.shape[1:] != (2,) or B.shape != A.shape:
+        return None
+    args = _operands(A, B, o_lo, o_hi, o_pad, thr)
+    if args is None:
+        return None
+    lib, A, B, o_lo, o_hi, o_pad = args
+    M, K = len(A), len(o_lo)
+    lo, hi = np.empty((M, 2)), np.empty((M, 2))
+    border, out = np.empty(M, dtype=bool), np.empty((K, M), dtype=bool)
+    if M:
+        xmin, xmax, ymin, ymax = (float(v) for v in workspace)
+        lib["hn_pieces_near"](M, A, B, float(thr), xmin, xmax, ymin, ymax, K, o_lo, o_hi, o_pad,
+                              lo, hi, border, out)
+    return lo, hi, border, out.T

@@ -41,7 +41,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hybridnav.native.boxes import boxes_near as compiled_boxes_near
+from hybridnav.native.boxes import disks_near as compiled_disks_near
 from hybridnav.native.boxes import near_any as compiled_near_any
+from hybridnav.native.boxes import pieces_near as compiled_pieces_near
+from hybridnav.native.boxes import reach_first as compiled_reach_first
 from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
@@ -143,12 +146,15 @@ class _Sweep:
         border = ~((lo[..., 0] - xmin >= thr) & (xmax - hi[..., 0] >= thr)   # NaN: near
                    & (lo[..., 1] - ymin >= thr) & (ymax - hi[..., 1] >= thr))
         frozen = _boxes_near(lo, hi, self.f_lo, self.f_hi, self.f_pad, thr)
+        return border, frozen, self._near_moving(lo, hi, thr, t0, t1)
+
+    def _near_moving(self, lo: FloatArray, hi: FloatArray, thr, t0, t1) -> NDArray[np.bool_]:
+        """Whether each moving circle may come within ``thr`` (the slack included) of the boxes
+        between the times ``t0`` and ``t1``: (..., M)."""
         if self.movers:
             m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
-            moving = _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr)
-        else:
-            moving = np.zeros(border.shape + (0,), dtype=bool)
-        return border, frozen, moving
+            return _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr)
+        return np.zeros(lo.shape[:-1] + (0,), dtype=bool)
 
     def _near(self, lo: FloatArray, hi: FloatArray, reach: float, t0, t1) -> NDArray[np.bool_]:
         """Whether anything may come within ``reach`` of the boxes (see :meth:`_near_each`):
@@ -172,6 +178,27 @@ class _Sweep:
         if self.movers:
             m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
             near |= _boxes_near(lo, hi, m_lo, m_hi, m_pad, thr).any(axis=-1)
+        return near
+
+    def _near_disks(self, C: FloatArray, need: FloatArray, t0, t1) -> NDArray[np.bool_]:
+        """Whether anything may come within ``need[j]`` of footprint disk ``j`` along each
+        stretch of its centres ``C`` (ns, samples, nd, 2): :meth:`_near` of each disk's box.
+        Compiled (:func:`hybridnav.native.boxes.disks_near`) where :meth:`_near` tests the
+        boxes one by one: the same booleans."""
+        got = None
+        if len(C) * self.n_static < _MAP_FROM:
+            got = compiled_disks_near(C, need + self.slack, self.world.workspace, self.f_lo,
+                                      self.f_hi, self.f_pad)
+        if got is None:        # each disk's box along the stretch: its one stretch of samples
+            boxes = [_stretch_boxes(C[:, :, j:j + 1], 1) for j in range(len(need))]
+            return np.stack([self._near(c_lo[:, 0], c_hi[:, 0], need[j], t0, t1)
+                             for j, (c_lo, c_hi) in enumerate(boxes)], axis=1)
+        lo, hi, near = got
+        if self.movers:
+            m_lo, m_hi, m_pad = self.moving.boxes(t0, t1)
+            for j in range(len(need)):
+                near[:, j] |= _boxes_near(lo[:, j], hi[:, j], m_lo, m_hi, m_pad,
+                                          need[j] + self.slack).any(axis=-1)
         return near
 
     def check(self, S: FloatArray, npieces: NDArray[np.int_], k0: int, lo: FloatArray,
@@ -225,10 +252,7 @@ class _Sweep:
             C = full.reshape((-1,) + full.shape[2:])[idx]
         need = np.asarray(radii, dtype=float) + self.margin           # (nd,)
         if len(need) > 1:
-            # each disk's box along the stretch: its one stretch of (ns, 9) samples
-            boxes = [_stretch_boxes(C[:, :, j:j + 1], 1) for j in range(len(need))]
-            near_disk = np.stack([self._near(c_lo[:, 0], c_hi[:, 0], need[j], t0[gs], t1[gs])
-                                  for j, (c_lo, c_hi) in enumerate(boxes)], axis=1)  # (ns, nd)
+            near_disk = self._near_disks(C, need, t0[gs], t1[gs])           # (ns, nd)
         else:
             near_disk = np.ones((len(rows), 1), dtype=bool)
         q = gs[:, None] * _STRIDE + np.arange(_STRIDE)[None, :]       # (ns, _STRIDE) pieces
@@ -253,16 +277,23 @@ class _Sweep:
         the times ``t``) touches an obstacle or another robot's disk, or (``border``) ends
         outside the workspace shrunk by ``need``: exactly the tests of the whole world, each
         obstacle's only where the boxes say it may touch."""
-        lo, hi = np.minimum(A, B), np.maximum(A, B)
         out = np.zeros(len(A), dtype=bool)
-        if len(A) * self.n_static < _MAP_FROM:
-            near = slice(None)
-        else:                 # the clear map first, each obstacle's box for the rest
-            near = np.flatnonzero(self._near(lo, hi, need, t, t))
-            if not len(near):
-                return out
-            A, B, t, lo, hi = A[near], B[near], t[near], lo[near], hi[near]
-        at_border, frozen, moving = self._near_each(lo, hi, need, t, t)
+        few = len(A) * self.n_static < _MAP_FROM
+        thr = np.asarray(need) + self.slack
+        got = few and compiled_pieces_near(A, B, thr, self.world.workspace, self.f_lo,
+                                           self.f_hi, self.f_pad)
+        near = slice(None)
+        if got:               # compiled: the pieces' boxes and the tests of _near_each
+            lo, hi, at_border, frozen = got
+            moving = self._near_moving(lo, hi, thr, t, t)
+        else:
+            lo, hi = np.minimum(A, B), np.maximum(A, B)
+            if not few:       # the clear map first, each obstacle's box for the rest
+                near = np.flatnonzero(self._near(lo, hi, need, t, t))
+                if not len(near):
+                    return out
+                A, B, t, lo, hi = A[near], B[near], t[near], lo[near], hi[near]
+            at_border, frozen, moving = self._near_each(lo, hi, need, t, t)
         hit = np.zeros(len(A), dtype=bool)
         at = np.flatnonzero(at_border)
         if border and len(at):
@@ -320,6 +351,28 @@ def _boxes_near(lo: FloatArray, hi: FloatArray, o_lo: FloatArray, o_hi: FloatArr
     return ~(gx * gx + gy * gy >= reach * reach)
 
 
+def _reach_first(traj: FloatArray, P: FloatArray, nst: int, reach: float, reach2: float):
+    """The boxes ``lo, hi`` (na, nst, 2) of the positions of the rollout samples ``traj`` (na,
+    samples, nx) along each stretch, and per row the first of the samples ``1 ..`` within
+    ``reach`` of its target ``P`` (na, 2), minus one (-1: none; a sample is only looked at where
+    one of its row's boxes comes within ``reach2`` of the target). Compiled
+    (:func:`hybridnav.native.boxes.reach_first`) where it is: the same numbers."""
+    got = compiled_reach_first(traj, P, nst, _STRIDE, reach, reach2)
+    if got is not None:
+        return got
+    lo, hi = _stretch_boxes(traj[:, :, None, :2], nst)
+    gx = np.maximum(np.maximum(lo[..., 0] - P[:, None, 0], P[:, None, 0] - hi[..., 0]), 0.0)
+    gy = np.maximum(np.maximum(lo[..., 1] - P[:, None, 1], P[:, None, 1] - hi[..., 1]), 0.0)
+    close = np.flatnonzero((gx * gx + gy * gy <= reach2).any(axis=1))
+    Pc = P[close]
+    within = np.hypot(traj[close, 1:, 0] - Pc[:, None, 0],
+                      traj[close, 1:, 1] - Pc[:, None, 1]) <= reach
+    first = np.full(len(traj), -1, dtype=np.int64)
+    done = within.any(axis=1)
+    first[close[done]] = within[done].argmax(axis=1)
+    return lo, hi, first
+
+
 def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: float):
     """``b`` control cycles from ``X0`` towards ``P``, ``sub`` at a time, a candidate no
     further once a sample is within ``reach`` of it (its later samples repeat that state).
@@ -351,23 +404,17 @@ def _integrate(model, X0: FloatArray, P: FloatArray, b: int, sub: int, reach: fl
             traj = model.rollout(part[rows, j], Pl, s)         # (nl, s + 1, nx)
             part[rows, j + 1:j + s + 1] = traj[:, 1:]
         g0, ns = j // _STRIDE, -(-s // _STRIDE)
-        blo, bhi = _stretch_boxes(traj[:, :, None, :2], ns)
+        blo, bhi, first = _reach_first(traj, Pl, ns, reach, reach2)
         lo[rows, g0:g0 + ns], hi[rows, g0:g0 + ns] = blo, bhi
-        gx = np.maximum(np.maximum(blo[..., 0] - Pl[:, None, 0], Pl[:, None, 0] - bhi[..., 0]), 0.0)
-        gy = np.maximum(np.maximum(blo[..., 1] - Pl[:, None, 1], Pl[:, None, 1] - bhi[..., 1]), 0.0)
-        close = np.flatnonzero((gx * gx + gy * gy <= reach2).any(axis=1))
-        Pc = Pl[close]
-        within = np.hypot(traj[close, 1:, 0] - Pc[:, None, 0],
-                          traj[close, 1:, 1] - Pc[:, None, 1]) <= reach
-        done = within.any(axis=1)
-        now = live[close[done]]
+        done = np.flatnonzero(first >= 0)
+        now = live[done]
         ended[now] = True
-        npieces[now] = j + within[done].argmax(axis=1) + 1
+        npieces[now] = j + first[done] + 1
         if j + s < b:
-            final = traj[close[done], -1]
+            final = traj[done, -1]
             part[now, j + s + 1:] = final[:, None]
             lo[now, g0 + ns:] = hi[now, g0 + ns:] = final[:, None, :2]
-        live = np.delete(live, close[done])
+        live = np.delete(live, done)
         j += s
     return part, npieces, ended, lo, hi
 
