@@ -31,7 +31,8 @@ Variants (``HYBRIDNAV_SIMD`` chooses; the default is ``exact``):
     call none of libmvec's functions (point mass, LbCS) get the widest variant by default: their
     results are exact.
 
-Large batches are split over threads (:func:`threads`; ``HYBRIDNAV_THREADS``): each robot is
+Large batches are split over threads (:mod:`hybridnav.models.parallel`: :func:`threads`,
+``HYBRIDNAV_THREADS``; ranges of robots the threads claim one at a time): each robot is
 integrated alone, so the results do not depend on the number of threads.
 
 Without a compiler, with ``HYBRIDNAV_NATIVE=0`` or ``HYBRIDNAV_JIT=0``, or for an operation this
@@ -61,8 +62,8 @@ from hybridnav.models.parallel import THREAD_MIN_NS, THREADS_ENV, run, threads
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ENV", "THREADS_ENV", "THREAD_MIN_NS", "Kernel", "allowed", "get", "run", "threads", "variant_names",
-           "wanted"]
+__all__ = ["ENV", "THREADS_ENV", "THREAD_MIN_NS", "Kernel", "allowed", "get", "run", "threads",
+           "variant_names", "wanted"]
 
 #: ``HYBRIDNAV_SIMD``: ``exact`` (default; also ``off``, ``0``), ``scalar``, or the opt-in
 #: approximate ``auto``, ``sse2``, ``avx2``, ``avx512``

@@ -6,6 +6,7 @@ thread takes contiguous ranges of robots (whole blocks of the kernel's lanes).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import multiprocessing
 import os
@@ -20,15 +21,21 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-__all__ = ["THREADS_ENV", "THREAD_MIN_NS", "run", "threads"]
+__all__ = ["PIECES", "PIECE_NS", "THREADS_ENV", "THREAD_MIN_NS", "pieces", "run", "threads"]
 
 #: ``HYBRIDNAV_THREADS``: threads one large batch runs on. Default: the CPUs this process may
 #: use, but 1 in a worker process of a pool (the tuner's, ``compare``'s, Dask's), whose siblings
 #: already keep the CPUs busy
 THREADS_ENV = "HYBRIDNAV_THREADS"
-#: work a thread gets at least, in ns (estimated from :attr:`Kernel.cost_ns`): ~50 us to hand it
-#: over and join it
-THREAD_MIN_NS = 5e6
+#: work a thread gets at least, in ns (estimated from :attr:`Kernel.cost_ns`): handing a piece
+#: to a pool thread and joining it costs ~30 us
+THREAD_MIN_NS = 1e6
+#: work of one range a thread claims (:func:`pieces`), in ns: small enough that a thread
+#: slowed by other processes leaves the rest to the others, large enough that claiming costs
+#: nothing much
+PIECE_NS = 1e6
+#: ranges per thread at most
+PIECES = 8
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 
@@ -69,29 +76,49 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_reset_after_fork)
 
 
+def pieces(n: int, steps: int, cost_ns: float, lanes: int,
+           nthreads: int | None = None) -> tuple[int, list[tuple[int, int]]]:
+    """How :func:`run` splits ``n`` robots: ``(threads, ranges)``. One range (and one thread)
+    unless the batch's estimated work (``n * steps * cost_ns``) gives each of at least two
+    threads :data:`THREAD_MIN_NS`; then contiguous ranges of whole blocks of ``lanes`` robots
+    (the last one shorter), about :data:`PIECE_NS` of work each but at most :data:`PIECES` per
+    thread, which the threads claim one at a time."""
+    work = n * steps * cost_ns
+    blocks = -(-n // lanes)
+    want = threads() if nthreads is None else max(1, int(nthreads))
+    workers = min(want, int(work // THREAD_MIN_NS), blocks)
+    if workers <= 1:
+        return 1, [(0, n)]
+    count = min(blocks, workers * PIECES, max(workers, int(work // PIECE_NS)))
+    per = -(-blocks // count) * lanes
+    return workers, [(lo, min(n, lo + per)) for lo in range(0, n, per)]
+
+
 def run(k: Kernel, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs: int, ks: int,
         offset: int = 0, nthreads: int | None = None) -> None:
     """:meth:`Kernel.run`, split over threads for large batches (``nthreads``, default
-    :func:`threads`; a thread gets at least :data:`THREAD_MIN_NS` of estimated work): each
-    thread takes a contiguous range of robots (whole blocks of lanes), so the results are the
-    same whatever the number of threads."""
-    n = len(X)
-    most = int(n * steps * k.cost_ns // THREAD_MIN_NS)
-    if most < 2 or nthreads == 1:
+    :func:`threads`; see :func:`pieces`). The calling thread and the pool's threads claim the
+    ranges one at a time, so a thread that gets less of the CPUs (a shared machine) takes
+    fewer of them instead of holding up the rest; every robot is integrated alone, so the
+    results are the same whatever the number of threads and whoever runs a range."""
+    workers, ranges = pieces(len(X), steps, k.cost_ns, k.lanes, nthreads)
+    if workers <= 1:
         k.run(X, T, out, steps, rs, ks, offset)
         return
-    parts = min(threads() if nthreads is None else max(1, nthreads), most, -(-n // k.lanes))
-    if parts <= 1:
-        k.run(X, T, out, steps, rs, ks, offset)
-        return
-    per = -(-n // (parts * k.lanes)) * k.lanes
-    bounds = [(lo, min(n, lo + per)) for lo in range(0, n, per)]
-    pool = _pool(len(bounds) - 1)
-    futures = [pool.submit(k.run, X[lo:hi], T[lo:hi], out, steps, rs, ks, offset + lo * rs)
-               for lo, hi in bounds[1:]]
-    lo, hi = bounds[0]
+    claim = itertools.count()               # next() on it is atomic (it holds the GIL)
+
+    def work() -> None:
+        for i in iter(claim.__next__, None):
+            if i >= len(ranges):
+                return
+            lo, hi = ranges[i]
+            k.run(X[lo:hi], T[lo:hi], out, steps, rs, ks, offset + lo * rs)
+
+    pool = _pool(workers - 1)
+    futures = [pool.submit(work) for _ in range(workers - 1)]
     try:
-        k.run(X[lo:hi], T[lo:hi], out, steps, rs, ks, offset)
+        work()
     finally:
-        for f in futures:
-            f.result()
+        for f in futures:               # one not started yet would find nothing left to claim
+            if not f.cancel():
+                f.result()
