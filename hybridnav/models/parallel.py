@@ -84,6 +84,8 @@ def pieces(n: int, steps: int, cost_ns: float, lanes: int,
     (the last one shorter), about :data:`PIECE_NS` of work each but at most :data:`PIECES` per
     thread, which the threads claim one at a time."""
     work = n * steps * cost_ns
+    if work < 2 * THREAD_MIN_NS or nthreads == 1:    # small batches: no look at the CPUs
+        return 1, [(0, n)]
     blocks = -(-n // lanes)
     want = threads() if nthreads is None else max(1, int(nthreads))
     workers = min(want, int(work // THREAD_MIN_NS), blocks)
@@ -101,6 +103,9 @@ def run(k: Kernel, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs
     ranges one at a time, so a thread that gets less of the CPUs (a shared machine) takes
     fewer of them instead of holding up the rest; every robot is integrated alone, so the
     results are the same whatever the number of threads and whoever runs a range."""
+    if len(X) * steps * k.cost_ns < 2 * THREAD_MIN_NS:
+        k.run(X, T, out, steps, rs, ks, offset)        # the common small batch, at once
+        return
     workers, ranges = pieces(len(X), steps, k.cost_ns, k.lanes, nthreads)
     if workers <= 1:
         k.run(X, T, out, steps, rs, ks, offset)
