@@ -12,12 +12,9 @@ import multiprocessing
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from hybridnav.models.kernel import Kernel
 
 log = logging.getLogger(__name__)
 
@@ -27,8 +24,8 @@ __all__ = ["PIECES", "PIECE_NS", "THREADS_ENV", "THREAD_MIN_NS", "pieces", "run"
 #: use, but 1 in a worker process of a pool (the tuner's, ``compare``'s, Dask's), whose siblings
 #: already keep the CPUs busy
 THREADS_ENV = "HYBRIDNAV_THREADS"
-#: work a thread gets at least, in ns (estimated from :attr:`Kernel.cost_ns`): handing a piece
-#: to a pool thread and joining it costs ~30 us
+#: work a thread gets at least, in ns (estimated from the kernel's ``cost_ns``): handing a
+#: piece to a pool thread and joining it costs ~30 us
 THREAD_MIN_NS = 1e6
 #: work of one range a thread claims (:func:`pieces`), in ns: small enough that a thread
 #: slowed by other processes leaves the rest to the others, large enough that claiming costs
@@ -96,13 +93,14 @@ def pieces(n: int, steps: int, cost_ns: float, lanes: int,
     return workers, [(lo, min(n, lo + per)) for lo in range(0, n, per)]
 
 
-def run(k: Kernel, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs: int, ks: int,
+def run(k: Any, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs: int, ks: int,
         offset: int = 0, nthreads: int | None = None) -> None:
-    """:meth:`Kernel.run`, split over threads for large batches (``nthreads``, default
-    :func:`threads`; see :func:`pieces`). The calling thread and the pool's threads claim the
-    ranges one at a time, so a thread that gets less of the CPUs (a shared machine) takes
-    fewer of them instead of holding up the rest; every robot is integrated alone, so the
-    results are the same whatever the number of threads and whoever runs a range."""
+    """``k.run`` of a :class:`hybridnav.models.kernel.Kernel`, split over threads for large
+    batches (``nthreads``, default :func:`threads`; see :func:`pieces`). The calling thread and
+    the pool's threads claim the ranges one at a time, so a thread that gets less of the CPUs (a
+    shared machine) takes fewer of them instead of holding up the rest; every robot is
+    integrated alone, so the results are the same whatever the number of threads and whoever
+    runs a range."""
     if len(X) * steps * k.cost_ns < 2 * THREAD_MIN_NS:
         k.run(X, T, out, steps, rs, ks, offset)        # the common small batch, at once
         return
