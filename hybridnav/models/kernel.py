@@ -31,7 +31,8 @@ Variants (``HYBRIDNAV_SIMD`` chooses; the default is ``exact``):
     call none of libmvec's functions (point mass, LbCS) get the widest variant by default: their
     results are exact.
 
-Large batches are split over threads (:func:`threads`; ``HYBRIDNAV_THREADS``): each robot is
+Large batches are split over threads (:mod:`hybridnav.models.parallel`: :func:`threads`,
+``HYBRIDNAV_THREADS``; ranges of robots the threads claim one at a time): each robot is
 integrated alone, so the results do not depend on the number of threads.
 
 Without a compiler, with ``HYBRIDNAV_NATIVE=0`` or ``HYBRIDNAV_JIT=0``, or for an operation this
@@ -44,24 +45,23 @@ from __future__ import annotations
 import ctypes
 import logging
 import math
-import multiprocessing
 import os
 import platform
 import sys
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from ctypes import c_int, c_int64, c_void_p
 
 import casadi as cs
 import numpy as np
 
 from hybridnav import native
+from hybridnav.models.parallel import THREAD_MIN_NS, THREADS_ENV, run, threads
 from hybridnav.native import pycall
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ENV", "THREADS_ENV", "Kernel", "allowed", "get", "run", "threads", "variant_names",
-           "wanted"]
+__all__ = ["ENV", "THREADS_ENV", "THREAD_MIN_NS", "Kernel", "allowed", "get", "run", "threads",
+           "variant_names", "wanted"]
 
 #: ``HYBRIDNAV_SIMD``: ``exact`` (default; also ``off``, ``0``), ``scalar``, or the opt-in
 #: approximate ``auto``, ``sse2``, ``avx2``, ``avx512``
@@ -541,83 +541,6 @@ def wanted() -> str:
     ``avx2`` or ``avx512``."""
     v = os.environ.get(ENV, "").strip().lower()
     return v if v in _VARIANTS or v == "auto" else "exact"
-
-
-# ---- threads ---------------------------------------------------------------------------------
-
-#: ``HYBRIDNAV_THREADS``: threads one large batch runs on. Default: the CPUs this process may
-#: use, but 1 in a worker process of a pool (the tuner's, ``compare``'s, Dask's), whose siblings
-#: already keep the CPUs busy
-THREADS_ENV = "HYBRIDNAV_THREADS"
-#: work a thread gets at least, in ns (estimated from :attr:`Kernel.cost_ns`): ~50 us to hand it
-#: over and join it
-THREAD_MIN_NS = 5e6
-_POOL: ThreadPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
-
-
-def threads() -> int:
-    """Threads a large batch runs on (see :data:`THREADS_ENV`)."""
-    v = os.environ.get(THREADS_ENV, "").strip()
-    if v:
-        try:
-            return max(1, int(v))
-        except ValueError:
-            log.warning("%s=%r is not an integer; using 1 thread", THREADS_ENV, v)
-            return 1
-    if multiprocessing.parent_process() is not None:
-        return 1
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
-def _pool(workers: int) -> ThreadPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None or _POOL._max_workers < workers:
-            if _POOL is not None:
-                _POOL.shutdown(wait=False)
-            _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="hybridnav-kernel")
-        return _POOL
-
-
-def _reset_after_fork() -> None:
-    global _POOL, _POOL_LOCK
-    _POOL, _POOL_LOCK = None, threading.Lock()   # the parent's threads do not exist here
-
-
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_reset_after_fork)
-
-
-def run(k: Kernel, X: np.ndarray, T: np.ndarray, out: np.ndarray, steps: int, rs: int, ks: int,
-        offset: int = 0, nthreads: int | None = None) -> None:
-    """:meth:`Kernel.run`, split over threads for large batches (``nthreads``, default
-    :func:`threads`; a thread gets at least :data:`THREAD_MIN_NS` of estimated work): each
-    thread takes a contiguous range of robots (whole blocks of lanes), so the results are the
-    same whatever the number of threads."""
-    n = len(X)
-    most = int(n * steps * k.cost_ns // THREAD_MIN_NS)
-    if most < 2 or nthreads == 1:
-        k.run(X, T, out, steps, rs, ks, offset)
-        return
-    parts = min(threads() if nthreads is None else max(1, nthreads), most, -(-n // k.lanes))
-    if parts <= 1:
-        k.run(X, T, out, steps, rs, ks, offset)
-        return
-    per = -(-n // (parts * k.lanes)) * k.lanes
-    bounds = [(lo, min(n, lo + per)) for lo in range(0, n, per)]
-    pool = _pool(len(bounds) - 1)
-    futures = [pool.submit(k.run, X[lo:hi], T[lo:hi], out, steps, rs, ks, offset + lo * rs)
-               for lo, hi in bounds[1:]]
-    lo, hi = bounds[0]
-    try:
-        k.run(X[lo:hi], T[lo:hi], out, steps, rs, ks, offset)
-    finally:
-        for f in futures:
-            f.result()
 
 
 def allowed() -> bool:
