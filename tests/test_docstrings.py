@@ -197,6 +197,7 @@ def _kwargs_calls():
 EXEMPT = {
     "hybridnav.fuzzy.plots.save_surface_png": "matplotlib's plot_surface keywords",
     "hybridnav.planners.field.base.FieldPlanner.trace": "signal names are free",
+    "hybridnav.progress.PlainProgress.set_postfix": "tqdm's interface: any names, shown as given",
     "hybridnav.models.base.Model": "abstract; every registered model is called above",
     "hybridnav.planners.base.Planner": "abstract; every registered planner is called above",
     "hybridnav.planners.field.base.FieldPlanner": "abstract; every registered planner is "

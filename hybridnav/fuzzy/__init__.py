@@ -36,8 +36,8 @@ from hybridnav.fuzzy.spec import (
     TermRef,
     Variable,
 )
-from hybridnav.fuzzy.skfuzzy_import import from_skfuzzy
-from hybridnav.fuzzy.system import FuzzySystem, builtin, builtin_names, load, loads
+from hybridnav.fuzzy.system import (FuzzySystem, builtin, builtin_names, from_skfuzzy, load,
+                                    loads)
 
 __all__ = [
     "FORMAT", "MF_PARAMS", "FuzzySystem", "load", "loads", "builtin", "builtin_names",

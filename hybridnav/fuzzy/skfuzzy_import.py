@@ -1,4 +1,4 @@
-"""Bringing a scikit-fuzzy ``ControlSystem`` in: :func:`from_skfuzzy`.
+"""Bringing a scikit-fuzzy ``ControlSystem`` in (:func:`hybridnav.fuzzy.from_skfuzzy`).
 
 scikit-fuzzy stores each term as membership values sampled on its variable's universe; a
 hybridnav system stores membership functions by shape and parameters and samples them on
@@ -20,7 +20,7 @@ import numpy as np
 from hybridnav.errors import HybridnavError
 from hybridnav.fuzzy.mf import MF_PARAMS, check_params, sample
 
-__all__ = ["TOLERANCE", "from_skfuzzy"]
+__all__ = ["TOLERANCE", "document"]
 
 #: Largest difference between a term's samples and the recovered membership function.
 TOLERANCE = 1e-9
@@ -240,9 +240,10 @@ def _antecedent(a, inputs: set[str]) -> Any:
                          f"and ~, got {type(a).__name__}")
 
 
-def from_skfuzzy(system: Any, *, name: str | None = None, default: float | None = None,
-                 description: str = ""):
-    """The scikit-fuzzy ``ControlSystem`` ``system`` as a :class:`~hybridnav.fuzzy.FuzzySystem`.
+def document(system: Any, *, name: str | None = None, default: float | None = None,
+             description: str = "") -> dict[str, Any]:
+    """The scikit-fuzzy ``ControlSystem`` ``system`` as a ``hybridnav-fis/1`` document
+    (:func:`hybridnav.fuzzy.from_skfuzzy` builds the system from it).
 
     Parameters
     ----------
@@ -260,9 +261,9 @@ def from_skfuzzy(system: Any, *, name: str | None = None, default: float | None 
 
     Returns
     -------
-    FuzzySystem
-        Evaluates as scikit-fuzzy's ``ControlSystemSimulation`` computes (inputs clipped to
-        their universes, as hybridnav does).
+    dict
+        The document: the system evaluates as scikit-fuzzy's ``ControlSystemSimulation``
+        computes (inputs clipped to their universes, as hybridnav does).
 
     Raises
     ------
@@ -270,8 +271,6 @@ def from_skfuzzy(system: Any, *, name: str | None = None, default: float | None 
         Naming the variable, term or rule hybridnav cannot represent.
     """
     from skfuzzy.control import ControlSystem
-
-    from hybridnav.fuzzy.system import FuzzySystem
 
     if not isinstance(system, ControlSystem):
         raise HybridnavError(f"from_skfuzzy: expected a skfuzzy.control.ControlSystem, got "
@@ -307,6 +306,5 @@ def from_skfuzzy(system: Any, *, name: str | None = None, default: float | None 
         weight = float(getattr(c, "weight", 1.0))
         doc_rules.append({"if": _antecedent(r.antecedent, names), "then": str(term.label),
                           "weight": weight})
-    doc = {"format": "hybridnav-fis/1", "name": name or "skfuzzy",
-           "description": description, "inputs": inputs, "output": output, "rules": doc_rules}
-    return FuzzySystem.from_dict(doc, source="from_skfuzzy")
+    return {"format": "hybridnav-fis/1", "name": name or "skfuzzy", "description": description,
+            "inputs": inputs, "output": output, "rules": doc_rules}

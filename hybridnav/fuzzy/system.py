@@ -40,7 +40,7 @@ from hybridnav.params import short_repr
 if TYPE_CHECKING:  # pragma: no cover
     from skfuzzy.control import ControlSystem
 
-__all__ = ["FuzzySystem", "load", "loads", "builtin", "builtin_names"]
+__all__ = ["FuzzySystem", "load", "loads", "builtin", "builtin_names", "from_skfuzzy"]
 
 log = logging.getLogger(__name__)
 
@@ -180,8 +180,8 @@ class FuzzySystem:
     @classmethod
     def from_skfuzzy(cls, system: ControlSystem, *, name: str | None = None,
                      default: float | None = None, description: str = "") -> FuzzySystem:
-        """A scikit-fuzzy ``ControlSystem`` as a hybridnav system (see
-        :func:`hybridnav.fuzzy.from_skfuzzy`, which this calls).
+        """A scikit-fuzzy ``ControlSystem`` as a hybridnav system (the same as
+        :func:`hybridnav.fuzzy.from_skfuzzy`).
 
         Parameters
         ----------
@@ -195,9 +195,10 @@ class FuzzySystem:
         -------
         FuzzySystem
         """
-        from hybridnav.fuzzy.skfuzzy_import import from_skfuzzy
+        from hybridnav.fuzzy.skfuzzy_import import document
 
-        return from_skfuzzy(system, name=name, default=default, description=description)
+        return cls.from_dict(document(system, name=name, default=default,
+                                      description=description), source="from_skfuzzy")
 
     def to_skfuzzy(self) -> ControlSystem:
         """The equivalent scikit-fuzzy ``ControlSystem``.
@@ -539,3 +540,37 @@ def _overflowing_term(parts: dict[str, Any]) -> str:
             except FloatingPointError:
                 return f"{where}.terms[{j}].params"
     return "terms"
+
+
+def from_skfuzzy(system, *, name: str | None = None, default: float | None = None,
+                 description: str = "") -> FuzzySystem:
+    """The scikit-fuzzy ``ControlSystem`` ``system`` as a :class:`FuzzySystem`.
+
+    Each term's samples become the hybridnav shape (``trimf``, ``trapmf``, ``gaussmf``,
+    ``gbellmf``, ``sigmf``, ``zmf``, ``smf``) whose parameters, recovered from them, reproduce
+    every sample to 1e-9 and are exactly 0 where scikit-fuzzy's are (whether a rule fires depends
+    on it), so the system evaluates as scikit-fuzzy's ``ControlSystemSimulation`` computes.
+
+    Parameters
+    ----------
+    system : skfuzzy.control.ControlSystem
+        One consequent, centroid defuzzification, the default ``and`` (minimum) and ``or``
+        (maximum), evenly spaced universes.
+    name : str, optional
+        The system's name (default ``"skfuzzy"``).
+    default : float, optional
+        The output when no rule fires (scikit-fuzzy leaves it unset; default: the middle of the
+        output's universe).
+    description : str
+        Stored with the system.
+
+    Returns
+    -------
+    FuzzySystem
+
+    Raises
+    ------
+    HybridnavError
+        Naming the variable, term or rule hybridnav cannot represent.
+    """
+    return FuzzySystem.from_skfuzzy(system, name=name, default=default, description=description)

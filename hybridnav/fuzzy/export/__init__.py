@@ -279,7 +279,7 @@ def _from_python(spec: str) -> FuzzySystem:
     import importlib
     import importlib.util
 
-    from hybridnav.fuzzy.skfuzzy_import import from_skfuzzy
+    from hybridnav.fuzzy.system import from_skfuzzy
 
     where, _, attr = spec.rpartition(":")
     if not where or not attr:
