@@ -7,6 +7,7 @@ import json
 import os
 import signal
 import subprocess
+import types
 import sys
 import time
 
@@ -871,3 +872,25 @@ def test_the_path_figure_draws_the_held_out_runs():
     import dataclasses
 
     assert _lockstep_traces(scen + [dataclasses.replace(scen[0], dt=0.05)], runs) is None
+
+
+def test_the_convergence_figure_ticks_whole_generations():
+    """Generations are whole numbers: the convergence figure has no fractional ticks, even for a
+    short run (matplotlib's default locator puts 0.5 steps on a 3-generation axis)."""
+    import pandas as pd
+
+    from hybridnav.tuner.run import _convergence
+
+    log = pd.DataFrame({"gen": [0, 1, 2, 3], "min": [3.0, 2.5, 2.2, 2.1],
+                        "mean": [9.0, 5.0, 3.0, 2.5], "val_gen": [3.2, 2.7, 2.6, 2.4],
+                        "val_best": [3.2, 2.7, 2.6, 2.4]})
+    result = types.SimpleNamespace(logbook=log, best_generation=3, objective_names=("rmse",),
+                                   system=types.SimpleNamespace(name="x"))
+    fig = _convergence(result)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    ticks = fig.axes[0].get_xticks()
+    lo, hi = fig.axes[0].get_xlim()
+    shown = [t for t in ticks if lo <= t <= hi]
+    assert shown and all(float(t).is_integer() for t in shown), shown

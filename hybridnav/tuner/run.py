@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.errors import HybridnavError
@@ -478,6 +479,7 @@ def _convergence(result: TuningResult) -> Figure:
     if (df["min"] > 0).all():
         ax.set_yscale("log")
     ax.set_xlabel("generation" + (" (all k-fold stages)" if "stage" in df else ""))
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))      # generations are whole
     ax.set_ylabel(f"{result.objective_names[0]} (minimized)")
     ax.set_title(f"{result.system.name}: training and validation")
     ax.legend(fontsize=8)
