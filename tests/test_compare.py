@@ -309,3 +309,35 @@ def test_convergence_of_the_swarm_searches_is_recorded_per_run_and_plotted(tmp_p
         steps = conv[(conv.planner == "fastep-kinematic") & (conv.run == run)]
         assert steps["plan"].nunique() == fa.metrics["planning_calls"]
     assert found                                  # the search's last best is the path's length
+
+
+def test_bars_are_honest():
+    """compare's bar figures: a planner that never reached is marked ``n = 0``, a success rate
+    carries its Wilson interval, and no interval leaves its metric's range (lengths and times
+    are not negative; a rate stays in [0, 1])."""
+    import numpy as np
+    import pandas as pd
+
+    from hybridnav.analysis.compare import _bars
+    from hybridnav.tuner.heldout import wilson
+
+    summary = pd.DataFrame({
+        "planner": ["a", "b"], "scenario": ["s", "s"], "robots": [10, 10],
+        "success_rate": [0.9, 0.0], "units": ["m", "m"],
+        "compute_time_mean": [0.05, 0.3], "compute_time_ci95_lo": [-0.27, 0.1],
+        "compute_time_ci95_hi": [0.37, 0.5],
+        "path_length_mean": [5.0, np.nan], "path_length_ci95_lo": [4.0, np.nan],
+        "path_length_ci95_hi": [6.0, np.nan]})
+    fig = _bars(summary, "path_length", "path length [{units}] (reached)")
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.texts] == ["n = 0"]
+    assert ax.get_title() != ax.get_ylabel()
+    fig = _bars(summary, "compute_time", "compute time [s]")
+    segs = [c for c in fig.axes[0].collections]
+    lows = [min(seg[0][1], seg[1][1]) for col in segs for seg in col.get_segments()]
+    assert lows and min(lows) >= 0.0
+    fig = _bars(summary, "success_rate", "success rate")
+    segs = [seg for col in fig.axes[0].collections for seg in col.get_segments()]
+    spans = sorted((round(min(a[1], b[1]), 9), round(max(a[1], b[1]), 9)) for a, b in segs)
+    want = sorted(tuple(round(v, 9) for v in wilson(k, 10)) for k in (9, 0))
+    assert spans == want and all(0.0 <= lo <= hi <= 1.0 for lo, hi in spans)

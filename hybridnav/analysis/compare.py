@@ -609,9 +609,18 @@ def _overlay(spec: str, paths: Mapping[str, Mapping[str, np.ndarray]]) -> Figure
     return fig
 
 
+#: metrics that cannot be negative: their intervals are cut at 0 (a success rate's at 0 and 1)
+_NONNEGATIVE = ("path_length", "time_to_goal", "compute_time", "control_effort",
+                "time_with_planning")
+
+
 def _bars(summary: pd.DataFrame, metric: str, label: str) -> Figure:
-    """Bars per scenario and planner (mean with its 95 % interval; success rate plain), one panel
-    per length unit where the scenarios' units differ (``{units}`` in ``label``)."""
+    """Bars per scenario and planner, one panel per length unit where the scenarios' units
+    differ (``{units}`` in ``label``): a metric's mean with its 95 % interval of the mean, cut to
+    the metric's range; a success rate with its 95 % Wilson interval; ``n = 0`` where no run
+    gave a value (a planner that never reached has no length)."""
+    from hybridnav.tuner.heldout import wilson
+
     units_of = (dict(zip(summary["scenario"], summary["units"])) if "units" in summary
                 else {})
     groups: dict[str, list[str]] = {}
@@ -627,18 +636,38 @@ def _bars(summary: pd.DataFrame, metric: str, label: str) -> Figure:
             sub = summary[summary["planner"] == p].set_index("scenario").reindex(scen)
             x = np.arange(len(scen)) + (i - (len(plans) - 1) / 2) * width
             if metric == "success_rate":
-                ax.bar(x, sub[metric], width, label=p)
+                rate = sub[metric].astype(float).to_numpy()
+                n = sub["robots"].astype(float).to_numpy() if "robots" in sub else \
+                    np.full(len(sub), np.nan)
+                ci = np.array([wilson(round(r * k), int(k)) if np.isfinite(r) and k > 0
+                               else (np.nan, np.nan) for r, k in zip(rate, n)]).reshape(-1, 2)
+                err = np.vstack([rate - ci[:, 0], ci[:, 1] - rate])
+                mean = rate
             else:
-                mean = sub[f"{metric}_mean"]
+                mean = sub[f"{metric}_mean"].astype(float).to_numpy()
                 if f"{metric}_ci95_lo" in sub:
-                    err = np.vstack([mean - sub[f"{metric}_ci95_lo"],
-                                     sub[f"{metric}_ci95_hi"] - mean])
+                    lo = sub[f"{metric}_ci95_lo"].astype(float).to_numpy()
+                    hi = sub[f"{metric}_ci95_hi"].astype(float).to_numpy()
                 else:
-                    err = sub[f"{metric}_std"].to_numpy()
-                ax.bar(x, mean, width, yerr=np.nan_to_num(err), capsize=3, label=p)
+                    sd = sub[f"{metric}_std"].astype(float).to_numpy()
+                    lo, hi = mean - sd, mean + sd
+                if metric in _NONNEGATIVE:       # no interval below what the metric can be
+                    lo = np.maximum(lo, 0.0)
+                err = np.vstack([mean - lo, hi - mean])
+            bars = ax.bar(x, np.nan_to_num(mean), width, yerr=np.nan_to_num(err), capsize=3,
+                          label=p)
+            for xi, m in zip(x, mean):
+                if not np.isfinite(m):           # nothing to average: say so on the axis
+                    ax.annotate("n = 0", (xi, 0), xytext=(0, 2), textcoords="offset points",
+                                ha="center", va="bottom", fontsize=7, rotation=90,
+                                color=bars.patches[0].get_facecolor() if bars.patches
+                                else "black")
         ax.set_xticks(np.arange(len(scen)), scen, rotation=20)
         text = label.replace("{units}", unit or "scenario units")
         ax.set_ylabel(text)
+        if metric == "success_rate":
+            ax.set_ylim(0, 1.05)
         ax.legend(fontsize=8)
-        ax.set_title(text)
+        ax.set_title("mean and 95 % interval per planner" if metric != "success_rate"
+                     else "share of runs that reached, 95 % Wilson interval", fontsize=9)
     return fig
