@@ -894,3 +894,15 @@ def test_the_convergence_figure_ticks_whole_generations():
     lo, hi = fig.axes[0].get_xlim()
     shown = [t for t in ticks if lo <= t <= hi]
     assert shown and all(float(t).is_integer() for t in shown), shown
+
+
+def test_path_legends_give_the_length_unit():
+    """``plot_traces`` / ``plot_result`` legends carry the scenario's length unit."""
+    from hybridnav.plotting import Trace, plot_traces
+    from hybridnav.world import load_scenario
+
+    s = load_scenario("effc-env-b")
+    fig = plot_traces(s, [Trace("robot", np.array([[0.0, 0.0], [1.0, 1.0]]), "reached", 1.414,
+                                None, 14.1)])
+    texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert texts == [f"robot: reached, length 1.41 {s.units}"]

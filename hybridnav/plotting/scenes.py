@@ -222,7 +222,7 @@ def plot_traces(scenario: Scenario, traces, ax: Axes | None = None) -> Figure:
         col = f"C{i % 10}"
         xy = rr.xy
         ax.plot(xy[:, 0], xy[:, 1], color=col, linewidth=1.6, zorder=7,
-                label=f"{rr.name}: {rr.outcome}, length {rr.path_length:.3g}")
+                label=f"{rr.name}: {rr.outcome}, length {rr.path_length:.3g} {scenario.units}")
         model = models.get(rr.name)
         if model is not None and rr.state is not None and len(rr.state) == model.nx:
             centers, radii = model.footprint(np.asarray(rr.state)[None])
