@@ -179,3 +179,32 @@ def test_terms_are_checked_on_the_points_hybridnav_samples():
         except (ValueError, AssertionError):     # nothing fired: hybridnav gives its default
             want = 4.5
         assert g == pytest.approx(want, abs=1e-9), v
+
+
+def test_python_files_run_as_imported_and_their_exits_are_errors(tmp_path, capsys):
+    """A file with a dataclass under ``from __future__ import annotations`` (dataclasses look
+    the module up in sys.modules) loads; sys.exit() in the file, a directory named x.py and a
+    missing upper-case .JSON file are errors that say so (exit 2), not an exit with the file's
+    code or an import error about a module '/tmp/a'."""
+    from hybridnav.cli import main
+    from hybridnav.fuzzy import load_any
+
+    src = tmp_path / "withdc.py"
+    src.write_text("from __future__ import annotations\nimport dataclasses\n"
+                   "import numpy as np\nfrom skfuzzy import control as ctrl\n"
+                   "@dataclasses.dataclass\nclass P:\n    lo: float = 0.0\n"
+                   "a = ctrl.Antecedent(np.linspace(0, 1, 11), 'a')\na.automf(3)\n"
+                   "o = ctrl.Consequent(np.linspace(0, 1, 11), 'o')\no.automf(3)\n"
+                   "CS = ctrl.ControlSystem([ctrl.Rule(a['poor'], o['good'])])\nNONE = None\n")
+    assert load_any(f"{src}:CS").name == "CS"
+    with pytest.raises(HybridnavError, match="expected a skfuzzy.control.ControlSystem, got "
+                                             "NoneType"):
+        load_any(f"{src}:NONE")
+    (tmp_path / "exits.py").write_text("import sys\nsys.exit(3)\n")
+    assert main(["fis", f"{tmp_path / 'exits.py'}:CS"]) == 2
+    assert "cannot import" in capsys.readouterr().err
+    (tmp_path / "dir.py").mkdir()
+    with pytest.raises(HybridnavError, match="dir.py: not a file"):
+        load_any(f"{tmp_path / 'dir.py'}:CS")
+    with pytest.raises(HybridnavError, match="cannot read fuzzy system file"):
+        load_any(f"{tmp_path}/a:b/sys.JSON")
