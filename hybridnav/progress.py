@@ -25,32 +25,43 @@ class PlainProgress:
         self.n = 0
         self.postfix: dict[str, Any] = {}
         self._shown = -1.0
+        self._shown_n = 0
         self._t0 = time.perf_counter()
         self._closed = False
 
-    def set_postfix(self, **kw: Any) -> None:
-        self.postfix = kw
+    def set_postfix(self, ordered_dict: dict[str, Any] | None = None, refresh: bool = True,
+                    **kw: Any) -> None:
+        """As tqdm's: ``ordered_dict`` and the keywords shown after the count; ``refresh``
+        (tqdm's redraw) does nothing here."""
+        self.postfix = {**(ordered_dict or {}), **kw}
 
     def refresh(self) -> None:
         pass
 
+    def _frac(self) -> float:
+        # no total: a line at each doubling (1, 2, 4, ...), not one per update
+        return self.n / self.total if self.total else float(max(int(self.n), 0).bit_length())
+
     def update(self, k: int = 1) -> None:
+        if self._closed:                     # as tqdm's: nothing after close()
+            return
         self.n += k
-        frac = self.n / self.total if self.total else 1.0
-        if frac >= 1.0 or frac - self._shown >= self.every - 1e-12:
+        frac = self._frac()
+        # the end once, not a line for each update past the total
+        if (frac >= 1.0 and self._shown < 1.0) or frac - self._shown >= self.every - 1e-12:
             self._line()
             self._shown = frac
 
     def _line(self) -> None:
         extra = ", ".join(f"{k}={v}" for k, v in self.postfix.items())
         total = f"/{self.total}" if self.total else ""
+        self._shown_n = self.n
         print(f"{self.desc}: {self.n}{total} {self.unit} "
               f"({time.perf_counter() - self._t0:.1f} s){'; ' + extra if extra else ''}",
               file=self.file, flush=True)
 
     def close(self) -> None:
-        if not self._closed and self.n and self._shown < (self.n / self.total
-                                                         if self.total else 1.0):
+        if not self._closed and self.n != self._shown_n:     # the last count, once
             self._line()
         self._closed = True
 

@@ -211,3 +211,32 @@ def test_progress_is_plain_lines_when_not_a_terminal():
     lines = text.splitlines()
     assert 9 <= len(lines) <= 11 and lines[-1].startswith("tune x: 25/25 gen")
     assert lines[-1].endswith("gen=24")
+
+
+def test_plain_progress_past_its_total_without_one_and_closed():
+    """Past the total a line per tenth of it (was one per update: 200 lines for 300 of 100);
+    without a total one at each doubling (was one per update); nothing after close() and the
+    last count once, as tqdm; set_postfix takes tqdm's dict and refresh."""
+    import io
+
+    from hybridnav.progress import PlainProgress
+
+    def lines(total, updates, close=2):
+        buf = io.StringIO()
+        p = PlainProgress(total, "run", "x", file=buf)
+        for _ in range(updates):
+            p.update()
+        for _ in range(close):
+            p.close()
+        p.update(5)
+        return buf.getvalue().splitlines()
+
+    assert len(lines(100, 300)) == 31 and lines(100, 300)[-1].startswith("x: 300/100 run")
+    assert [ln.split()[1] for ln in lines(0, 25)] == ["1", "2", "4", "8", "16", "25"]
+    assert [ln.split()[1] for ln in lines(None, 5)] == ["1", "2", "4", "5"]
+    assert lines(7, 0) == [] and len(lines(3, 3)) == 3
+    buf = io.StringIO()
+    p = PlainProgress(2, "gen", "t", file=buf)
+    p.set_postfix({"best": 1}, refresh=False, gen=3)
+    p.update(2)
+    assert buf.getvalue().rstrip().endswith("; best=1, gen=3")

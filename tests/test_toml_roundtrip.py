@@ -102,3 +102,28 @@ def test_job_files_round_trip(tmp_path_factory, name, seed):
         assert "name" in str(exc)
         return
     assert job.to_dict() == d
+
+
+def test_what_toml_cannot_hold_is_an_error_naming_its_key():
+    """A 0-d array is its number (was TypeError: iteration over a 0-d array); a lone surrogate
+    (undecodable bytes of a command line: generate --set name=$'a\\xff') is refused naming the
+    key (was UnicodeEncodeError when the file was written); keys 1 and "1" are refused instead
+    of one silently replacing the other; a document that is not a table is refused."""
+    assert tomllib.loads(toml_dumps({"a": np.array(5.0), "b": np.array(True)})) == \
+        {"a": 5.0, "b": True}
+    with pytest.raises(HybridnavError, match=r"^t\.name: cannot write 'a\\udcff' as TOML"):
+        toml_dumps({"t": {"name": "a\udcff"}})
+    with pytest.raises(HybridnavError, match=r"^t: cannot write '\\ud800'"):
+        toml_dumps({"t": {"\ud800": 1}})
+    with pytest.raises(HybridnavError, match=r"^t\.1: two keys written as '1'"):
+        toml_dumps({"t": {1: "x", "1": "y"}})
+    with pytest.raises(HybridnavError, match=r"^cannot write list as a TOML document"):
+        toml_dumps([1])
+
+
+def test_generate_refuses_a_name_that_is_not_utf8(tmp_path, capsys):
+    from hybridnav.cli import main
+
+    assert main(["generate", "--count", "1", "--set", "name=a\udcff", "--out",
+                 str(tmp_path / "w")]) == 2
+    assert "name: cannot write 'a\\udcff-0-000' as TOML (not UTF-8" in capsys.readouterr().err

@@ -214,7 +214,9 @@ def _universe(v) -> tuple[np.ndarray, dict[str, Any]]:
         raise HybridnavError(f"from_skfuzzy: {v.label}: expected an evenly spaced increasing "
                              "universe (np.linspace or np.arange); hybridnav samples "
                              "np.linspace(lo, hi, points)")
-    terms = [_term(v.label, str(name), x, t.mf) for name, t in v.terms.items()]
+    # recovered and checked on the points hybridnav samples (np.arange's can be an ulp off
+    # them, and a membership of 1e-15 where scikit-fuzzy's is 0 makes a rule fire)
+    terms = [_term(v.label, str(name), even, t.mf) for name, t in v.terms.items()]
     return x, {"name": str(v.label), "range": [float(x[0]), float(x[-1])], "points": len(x),
                "terms": terms}
 

@@ -14,6 +14,7 @@ import tomli_w
 from hybridnav import models
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
+from hybridnav.params import short_repr
 from hybridnav.world.obstacles import (
     _TYPE_OF,
     Circle,
@@ -93,11 +94,25 @@ def _plain(v: Any, key: str) -> Any:
     if isinstance(v, (float, np.floating)):
         return float(v)
     if isinstance(v, str):
+        try:                                # a lone surrogate (e.g. undecodable bytes of argv)
+            v.encode("utf-8")
+        except UnicodeEncodeError as exc:
+            raise HybridnavError(f"{key or 'data'}: cannot write {short_repr(v)} as TOML (not "
+                                 f"UTF-8: {exc.reason})") from None
         return v
     if isinstance(v, Mapping):
         # a key set to None is a key not set (TOML has no null)
-        return {str(k): _plain(x, f"{key}.{k}" if key else str(k)) for k, x in v.items()
-                if x is not None}
+        out = {}
+        for k, x in v.items():
+            name = str(_plain(k, key) if isinstance(k, str) else k)
+            where = f"{key}.{name}" if key else name
+            if name in out:                 # e.g. 1 and "1": one would silently replace the other
+                raise HybridnavError(f"{where}: two keys written as {name!r}")
+            if x is not None:
+                out[name] = _plain(x, where)
+        return out
+    if isinstance(v, np.ndarray) and v.ndim == 0:
+        return _plain(v[()], key)
     if isinstance(v, (list, tuple, np.ndarray)):
         return [_plain(x, f"{key}[{i}]") for i, x in enumerate(v)]
     raise HybridnavError(f"{key or 'data'}: cannot write {type(v).__name__} as TOML; expected a "
@@ -124,6 +139,9 @@ def toml_dumps(data: Mapping[str, Any]) -> str:
     HybridnavError
         For a value TOML cannot hold (``None`` in an array, an object), naming its key.
     """
+    if not isinstance(data, Mapping):
+        raise HybridnavError(f"cannot write {type(data).__name__} as a TOML document; expected a "
+                             "table (mapping)")
     return tomli_w.dumps(_plain(data, ""))
 
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -259,7 +260,8 @@ def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POIN
         named).
     """
     s = os.fspath(name_or_path)
-    if isinstance(name_or_path, str) and ":" in s and not s.endswith((".json", ".fll", ".fis")) \
+    if isinstance(name_or_path, str) and ":" in s \
+            and not s.lower().endswith((".json", ".fll", ".fis")) \
             and not os.path.exists(s):
         return _from_python(s)
     suffix = Path(s).suffix.lower()
@@ -287,18 +289,27 @@ def _from_python(spec: str) -> FuzzySystem:
     try:
         if where.endswith(".py"):
             if not os.path.isfile(where):
-                raise HybridnavError(f"{where}: no such file")
-            mod_spec = importlib.util.spec_from_file_location(Path(where).stem, where)
+                raise HybridnavError(f"{where}: " + ("not a file" if os.path.exists(where)
+                                                     else "no such file"))
+            # in sys.modules while it runs, as an import is (dataclasses and pickle look the
+            # module up there), under a name that shadows no other module
+            name = f"_hybridnav_fis_{Path(where).stem}"
+            mod_spec = importlib.util.spec_from_file_location(name, where)
             module = importlib.util.module_from_spec(mod_spec)
-            mod_spec.loader.exec_module(module)
+            sys.modules[name] = module
+            try:
+                mod_spec.loader.exec_module(module)
+            except BaseException:
+                sys.modules.pop(name, None)
+                raise
         else:
             module = importlib.import_module(where)
     except HybridnavError:
         raise
-    except Exception as exc:                   # any error in the user's code
+    except (Exception, SystemExit) as exc:     # any error in the user's code, or its exit()
         raise HybridnavError(f"{spec}: cannot import {where!r} ({type(exc).__name__}: "
                              f"{exc})") from None
-    obj = getattr(module, attr, None)
-    if obj is None:
+    if not hasattr(module, attr):
         raise HybridnavError(f"{spec}: {where!r} has no {attr!r}")
+    obj = getattr(module, attr)
     return from_skfuzzy(obj, name=attr)
