@@ -225,7 +225,7 @@ def _antecedent(a, inputs: set[str]) -> Any:
     from skfuzzy.control.term import Term, TermAggregate
 
     if isinstance(a, Term):
-        if a.parent.label not in inputs:
+        if str(a.parent.label) not in inputs:
             raise HybridnavError(f"from_skfuzzy: a rule's antecedent uses {a.parent.label!r}, "
                                  "which is not an input")
         return [str(a.parent.label), str(a.label)]

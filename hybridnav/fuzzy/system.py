@@ -550,6 +550,9 @@ def from_skfuzzy(system, *, name: str | None = None, default: float | None = Non
     ``gbellmf``, ``sigmf``, ``zmf``, ``smf``) whose parameters, recovered from them, reproduce
     every sample to 1e-9 and are exactly 0 where scikit-fuzzy's are (whether a rule fires depends
     on it), so the system evaluates as scikit-fuzzy's ``ControlSystemSimulation`` computes.
+    Triangles and trapezoids are recovered wherever their corners lie; a bell (``gbellmf``)
+    whose centre falls between samples, and some Gaussian, sigmoid and z/s terms, are not yet
+    recognized and are refused, naming the term.
 
     Parameters
     ----------
