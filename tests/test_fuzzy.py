@@ -469,8 +469,13 @@ def test_plots_write_pngs(tmp_path):
         assert p.read_bytes()[:8] == PNG and p.stat().st_size > 5000
     assert sorted(q.name for q in tmp_path.iterdir()) == ["m.png", "s.png"]
     surf = plots.plot_surface(fs, resolution=9)
-    ax = surf.axes[0]
-    assert ax.get_xlabel() == "dtheta" and ax.get_ylabel() == "alpha" and ax.get_zlabel() == "w"
+    ax, bar = surf.axes
+    assert ax.get_xlabel() == "dtheta" and ax.get_ylabel() == "alpha" and bar.get_ylabel() == "w"
+    mesh = ax.collections[0]                    # the heatmap: the output on the grid
+    gx, gy = np.meshgrid(np.linspace(*fs.inputs[0].range, 9), np.linspace(*fs.inputs[1].range, 9))
+    np.testing.assert_allclose(np.asarray(mesh.get_array()).reshape(9, 9),
+                               fs.evaluate(dtheta=gx, alpha=gy))
+    assert mesh.get_clim() == fs.output.range
 
 
 def test_surface_for_one_and_three_inputs(tmp_path):

@@ -70,8 +70,9 @@ def plot_memberships(system: FuzzySystem, fig: Figure | None = None) -> Figure:
 
 
 def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[str, str] | None = None,
-                 fixed: Mapping[str, float] | None = None, resolution: int = 41) -> Figure:
-    """Draw the control surface: the output over two inputs.
+                 fixed: Mapping[str, float] | None = None, resolution: int = 161) -> Figure:
+    """Draw the control surface: the output over two inputs, as a heatmap with contour lines
+    and a colour bar (the output's range).
 
     Parameters
     ----------
@@ -127,12 +128,17 @@ def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[s
     args = {n: float(fixed.get(n, 0.5 * (v.range[0] + v.range[1])))
             for n, v in by_name.items() if n not in pair}
     z = system.evaluate(**{vx.name: gx, vy.name: gy}, **args)
-    ax = fig.add_subplot(projection="3d")
-    ax.plot_surface(gx, gy, z, cmap="viridis", linewidth=0.2, edgecolor="0.3", antialiased=True)
+    # a heatmap with contour lines: every region visible at once (a 3-D view hides some) and
+    # fine enough for a narrow split
+    ax = fig.add_subplot()
+    mesh = ax.pcolormesh(gx, gy, z, cmap="viridis", vmin=out.range[0], vmax=out.range[1],
+                         shading="auto")
+    if np.nanmax(z) > np.nanmin(z):
+        cs = ax.contour(gx, gy, z, levels=8, colors="white", linewidths=0.6)
+        ax.clabel(cs, fontsize=7, fmt="%.2g")
+    fig.colorbar(mesh, ax=ax, label=out.name)
     ax.set_xlabel(vx.name)
     ax.set_ylabel(vy.name)
-    ax.set_zlabel(out.name)
-    ax.set_zlim(*out.range)
     held = ", ".join(f"{k} = {v:g}" for k, v in args.items())
     ax.set_title(f"{system.name}: control surface" + (f" ({held})" if held else ""))
     return fig
