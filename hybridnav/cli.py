@@ -577,8 +577,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_SEED, default=0, help="seed of the planner's randomness")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="set a planner parameter (repeatable)")
-    p.add_argument("--fis", metavar="FILE.json", help="effc: the fuzzy system (a built-in name or "
-                                                      "a hybridnav-fis/1 file)")
+    p.add_argument("--fis", metavar="FIS", help="effc, steer: the fuzzy system (a built-in "
+                                                "name, a .json, .fll or .fis file, or "
+                                                "file.py:NAME naming a scikit-fuzzy "
+                                                "ControlSystem)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
@@ -655,8 +657,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("fis", help="describe a fuzzy system; plot its membership functions and "
                                    "control surface")
-    p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned) or a "
-                                  "hybridnav-fis/1 file")
+    p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned, ...), a "
+                                  ".json, .fll or .fis file, or file.py:NAME / module:NAME "
+                                  "naming a scikit-fuzzy ControlSystem")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 
