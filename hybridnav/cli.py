@@ -577,7 +577,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_SEED, default=0, help="seed of the planner's randomness")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="set a planner parameter (repeatable)")
-    p.add_argument("--fis", metavar="FIS", help="effc, steer: the fuzzy system (a built-in "
+    p.add_argument("--fis", metavar="FIS", help="effc, fuzzy-steer: the fuzzy system (a built-in "
                                                 "name, a .json, .fll or .fis file, or "
                                                 "file.py:NAME naming a scikit-fuzzy "
                                                 "ControlSystem)")
