@@ -305,8 +305,8 @@ static int64_t hn_cell(const hn_stack *s, int64_t e, double px, double py)
     return ((int64_t)e * s->cells + (int64_t)fy) * s->cells + (int64_t)fx;
 }
 
-/* one group's signed distance at P and its nearest edge (first minimum); the same operations
- * as the full search in hn_columns */
+/* one group's signed distance at P and its nearest edge (first minimum): the minimum of its
+ * edges' distances, negative inside a closed group (left of every edge) */
 static void hn_group(const hn_stack *s, int64_t e, int g, double px, double py, double *D,
                      int *gedge, double *tmp_de, double *tmp_q)
 {
@@ -366,33 +366,8 @@ static void hn_columns(const hn_stack *s, int64_t e, double px, double py, doubl
         tmp_q[2 * (size_t)(Ed + c) + 1] = h;   /* the nearest point's normal reuses it */
         D[c] = h - s->cr[q];
     }
-    for (int g = 0; g < G; ++g) { D[C + g] = INFINITY; gedge[g] = -1; }
-    if (G) {
-        double *crmin = tmp_de + Ed;   /* G entries after the Ed distances */
-        for (int g = 0; g < G; ++g) crmin[g] = INFINITY;
-        for (int j = 0; j < Ed; ++j) {
-            size_t q = (size_t)e * Ed + j;
-            int g = (int)s->owner[q];
-            double ax = s->eA[2 * q], ay = s->eA[2 * q + 1];
-            double bx = s->eB[2 * q], by = s->eB[2 * q + 1];
-            double abx = bx - ax, aby = by - ay, apx = px - ax, apy = py - ay;
-            double den = abx * abx + aby * aby, num = apx * abx + apy * aby;
-            double u = den > 0.0 ? num / den : 0.0;
-            u = u < 0.0 ? 0.0 : u;
-            u = u > 1.0 ? 1.0 : u;
-            double qx = ax + u * abx, qy = ay + u * aby;
-            double de = hypot(px - qx, py - qy);
-            tmp_de[j] = de;
-            tmp_q[2 * j] = qx;
-            tmp_q[2 * j + 1] = qy;
-            if (g < 0) continue;
-            double cr = abx * apy - aby * apx;
-            if (cr < crmin[g]) crmin[g] = cr;
-            if (gedge[g] < 0 || de < D[C + g]) { D[C + g] = de; gedge[g] = j; }
-        }
-        for (int g = 0; g < G; ++g)
-            if (crmin[g] > 0.0 && s->closed[(size_t)e * G + g]) D[C + g] = -D[C + g];
-    }
+    for (int g = 0; g < G; ++g)            /* (padding edges belong to no group) */
+        hn_group(s, e, g, px, py, D, gedge, tmp_de, tmp_q);
     D[C + G] = INFINITY;
 }
 
