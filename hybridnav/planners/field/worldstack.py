@@ -69,6 +69,7 @@ class WorldStack:
             self.g_start[e, ng:] = len(w._eA)
         self.C, self.G = C, G
         self._cells: dict[int, tuple | None] = {}
+        self._kof: np.ndarray | None = None
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -78,12 +79,14 @@ class WorldStack:
     def column_obstacle(self) -> np.ndarray:
         """``(E, C + G)``: the index in its world of the obstacle each column holds (padding
         columns: ``K``), the inverse of :attr:`perm`."""
-        E, CG = len(self.worlds), self.C + self.G
-        kof = np.full((E, CG), self.K, dtype=np.int64)
-        for e, w in enumerate(self.worlds):
-            k = np.arange(len(w.obstacles))
-            kof[e, self.perm[e, k]] = k
-        return kof
+        if self._kof is None:               # asked once per compiled run: kept
+            E, CG = len(self.worlds), self.C + self.G
+            kof = np.full((E, CG), self.K, dtype=np.int64)
+            for e, w in enumerate(self.worlds):
+                k = np.arange(len(w.obstacles))
+                kof[e, self.perm[e, k]] = k
+            self._kof = kof
+        return self._kof
 
     def cells(self, per_side: int = 32):
         """Candidate lists for an exact nearest-obstacle search: each world's workspace, widened
