@@ -17,18 +17,9 @@ import pytest
 from hybridnav import models
 from hybridnav.models import kernel, parallel
 
-
-@pytest.fixture(autouse=True)
-def _kernel_or_skip(monkeypatch):
-    for var in (kernel.ENV, kernel.THREADS_ENV, "HYBRIDNAV_NATIVE", "HYBRIDNAV_JIT"):
-        monkeypatch.delenv(var, raising=False)
-    if models.get("point_mass")._compiled_kernel() is None:
-        pytest.skip("no compiled kernel here (no C compiler)")
-
-
-def _states(m, n, rng):
-    X0 = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-4, 4, (n, m.nx - 2))])
-    return X0, rng.uniform(-30, 30, (n, m.target_size))
+# the kernel tests' setup: no kernel switches from the environment (skip without a compiler),
+# and states of any kind
+from test_models_kernel import _kernel_or_skip, _states  # noqa: F401  (an autouse fixture)
 
 
 def _threshold_batches(k, steps):
