@@ -38,6 +38,21 @@ def _same(got, want):
         assert np.array_equal(g, w, equal_nan=True)
 
 
+def _spoil(rng, arrays, fractions):
+    """Put non-finite values ({value: fraction}, in that order) into each array, in place."""
+    for a in arrays:
+        flat = a.reshape(-1)
+        for value, fraction in fractions.items():
+            flat[rng.random(flat.size) < fraction] = value
+
+
+def _obstacle_boxes(rng, K):
+    """K obstacle boxes on the half grid (empty ones too) and their paddings."""
+    o_lo = rng.integers(-6, 6, (K, 2)).astype(float) * 0.5
+    o_hi = o_lo + rng.integers(0, 3, (K, 2)) * 0.5
+    return o_lo, o_hi, rng.integers(0, 3, K) * 0.5
+
+
 def _trajectories(rng, na, n1, nx, special):
     """Rollout-like samples on a half grid round targets on the grid: many samples exactly at
     the distance 2.5 = hypot(1.5, 2) (3-4-5) or 0 from their target."""
@@ -47,10 +62,7 @@ def _trajectories(rng, na, n1, nx, special):
     traj[..., 0] = np.where(touch, P[:, None, 0] + 1.5, traj[..., 0])
     traj[..., 1] = np.where(touch, P[:, None, 1] - 2.0, traj[..., 1])
     if special:
-        flat = traj.reshape(-1)
-        flat[rng.random(flat.size) < 0.03] = np.nan
-        flat[rng.random(flat.size) < 0.02] = np.inf
-        flat[rng.random(flat.size) < 0.02] = -np.inf
+        _spoil(rng, [traj], {np.nan: 0.03, np.inf: 0.02, -np.inf: 0.02})
         P[rng.random(P.shape) < 0.05] = np.nan
     return traj, P
 
@@ -135,14 +147,9 @@ def test_compiled_disks_near_equals_numpy(ns, n1, nd, K, special, monkeypatch):
     workspace = (-3.0, 3.0, -2.5, 3.5)
     for _ in range(15):
         C = rng.integers(-8, 8, (ns, n1, nd, 2)).astype(float) * 0.5
-        o_lo = rng.integers(-6, 6, (K, 2)).astype(float) * 0.5
-        o_hi = o_lo + rng.integers(0, 3, (K, 2)) * 0.5
-        o_pad = rng.integers(0, 3, K) * 0.5
+        o_lo, o_hi, o_pad = _obstacle_boxes(rng, K)
         if special:
-            for a in (C, o_lo, o_hi):
-                flat = a.reshape(-1)
-                flat[rng.random(flat.size) < 0.04] = np.nan
-                flat[rng.random(flat.size) < 0.02] = np.inf
+            _spoil(rng, (C, o_lo, o_hi), {np.nan: 0.04, np.inf: 0.02})
         thr = rng.integers(0, 4, nd) * 0.5 + rng.choice([0.0, 1e-9], nd)
         got = boxes.disks_near(C, thr, workspace, o_lo, o_hi, o_pad)
         assert got is not None
@@ -160,14 +167,9 @@ def test_compiled_pieces_near_equals_numpy(M, K, special, monkeypatch):
     for _ in range(20):
         A = rng.integers(-8, 8, (M, 2)).astype(float) * 0.5
         B = np.where(rng.random((M, 2)) < 0.2, A, rng.integers(-8, 8, (M, 2)) * 0.5)  # points
-        o_lo = rng.integers(-6, 6, (K, 2)).astype(float) * 0.5
-        o_hi = o_lo + rng.integers(0, 3, (K, 2)) * 0.5
-        o_pad = rng.integers(0, 3, K) * 0.5
+        o_lo, o_hi, o_pad = _obstacle_boxes(rng, K)
         if special:
-            for a in (A, B, o_lo):
-                flat = a.reshape(-1)
-                flat[rng.random(flat.size) < 0.05] = np.nan
-                flat[rng.random(flat.size) < 0.03] = -np.inf
+            _spoil(rng, (A, B, o_lo), {np.nan: 0.05, -np.inf: 0.03})
         thr = float(rng.choice([0.0, 0.5, 1.0 + 1e-9]))
         got = boxes.pieces_near(A, B, thr, workspace, o_lo, o_hi, o_pad)
         assert got is not None
