@@ -318,3 +318,30 @@ def test_a_counterexample_state_lies_in_the_level_set_exactly_quadratic_route():
                          region={"x_0": (-2, 2), "x_1": (-2, 2)}, level=1 / 12)
     assert rep.status == "counterexample"
     assert _exact_inside(rep.counterexample, 1 / 12, lambda a, b: (a * a + b * b) / 3)
+
+
+def test_an_angle_box_short_of_a_turn_keeps_its_faces():
+    """A theta box 6e-9 short of a whole turn is not a whole turn: its faces are checked, so
+    the proof does not claim K invariant (an independent 60-digit integration leaves the box
+    through the gap). A review found the former relative tolerance (1e-9) skipped them."""
+    import casadi as cs
+
+    from hybridnav.analysis import as_system, check_lyapunov
+
+    th, om = cs.SX.sym("theta"), cs.SX.sym("omega")
+    sysm = as_system((cs.vertcat(th, om), cs.vertcat(om, -cs.sin(th) - 0.5 * om)),
+                     states=["theta", "omega"], angles=["theta"])
+    V = 1 - cs.cos(th) + om**2 / 2 + 0.2 * cs.sin(th) * om
+    lo, hi = 0.5 + 3e-9, 0.5 + 2 * np.pi - 3e-9
+    rep = check_lyapunov(sysm, V, equilibrium=[2 * np.pi, 0],
+                         region={"theta": (lo, hi), "omega": (-3, 3)}, level=1.5)
+    assert "K is positively invariant" not in rep.claim
+    assert rep.status != "proved" or "invariance of K was not shown" in rep.claim
+    # a whole turn as floats write it keeps the face identification
+    from hybridnav.analysis.certificate import Box
+    from hybridnav.analysis.lyapunov import _periodic
+
+    box = Box(["theta", "omega"], np.array([-np.pi, -3.0]), np.array([np.pi, 3.0]))
+    assert _periodic(sysm, box) == [0]
+    box = Box(["theta", "omega"], np.array([lo, -3.0]), np.array([hi, 3.0]))
+    assert _periodic(sysm, box) == []

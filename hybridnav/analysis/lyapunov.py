@@ -424,10 +424,18 @@ def _certificate_inputs(model: Model, target):
 
 
 def _periodic(model: Model, box: Box) -> list[int]:
-    """Angle states whose bounds span a whole turn: their faces are the same states."""
+    """Angle states whose bounds span a whole turn: their faces are the same states.
+
+    The span is compared exactly (as rationals) with ``2 * np.pi``, the float nearest a turn;
+    a relative tolerance let a box 6e-9 short of a turn skip its faces, and the claimed invariant
+    set then lost the states in the gap."""
+    from fractions import Fraction
+
     angles = set(getattr(model, "angle_state_names", ()))
+    turn = Fraction(2 * np.pi)
     return [i for i, n in enumerate(box.names)
-            if n in angles and box.upper[i] - box.lower[i] >= 2 * np.pi * (1 - 1e-9)]
+            if n in angles and np.isfinite(box.lower[i]) and np.isfinite(box.upper[i])
+            and Fraction(float(box.upper[i])) - Fraction(float(box.lower[i])) >= turn]
 
 
 def _certificate_route(report, model, v_num, both, box, level, xmin, target, max_boxes,
