@@ -82,7 +82,8 @@ def test_list_from_the_cli(capsys):
                                             ("rfdpso-table3", "rfd-pso-700"),
                                             ("effc-table3", "effc-env-b"),
                                             ("psoba-fig15", "pso-ba-dynamic"),
-                                            ("effc-turtlebot", "turtlebot-office"),
+                                            # effc-turtlebot: the same run and checks in
+                                            # test_turtlebot.py (with its own report's checks)
                                             ("fastep-case-studies", "fastep-case-study-2"),
                                             ("aco-case-studies", "aco-case-study-2"),
                                             ("aco-tractor-trailers", "tractor-trailer-3")])
@@ -90,6 +91,12 @@ def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     out = tmp_path / name
     assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "--layouts", "0",
                  "-o", str(out)]) == 0              # (layout sensitivity: tests/test_layouts.py)
+    check_protocol_run(out, name, scenario, capsys.readouterr().out)
+
+
+def check_protocol_run(out, name, scenario, printed):
+    """What every protocol's reduced run (``--runs 1 --scenarios <scenario> --layouts 0``) into
+    ``out`` writes and prints (``printed``)."""
     text = (out / "report.md").read_text()
     assert "## The paper's claims" in text and "## Our runs" in text
     from hybridnav.reproduce.report import has_profiles
@@ -97,7 +104,6 @@ def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     summary = pd.read_csv(out / "summary.csv")
     assert set(summary["scenario"]) == {scenario}
     assert set(summary["planner"]) == {label for label, _, _ in variants(PROTOCOLS[name])}
-    printed = capsys.readouterr().out
     for claim in PROTOCOLS[name].claims:
         line = next(ln for ln in printed.splitlines() if ln.startswith(claim.text))
         verdicts = re.findall(r"(does not hold|holds|not shown)", line)

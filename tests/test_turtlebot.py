@@ -283,8 +283,15 @@ def test_the_office_is_solvable_through_its_doorways(office):
 
 @pytest.mark.slow
 def test_the_turtlebot_protocol_runs_end_to_end(tmp_path, capsys):
+    """The protocol's reduced run, as test_reproduce.py runs every other protocol (and with its
+    checks: the protocol has one row; perturbed layouts are tested in test_layouts.py)."""
+    from test_reproduce import check_protocol_run
+
     out = tmp_path / "tb"
-    assert main(["reproduce", "effc-turtlebot", "--runs", "1", "-o", str(out)]) == 0
+    assert main(["reproduce", "effc-turtlebot", "--runs", "1", "--scenarios", "turtlebot-office",
+                 "--layouts", "0", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    check_protocol_run(out, "effc-turtlebot", "turtlebot-office", printed)
     text = (out / "report.md").read_text()
     for level in ("0", "0.01", "0.03", "0.05"):
         assert f"sensor_noise = {level}" in text and f"`effc/sensor_noise={level}`" in text
@@ -300,5 +307,4 @@ def test_the_turtlebot_protocol_runs_end_to_end(tmp_path, capsys):
     assert len(summary) == 13 and summary["control_effort_mean"].notna().any()
     for f in ("compare_control_effort.png", "compare_min_clearance.png"):
         assert (out / f).exists()
-    printed = capsys.readouterr().out
     assert "EFFC drives the TurtleBot3 to the goal without a collision" in printed
