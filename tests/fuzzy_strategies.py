@@ -2,8 +2,19 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 from hypothesis import strategies as st
+
+#: examples of the long fuzz run (``HYBRIDNAV_FUZZ_EXAMPLES=N``), else each test's own count
+_LONG = os.environ.get("HYBRIDNAV_FUZZ_EXAMPLES", "").strip()
+
+
+def examples(default: int) -> int:
+    """``default`` (the default run's count), or the count ``HYBRIDNAV_FUZZ_EXAMPLES`` asks for."""
+    return int(_LONG) if _LONG else default
+
 
 MFS = ["zmf", "smf", "trimf", "trapmf", "gaussmf", "gbellmf", "sigmf"]
 

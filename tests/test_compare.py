@@ -277,6 +277,7 @@ def test_summary_statistics_against_scipy(serial, tmp_path):
             "compare_compute_time.png"} <= set(files)
 
 
+@pytest.mark.slow
 def test_convergence_of_the_swarm_searches_is_recorded_per_run_and_plotted(tmp_path):
     """Every run's searches land in ``convergence.csv``: PSO's one search per run (its best
     never rises, and its last value is the cost the planner reports), a step planner's one

@@ -110,6 +110,7 @@ def skfuzzy_reference(fs: FuzzySystem, X: np.ndarray) -> np.ndarray:
     return out
 
 
+@pytest.mark.slow
 @settings(deadline=None, max_examples=30, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
 @given(d=systems(descriptions=False), seed=st.integers(0, 2**32 - 1))

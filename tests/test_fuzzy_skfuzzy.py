@@ -21,7 +21,7 @@ pytestmark = pytest.mark.filterwarnings(
     "ignore:Passing more than 2 positional arguments:DeprecationWarning")
 
 TOL = 1e-9
-from fuzzy_strategies import MFS, antecedents, terms, variables  # noqa: E402,F401
+from fuzzy_strategies import MFS, antecedents, examples, terms, variables  # noqa: E402,F401
 
 
 @st.composite
@@ -62,7 +62,9 @@ def reference(fs: FuzzySystem, cols: list[np.ndarray]) -> np.ndarray:
     return out
 
 
-@settings(deadline=None, max_examples=250, suppress_health_check=[HealthCheck.too_slow])
+@pytest.mark.slow
+# 100 random systems in the default run (HYBRIDNAV_FUZZ_EXAMPLES=N runs N)
+@settings(deadline=None, max_examples=examples(100), suppress_health_check=[HealthCheck.too_slow])
 @given(d=systems(), seed=st.integers(0, 2**32 - 1))
 def test_evaluate_matches_skfuzzy(d, seed):
     fs = FuzzySystem.from_dict(d)

@@ -56,6 +56,7 @@ def table():
     return worlds, systems, run_systems(systems, worlds, safety_margin=MARGIN)
 
 
+@pytest.mark.slow
 def test_rows_are_what_the_planners_do(table):
     worlds, systems, t = table
     for w in worlds[::8]:

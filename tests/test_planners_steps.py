@@ -338,6 +338,7 @@ def test_a_robot_without_a_feasible_step_is_stuck_not_hanging():
         assert r.outcome == "stuck" and r.t[-1] < 30.0
 
 
+@pytest.mark.slow
 def test_moving_obstacles_and_a_moving_target():
     s = load_scenario("pso-ba-dynamic")
     res = planners.get("fastep-kinematic", **FAST).run(s, seed=0)

@@ -100,6 +100,7 @@ def test_damaged_job_files(tmp_path, data):
     _check(load_job, path)
 
 
+@pytest.mark.slow
 @settings(deadline=None, max_examples=examples(100), suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(blob=st.binary(max_size=300), which=st.sampled_from(["scenario", "job"]))
 def test_arbitrary_bytes(tmp_path, blob, which):

@@ -174,6 +174,7 @@ def test_the_alley_map_has_the_grid_optimum_of_the_papers_table_4():
     assert plan.length == pytest.approx(best, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_readme_blocks_are_the_stored_full_runs(tmp_path):
     """README's reproduce blocks are exactly what the stored runs in docs/reproductions render
     to (no hand-copied number), every protocol has one, and each stored run ran the protocol as

@@ -104,6 +104,7 @@ def edit_table(path: Path, change) -> None:
     path.write_text("".join(",".join(r) + "\n" for r in change(rows)))
 
 
+@pytest.mark.slow
 def test_the_folders_hold_every_declared_extra_and_plot(written, tmp_path):
     prefixes = set()
     for name in PLANNERS:
@@ -548,6 +549,7 @@ def _names_a_file_of(folder: Path, message: str) -> bool:
     return re.match(re.escape(str(folder)) + r"/[\w.\-]+: ", message) is not None
 
 
+@pytest.mark.slow
 @settings(deadline=None, max_examples=examples(25), suppress_health_check=[
     HealthCheck.too_slow, HealthCheck.function_scoped_fixture, HealthCheck.data_too_large])
 @given(data=st.data(), planner=st.sampled_from(PLANNERS))

@@ -31,6 +31,7 @@ def test_the_paper_grid_is_20_cells_across_and_a_movingai_map_keeps_its_own():
         assert ctx.grid(0.0, 0).resolution == s.grid.resolution     # grid = 0: the scenario's
 
 
+@pytest.mark.slow
 def test_flat_rfd_on_the_paper_grid_reaches_near_the_papers_length():
     """Flat RFD (profile paper) on the 1 m grid of rfd-pso-20m plans a path in every seed, and
     the mean planned length of 6 seeds is within 10 % of the paper's 32.68 m. The band: our map
@@ -69,6 +70,7 @@ def test_rfd_pso_paper_profile_reaches_once_seeded():
     assert r.path_length == pytest.approx(29.892054052312712, rel=1e-9)   # reproducible
 
 
+@pytest.mark.slow
 def test_the_default_profile_gives_what_it_gave_before_the_grid_parameter():
     """Recorded from the code before ``grid`` existed (commit fbbed37, seed 3)."""
     s = load_scenario("rfd-pso-20m")

@@ -106,6 +106,7 @@ def test_no_collision_on_worlds_where_effc_collides_and_the_margin_is_kept(nativ
     assert (safe.outcome == "reached").sum() >= (plain.outcome == "reached").sum()
 
 
+@pytest.mark.slow
 def test_compiled_and_numpy_cycles_and_the_planner_agree():
     worlds = _worlds()
     st = scenario_set(worlds)

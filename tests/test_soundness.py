@@ -153,7 +153,8 @@ def test_angle_faces_are_skipped_only_for_periodic_candidates(V_theta, periodic)
 # ---- 3. the quadratic route's tolerances are relative (none, in fact) ---------------------------
 
 @pytest.mark.parametrize("alpha,target,shift,box", [
-    (1e-6, (45.0, 5.0), 7e-4, (0.0, 50.0)),                 # the issue's case
+    pytest.param(1e-6, (45.0, 5.0), 7e-4, (0.0, 50.0),      # the issue's case (and the
+                 marks=pytest.mark.slow),                   # region of attraction: slow)
     (1e-3, (1e6, 1e6), 1e-6, (0.0, 2e6)),                  # large coordinates
     (1e-9, (1.0, 1.0), 1e-5, (0.0, 2.0)),
     (2.0, (1e-6, 1e-6), 1e-9, (0.0, 2e-6)),                # micro scale
@@ -465,6 +466,7 @@ def test_krawczyk_refuses_a_jump_and_certify_refuses_bad_arguments():
         certify(x, -x, cs.vertcat(x[0], x[0]), box)
 
 
+@pytest.mark.slow
 def test_a_region_of_attraction_around_tiny_limit_cycles_is_not_certified():
     """Two limit cycles inside radius 1.5e-4 and Vdot = 0 on b = 0: the simulated runs do not
     converge, so no level is certified (this used to end in a NaN level)."""

@@ -339,6 +339,7 @@ rule_switches = false
 """
 
 
+@pytest.mark.slow
 def test_a_data_job_file_tunes_from_the_command_line(tmp_path):
     (tmp_path / "tipper.fis").write_text(TIPPER)
     tipper = fuzzy.read_fis(TIPPER, "tipper.fis")
@@ -477,6 +478,7 @@ def test_worldstack_nearest_each_is_the_worlds():
         assert np.all(np.isinf(D[:, k:]))
 
 
+@pytest.mark.slow
 def test_fuzzy_steer_lockstep_is_the_planner_and_tunes_on_the_same_worlds(tmp_path):
     from hybridnav import planners
     from hybridnav.worldgen import WorldGenerator
