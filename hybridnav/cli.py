@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import sys
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -213,7 +215,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         if set(compiled.input_names) != set(system.input_names):
             raise HybridnavError(f"{args.c_file}: its inputs {', '.join(compiled.input_names)} "
                                  f"are not those of {args.fis} ({', '.join(system.input_names)})")
-        from hybridnav.analysis.sil import verify   # seconds to import: after the C's checks
+        from hybridnav.fuzzy.export.closedloop import verify   # seconds to import: after the C's checks
 
         rows = verify(system, compiled, scenarios, seed=args.seed, **params)
     shown = "".join(f", {k}={v}" for k, v in params.items())
@@ -243,7 +245,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from hybridnav.progress import bar as progress_bar
 
-    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.experiments.compare import compare, write_comparison
     from hybridnav.planners import parse_assignments
 
     plans = [p.strip() for p in args.planners.split(",") if p.strip()]
@@ -408,7 +410,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
     from hybridnav.planners import parse_assignments
     from hybridnav.world import save_scenario
-    from hybridnav.worldgen import generator_from_table
+    from hybridnav.world.generator import generator_from_table
 
     table: dict[str, object] = {"generate": args.count, "seed": args.seed}
     for key, text in parse_assignments(args.set or []).items():
@@ -713,6 +715,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_deprecations() -> None:
+    """Show old names used by the files and code a command loads, one line each: Python hides
+    ``DeprecationWarning`` outside ``__main__`` unless a filter (``-W``, pytest's settings) says
+    otherwise. Call inside ``warnings.catch_warnings()``, which restores both."""
+    from hybridnav.deprecation import HybridnavDeprecationWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, HybridnavDeprecationWarning):
+            print(f"hybridnav: warning: {message}", file=file or sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    for action, msg, category, module, _ in warnings.filters:   # the filter that would apply
+        if isinstance(module, str):                 # a filter as Python's defaults store it
+            module = re.compile(re.escape(module) + r"\Z")
+        if msg is None and issubclass(HybridnavDeprecationWarning, category) and (
+                module is None or module.match("hybridnav.cli")):
+            if action == "ignore":
+                warnings.filterwarnings("default", category=HybridnavDeprecationWarning)
+            return
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``hybridnav`` command; returns the exit status."""
     parser = build_parser()
@@ -730,7 +757,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # in this process and in its worker processes: the config says warnings too
         os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "warning")
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            _show_deprecations()
+            return args.func(args)
     except HybridnavError as exc:
         print(f"hybridnav: error: {exc}", file=sys.stderr)
         return 2

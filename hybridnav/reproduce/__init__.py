@@ -1,6 +1,6 @@
 """``hybridnav reproduce NAME``: run a paper's protocol in both profiles and report beside it.
 
-:func:`reproduce` runs :data:`PROTOCOLS` ``[name]`` through :func:`hybridnav.analysis.compare`
+:func:`reproduce` runs :data:`PROTOCOLS` ``[name]`` through :func:`hybridnav.experiments.compare`
 (every planner with profiles as ``NAME/paper`` with ``profile=paper`` and as ``NAME`` with the
 default ``hybridnav`` profile; planners without profiles once; the protocol's ablations with the
 default profile), writes the comparison's tables and figures, and ``report.md``
@@ -75,7 +75,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         An unknown protocol or a bad ``runs``; another job writing ``out`` (the folder is
         locked while a reproduction runs).
     """
-    from hybridnav.analysis.compare import PlannerSpec
+    from hybridnav.experiments.compare import PlannerSpec
 
     from hybridnav.reproduce.tuning import EXPERIMENTS, run_experiment
 
@@ -115,7 +115,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
 
 
 def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts):
-    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.experiments.compare import compare, write_comparison
     from hybridnav.fileio import atomic_write_text
     from hybridnav.reproduce.layouts import layout_sensitivity
     from hybridnav.reproduce.report import check_claims, write_report
