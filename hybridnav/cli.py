@@ -46,6 +46,13 @@ def _cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_completion(args: argparse.Namespace) -> int:
+    from hybridnav.cli_help import completion_script
+
+    print(completion_script(args.shell, build_parser()), end="")
+    return 0
+
+
 def _cmd_models(args: argparse.Namespace) -> int:
     from hybridnav.models import MODELS
 
@@ -528,10 +535,13 @@ _TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
+    from hybridnav.cli_help import epilog
+
     parser = _Parser(
         prog="hybridnav",
         description="Hybrid mobile-robot navigation: kinematic models, planners, analysis, "
                     "fuzzy tuning.",
+        epilog=epilog(""), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"hybridnav {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
@@ -544,7 +554,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="log more (repeat for debug output)")
 
     def add_command(name: str, **kwargs: Any) -> argparse.ArgumentParser:
-        return sub.add_parser(name, parents=[common], **kwargs)
+        return sub.add_parser(name, parents=[common], epilog=epilog(name),
+                              formatter_class=argparse.RawDescriptionHelpFormatter, **kwargs)
 
     p = add_command("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
@@ -562,7 +573,8 @@ def build_parser() -> argparse.ArgumentParser:
     from hybridnav import models
     from hybridnav.fuzzy.export import FORMATS
 
-    p.add_argument("model", choices=sorted(models.analyzable()))
+    p.add_argument("model", choices=sorted(models.analyzable()),
+                   help="the kinematic model to analyse (see 'hybridnav models')")
     p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
                                       "one per model)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for analysis.json, "
@@ -581,8 +593,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="set a planner parameter (repeatable)")
     p.add_argument("--fis", metavar="FIS", help="effc, fuzzy-steer: the fuzzy system (a built-in "
                                                 "name, a .json, .fll or .fis file, or "
-                                                "file.py:NAME naming a scikit-fuzzy "
-                                                "ControlSystem)")
+                                                "file.py:NAME / module:NAME naming a "
+                                                "FuzzySystem or a scikit-fuzzy ControlSystem)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
@@ -594,7 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("c_file", metavar="C_FILE", help="the exported .c file (its .h beside it)")
     p.add_argument("--scenarios", default="effc-train-1,effc-train-2,effc-env-a,effc-env-b",
                    help="comma-separated scenarios (default: the EFFC paper's four)")
-    p.add_argument("--seed", type=_SEED, default=0)
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the runs (default 0)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="an effc parameter for both runs, e.g. safety_margin=0.05 (what a tuned "
                         "system's deployment.json says; repeatable)")
@@ -661,7 +673,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "control surface")
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned, ...), a "
                                   ".json, .fll or .fis file, or file.py:NAME / module:NAME "
-                                  "naming a scikit-fuzzy ControlSystem")
+                                  "naming a FuzzySystem or a scikit-fuzzy ControlSystem")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 
@@ -685,8 +697,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
                                       "IEC 61131-7 FCL or standalone C")
-    p.add_argument("fis", metavar="FIS", help="built-in name or a .json/.fll/.fis file")
-    p.add_argument("--format", required=True, choices=list(FORMATS))
+    p.add_argument("fis", metavar="FIS", help="built-in name, a .json/.fll/.fis file, or "
+                                              "file.py:NAME / module:NAME (a FuzzySystem or "
+                                              "a scikit-fuzzy ControlSystem)")
+    p.add_argument("--format", required=True, choices=list(FORMATS),
+                   help="json: hybridnav's own file; fll: fuzzylite; fis: MATLAB Fuzzy Logic "
+                        "Toolbox; fcl: IEC 61131-7; c: a standalone C evaluator (.h and .c)")
     p.add_argument("-o", "--out", metavar="PATH", help="output file; for c a prefix (PATH.h, "
                                                        "PATH.c); default <name>.<ext>")
     p.add_argument("--sampled", action="store_true", help="fll/fcl: terms as their sampled "
@@ -712,6 +728,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)
+
+    from hybridnav.cli_help import SHELLS
+
+    p = add_command("completion", help="print a shell completion script (bash, zsh, tcsh)")
+    p.add_argument("shell", choices=SHELLS, help="the shell the script is for")
+    p.set_defaults(func=_cmd_completion)
     return parser
 
 
