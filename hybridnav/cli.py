@@ -67,9 +67,11 @@ def _cmd_models(args: argparse.Namespace) -> int:
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
     from hybridnav.analysis.report import analyze
+    from hybridnav.progress import PhaseLog
 
-    result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
-                     progress=lambda msg: print(f"  {msg} ...", flush=True))
+    with PhaseLog() as say:
+        result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
+                         progress=say)
     width = max(len(c["name"]) for c in result["checks"])
     print(f"{result['model']} on {result['scenario']}, target {result['target']}:")
     for c in result["checks"]:
@@ -285,8 +287,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from hybridnav.progress import PhaseLog
     from hybridnav.progress import bar as progress_bar
-
     from hybridnav.reproduce import PROTOCOLS, reproduce, variants
 
     if args.update_readme:
@@ -332,12 +334,15 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             bar.refresh()
         bar.update(done - bar.n)
 
+    phases = PhaseLog()
     try:
         result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
                            workers=args.workers, dask=args.dask, progress=progress,
-                           scenarios=scens, layouts=args.layouts)
+                           scenarios=scens, layouts=args.layouts,
+                           phase=lambda msg: (bar.close(), phases(msg)))
     finally:
         bar.close()
+        phases.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
         print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, " + "; ".join(
@@ -371,9 +376,8 @@ def _cmd_fis(args: argparse.Namespace) -> int:
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
+    from hybridnav.progress import PhaseLog
     from hybridnav.progress import bar as progress_bar
-    from hybridnav.progress import phase
-
     from hybridnav.tuner.job import load_job, quick
     from hybridnav.tuner.run import run_job
 
@@ -394,11 +398,13 @@ def _cmd_tune(args: argparse.Namespace) -> int:
                         **extra, evals_s=f"{rate:.0f}")
         bar.update(1)
 
+    phases = PhaseLog()
     try:
         result = run_job(job, args.out, resume=args.resume, force=args.force,
-                         progress=progress, phase=lambda msg: (bar.close(), phase(msg)))
+                         progress=progress, phase=lambda msg: (bar.close(), phases(msg)))
     finally:
         bar.close()
+        phases.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
           f"{result.start_objectives[0]:.4f} -> returned {result.objectives[0]:.4f} "
           f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
