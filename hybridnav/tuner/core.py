@@ -508,7 +508,8 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
          resume: bool = False, chunk: int = 50, top: int = 3, patience: int | None = None,
          tolerance: float = 0.0, select: Callable[[pd.DataFrame], int] | None = None,
          name: str | None = None, judge: bool = True, max_evals: int = 0,
-         stop_after: int | None = None) -> TuningResult:
+         stop_after: int | None = None, phase: Callable[[str], None] | None = None
+         ) -> TuningResult:
     """Tune ``system`` to minimize ``cost``.
 
     Parameters
@@ -537,6 +538,9 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         Folder for ``checkpoint.json`` and ``evaluations.jsonl`` (created).
     progress : callable, optional
         ``progress(row)`` after every generation with its logbook row.
+    phase : callable, optional
+        ``phase(message)`` when a phase after the optimizer starts (judging start and tuned on
+        the validation and test sets), for a progress display.
     resume : bool
         Continue from ``checkpoint``.
     chunk : int
@@ -635,6 +639,8 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
                              f"got {backend!r}")
     if progress is not None and not callable(progress):
         raise HybridnavError(f"progress: expected a callable, got {progress!r}")
+    if phase is not None and not callable(phase):
+        raise HybridnavError(f"phase: expected a callable, got {phase!r}")
     if select is not None and not callable(select):
         raise HybridnavError(f"select: expected a callable, got {select!r}")
     if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
@@ -670,11 +676,11 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         run.run(stop_after)
     finally:
         run.flush()
-    return _result(run, system, settings, select, name, judge, test, backend)
+    return _result(run, system, settings, select, name, judge, test, backend, phase)
 
 
 def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bool,
-            test: Cost | None, backend) -> TuningResult:
+            test: Cost | None, backend, phase=None) -> TuningResult:
     opt = run.opt
     cost = run.cost
     X, F = opt.population()
@@ -755,7 +761,7 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
     if settings.to_system(run.x0) != start:   # the repair changed it (e.g. min_overlap)
         score_start(result, start, run.stages[0][0], run.validation, run.seed, run)
     if judge:
-        _judge(result, start, run.validation, test, backend)
+        _judge(result, start, run.validation, test, backend, phase)
     return result
 
 
@@ -775,11 +781,14 @@ def score_start(result: TuningResult, start, cost: Cost, validation: Cost | None
 
 
 def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | None,
-           backend) -> None:
+           backend, phase: Callable[[str], None] | None = None) -> None:
     """Start and tuned on the validation and test costs: ``result.heldout`` and verdicts."""
     systems = {"start": start, "tuned": result.system}
     roles = [(role, c) for role, c in (("validation", validation), ("test", test))
              if c is not None]
+    if roles and phase is not None:
+        phase("judging start and tuned on the " + " and ".join(role for role, _ in roles)
+              + " data")
     if len(roles) > 1 and backend is not None and not isinstance(backend, SerialBackend):
         # the held-out sets are independent: one worker each (a worker judges its set alone)
         judged = backend.map(_judge_one, [(c, systems, role) for role, c in roles])
@@ -870,6 +879,6 @@ def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
                 else first_train_cost(cost, kw["validation"], kw.get("seed", 0)),
                 second.validation_cost, kw.get("seed", 0))
     if judge:
-        _judge(second, system, second.validation_cost, test, backend)
+        _judge(second, system, second.validation_cost, test, backend, kw.get("phase"))
     return second
 

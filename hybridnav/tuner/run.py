@@ -177,17 +177,17 @@ def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
                            optimizer=job.optimizer(),
                            settings=lambda learned: TunableSettings.from_table(learned, table),
                            backend=backend, checkpoint=out, progress=progress, resume=resume,
-                           stop_after=stop_after, **kw)
+                           stop_after=stop_after, phase=phase, **kw)
         else:
             robust = job["robust"]["rounds"] > 0
             result = tune(job.start_system(), job.cost("train"), backend=backend,
                           checkpoint=out, progress=progress, resume=resume,
-                          stop_after=stop_after, **kw)
+                          stop_after=stop_after, phase=phase, **kw)
             if robust and result.finished:     # falsification in the training loop
                 from hybridnav.tuner.robust import robust_rounds
 
-                result = robust_rounds(job, result, backend, out, kw, progress, resume,
-                                       stop_after)
+                result = robust_rounds(job, result, backend, out, {**kw, "phase": phase},
+                                       progress, resume, stop_after)
         if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
         result.files = write_outputs(job, result, out, backend=backend, phase=phase)
