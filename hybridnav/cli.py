@@ -334,15 +334,14 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             bar.refresh()
         bar.update(done - bar.n)
 
-    phases = PhaseLog()
-    try:
-        result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
-                           workers=args.workers, dask=args.dask, progress=progress,
-                           scenarios=scens, layouts=args.layouts,
-                           phase=lambda msg: (bar.close(), phases(msg)))
-    finally:
-        bar.close()
-        phases.close()
+    with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
+        try:
+            result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
+                               workers=args.workers, dask=args.dask, progress=progress,
+                               scenarios=scens, layouts=args.layouts,
+                               phase=lambda msg: (bar.close(), phases(msg)))
+        finally:
+            bar.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
         print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, " + "; ".join(
@@ -398,13 +397,12 @@ def _cmd_tune(args: argparse.Namespace) -> int:
                         **extra, evals_s=f"{rate:.0f}")
         bar.update(1)
 
-    phases = PhaseLog()
-    try:
-        result = run_job(job, args.out, resume=args.resume, force=args.force,
-                         progress=progress, phase=lambda msg: (bar.close(), phases(msg)))
-    finally:
-        bar.close()
-        phases.close()
+    with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
+        try:
+            result = run_job(job, args.out, resume=args.resume, force=args.force,
+                             progress=progress, phase=lambda msg: (bar.close(), phases(msg)))
+        finally:
+            bar.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
           f"{result.start_objectives[0]:.4f} -> returned {result.objectives[0]:.4f} "
           f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
@@ -758,6 +756,8 @@ def _show_deprecations() -> None:
             default(message, category, filename, lineno, file, line)
 
     warnings.showwarning = show
+    if sys.warnoptions:                      # the user chose (-W, PYTHONWARNINGS): as they say
+        return
     for action, msg, category, module, _ in warnings.filters:   # the filter that would apply
         if isinstance(module, str):                 # a filter as Python's defaults store it
             module = re.compile(re.escape(module) + r"\Z")

@@ -270,7 +270,7 @@ class Model(ABC):
         raise :class:`HybridnavError`)."""
 
     #: old name of :attr:`values`; warns, removed in 0.4.0
-    params = RenamedAttribute("values")
+    params = RenamedAttribute.writable("values")
 
     # ---- symbolic views ------------------------------------------------------------------------
 

@@ -72,11 +72,14 @@ class Planner(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "params" in cls.__dict__ and not isinstance(cls.__dict__["params"], RenamedAttribute):
-            # a planner written against the old name: declare under the new one, and warn
+        declared = cls.__dict__.get("params")
+        if isinstance(declared, dict):
+            # settings declared under the old name: declare them under the new one, and warn
+            if "parameters" in cls.__dict__:
+                raise HybridnavError(f"planner {cls.__name__}: expected its settings under "
+                                     "parameters only, got params (their old name) as well")
             warn_renamed(f"{cls.__name__}.params", f"{cls.__name__}.parameters")
-            if "parameters" not in cls.__dict__:
-                cls.parameters = cls.__dict__["params"]
+            cls.parameters = declared
             delattr(cls, "params")
         if cls.profiles:
             _declare_profiles(cls)

@@ -567,7 +567,7 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
     if "heldout" in given:
         from hybridnav.deprecation import warn_renamed
 
-        warn_renamed(f"{where}scenarios.heldout", "scenarios.test", stacklevel=2)
+        warn_renamed(f"{where}scenarios.heldout", "scenarios.test")
         if "test" in given:
             raise fail("scenarios.heldout", "expected either test or its old name heldout, "
                                             "not both")
