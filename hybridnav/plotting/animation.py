@@ -258,9 +258,9 @@ def animate_tuning(folder: str | os.PathLike[str], path: str | os.PathLike[str] 
     labels = []
     for j, _ in plan:
         g = gens[j]
-        labels.append(f"generation {g['generation']}" + (f" (stage {g['stage']})" if kfold
-                                                        else "")
-                      + f": score {g['score']:.4g}")
+        score = "-" if g["score"] is None else f"{g['score']:.4g}"
+        labels.append(f"generation {g['generation']}"
+                      + (f" (stage {g['stage']})" if kfold else "") + f": score {score}")
     faded: list[Artist] = []
     shown = {"entry": -1}
 
@@ -628,27 +628,25 @@ def _read_generations(folder: Path, world: str | None):
     for i, g in enumerate(gens):
         ok = isinstance(g, dict) and all(
             type(g.get(k)) is int and g[k] >= 0 for k in ("stage", "generation", "system")) \
-            and g["system"] < len(loaded) and isinstance(g.get("score"), (int, float)) \
-            and not isinstance(g.get("score"), bool)
+            and g["system"] < len(loaded) and (g.get("score") is None or (
+                isinstance(g.get("score"), (int, float)) and not isinstance(g["score"], bool)))
         if not ok:
             raise bad(f"generations[{i}]", "an object of stage, generation, system (an index "
-                      f"into systems, < {len(loaded)}) and score", g)
+                      f"into systems, < {len(loaded)}) and score (a number or null)", g)
     base = data.get("base", "")
     if not isinstance(base, str):
         raise bad("base", "the job file's folder", base)
     scenario = None
     names: list[str] = []
-    for which in ("test", "validation", "train"):
-        if not sets[which]:
-            continue
-        scen = load_scenario_set(sets[which], base or str(folder), f"{path}: worlds.{which}")
-        names += [s.name for s in scen]
-        if world is None and scen:
-            scenario = scen[0]
-            break
-        hit = [s for s in scen if s.name == world]
-        if hit:
-            scenario = hit[0]
+    for which in ("test", "validation", "train"):          # item by item: generate no more
+        for i, item in enumerate(sets[which]):
+            scen = load_scenario_set([item], base or str(folder), f"{path}: worlds.{which}[{i}]")
+            names += [s.name for s in scen]
+            hit = scen[:1] if world is None else [s for s in scen if s.name == world]
+            if hit:
+                scenario = hit[0]
+                break
+        if scenario is not None:
             break
     if scenario is None:
         raise HybridnavError(f"world: expected the name of one of the job's worlds "

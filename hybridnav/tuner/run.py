@@ -53,7 +53,8 @@ C_BASENAME = "effc"
 OUTPUT_FILES = ("checkpoint.json", "evaluations.jsonl", "evaluations.csv", "logbook.csv",
                 "result.json", "start.json", "report.md", "fis.json", "fis.fll", "fis.fis",
                 "fis.fcl", f"{C_BASENAME}.c", f"{C_BASENAME}.h", f"{C_BASENAME}_safety.c",
-                f"{C_BASENAME}_safety.h", "deployment.json", "pareto.csv", "validation.csv",
+                f"{C_BASENAME}_safety.h", "deployment.json", "generations.json", "pareto.csv",
+                "validation.csv",
                 "heldout.csv", "heldout_summary.csv", "falsified.csv", "falsification.csv",
                 "convergence.png", "coverage.png", "front.png", "mfs.png", "paths.png",
                 "surface.png")
@@ -267,6 +268,7 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
             files.append("coverage.png")
         say("path figure: start, tuned and apf on the paper's and some test worlds")
         files += _paths(job, result, out, backend)
+        files += _generations(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     say("exports (FLL, FIS, FCL, C)")
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
@@ -285,6 +287,30 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
                                                  sil))
     files.append("report.md")
     return files
+
+
+def _generations(job: Job, result: TuningResult, out: Path) -> list[str]:
+    """``generations.json``: the best system of each generation (distinct systems once), the
+    planner and its settings and the job's world sets, what ``hybridnav animate DIR`` drives."""
+    if not result.generations:
+        return []
+    systems: list[dict[str, Any]] = []
+    index: dict[int, int] = {}
+    rows = []
+    for g in result.generations:
+        k = index.setdefault(id(g["system"]), len(systems))
+        if k == len(systems):
+            systems.append(g["system"].to_dict())
+        rows.append({"stage": int(g["stage"]), "generation": int(g["generation"]),
+                     "score": float(g["score"]) if math.isfinite(g["score"]) else None,
+                     "system": k})
+    data = {"format": "hybridnav-generations/1", "job": job.name,
+            "objective": result.objective_names[0], "planner": job["cost"]["planner"],
+            "planner_params": dict(job["planner"]),
+            "worlds": {k: job["scenarios"][k] for k in ("train", "validation", "test")},
+            "base": str(Path(job.base).resolve()), "generations": rows, "systems": systems}
+    atomic_write_text(out / "generations.json", json.dumps(data, indent=1))
+    return ["generations.json"]
 
 
 def _path_run(planner: str, params: dict[str, Any], scenario):
