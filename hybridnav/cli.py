@@ -163,10 +163,26 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_animate(args: argparse.Namespace) -> int:
-    from hybridnav.plotting import animate
+    from pathlib import Path
 
-    done = animate(args.folder, args.out, scenario=args.scenario, world=args.world,
-                   fps=args.fps, dpi=args.dpi, max_frames=args.max_frames)
+    from hybridnav.plotting import animate
+    from hybridnav.tuner.animation import animate_tuning, is_tuning_folder
+
+    folder = Path(args.folder)
+    if folder.is_dir() and is_tuning_folder(folder):
+        if args.scenario is not None:
+            raise HybridnavError(f"{folder}: --scenario: a tuning job's folder drives on one of "
+                                 "the job's worlds: choose it with --world")
+        done = animate_tuning(folder, args.out, world=args.world,
+                              fps=4.0 if args.fps is None else args.fps, dpi=args.dpi,
+                              max_frames=args.max_frames)
+    else:
+        if args.world is not None:
+            raise HybridnavError(f"{folder}: --world: only for a tuning job's folder (this is "
+                                 "not one: a run's scenario is its result's)")
+        done = animate(folder, args.out, scenario=args.scenario,
+                       fps=10.0 if args.fps is None else args.fps, dpi=args.dpi,
+                       max_frames=args.max_frames)
     w, h = done.size
     what = (f"t = 0 to {done.times[-1]:.1f} s" if not done.labels[0].startswith("generation")
             else f"{done.labels[0].split(':')[0]} to {done.labels[-1].split(':')[0]}")

@@ -99,15 +99,17 @@ def test_the_gif_shows_the_moving_obstacles_where_they_are(run_dir, tmp_path):
     static = scenario.world.static()
     moving = [o for o in scenario.world.obstacles if isinstance(o, MovingCircle)]
     assert len(moving) == 4
-    checked = 0
-    for img, t in zip(imgs, times):
+    def pixels(img):
+        """The frame's data -> pixel map, from its workspace border; and its scale."""
         left, right, top, bottom = border(img)
         sx, sy = (right - left) / (xmax - xmin), (bottom - top) / (ymax - ymin)
         assert sx == pytest.approx(sy, rel=0.02)          # equal aspect
+        return (lambda p: np.array([left + (p[0] - xmin) * sx, bottom - (p[1] - ymin) * sy])), \
+            sx, sy
 
-        def pixel(p):
-            return np.array([left + (p[0] - xmin) * sx, bottom - (p[1] - ymin) * sy])
-
+    checked = 0
+    for img, t in zip(imgs, times):
+        pixel, sx, sy = pixels(img)
         for o in moving:
             c = o.center_at(t)
             # only where the circle is over empty floor (its fill colour is the one tested)
@@ -124,7 +126,9 @@ def test_the_gif_shows_the_moving_obstacles_where_they_are(run_dir, tmp_path):
     # the circle moving down from (100, 170) at 2 cm/s: its fill moved by 2 t_end cm, and none is
     # left where it started
     o = moving[0]
+    pixel, sx, sy = pixels(imgs[0])
     first, _ = fill_centroid(imgs[0], pixel(o.center_at(0.0)), o.radius * sx + 2.0)
+    pixel, sx, sy = pixels(imgs[-1])
     last, _ = fill_centroid(imgs[-1], pixel(o.center_at(t_end)), o.radius * sx + 2.0)
     assert last[1] - first[1] == pytest.approx(2.0 * t_end * sy, abs=1.5)
     assert fill_centroid(imgs[-1], first, o.radius * sx)[1] == 0
@@ -171,7 +175,7 @@ def test_step_planner_candidates_and_a_trailer_outline(tmp_path):
     assert done.frames == 3
     model = scenario.model(scenario.robots[0], jit=False)
     tractor, trailer = model.outline(res.robots[0].states[-1:])
-    centers, radii = model.footprint(res.robots[0].states[-1:])
+    centers, _ = model.footprint(res.robots[0].states[-1:])
     # the outline's rectangles hold the covering disks' centres (tractor first, then trailer)
     from matplotlib.path import Path as MPath
 
@@ -282,8 +286,8 @@ def test_bad_input_is_one_line_naming_the_file(run_dir, tmp_path):
          f"{tmp_path / 'x'}: expected an animation file name ending in .gif or .mp4, got no "
          "suffix"),
         ((run_dir, "--world", "effc-env-a"),
-         f"{run_dir}: world: only for a tuning job's folder (this is a result folder: its "
-         "scenario is the result's)"),
+         f"{run_dir}: --world: only for a tuning job's folder (this is not one: a run's scenario "
+         "is its result's)"),
         ((run_dir, "--scenario", "arena"),
          f"{run_dir / 'result.json'}: scenario: the result is of scenario 'pso-ba-dynamic', not "
          "'arena' (--scenario arena)"),
@@ -323,6 +327,7 @@ def test_a_tuning_job_animates_its_best_system_per_generation(tmp_path):
     sys.path.insert(0, str(Path(__file__).parent))
     from test_tuner import small_job, tune
 
+    from hybridnav.tuner import animate_tuning
     from hybridnav.tuner.run import OUTPUT_FILES, write_generations
 
     job = small_job(tmp_path)
@@ -346,7 +351,7 @@ def test_a_tuning_job_animates_its_best_system_per_generation(tmp_path):
     assert rc == 0, err
     assert out == (f"wrote {folder / 'animation.gif'}: 6 frames at 4 fps, 192 x 192 pixels "
                    "(generation 0 to generation 2)\n")
-    done = animate(folder, tmp_path / "t.gif", max_frames=6, dpi=30, world="effc-train-2")
+    done = animate_tuning(folder, tmp_path / "t.gif", max_frames=6, dpi=30, world="effc-train-2")
     assert done.labels == tuple(f"generation {g}: score {s:.4g}" for g, s in
                                 zip((0, 0, 1, 1, 2, 2), np.repeat(result.logbook["min"], 2)))
     # each generation's last frame is the end of its system's run on that world
@@ -355,7 +360,10 @@ def test_a_tuning_job_animates_its_best_system_per_generation(tmp_path):
         run = planners.get("effc", fis=g["system"], **job["planner"]).run(scenario)
         assert done.times[2 * j + 1] == pytest.approx(float(run.robots[0].t[-1]))
     # the default world: the job's first test world
-    assert animate(folder, tmp_path / "d.gif", max_frames=3, dpi=20).frames == 3
+    assert animate_tuning(folder, tmp_path / "d.gif", max_frames=3, dpi=20).frames == 3
+    with pytest.raises(HybridnavError, match="a tuning job's folder, not a run's: hybridnav.tuner"
+                                             ".animate_tuning animates it"):
+        animate(folder, tmp_path / "e.gif")
     rc, _, err = cli(folder, "--world", "nowhere", "--max-frames", 2)
     assert rc == 2 and err.startswith("hybridnav: error: world: expected the name of one of "
                                       "the job's worlds (['effc-env-a', 'effc-env-b', ")

@@ -6,7 +6,7 @@ The analysis figures (trajectories in state space, Lyapunov level sets, basins) 
 :mod:`hybridnav.analysis.plots`.
 """
 
-from hybridnav.plotting.animation import Animated, animate, animate_result, animate_tuning
+from hybridnav.plotting.animation import Animated, animate, animate_result, animate_runs
 from hybridnav.plotting.diagnostics import (
     plot_gain_search,
     plot_planned,
@@ -26,7 +26,7 @@ from hybridnav.plotting.scenes import (
     save_scenario_png,
 )
 
-__all__ = ["Animated", "Trace", "animate", "animate_result", "animate_tuning",
+__all__ = ["Animated", "Trace", "animate", "animate_result", "animate_runs",
            "draw_moving_obstacles", "draw_scenario", "plot_gain_search", "plot_planned", "plot_potential",
            "plot_pso_ba", "plot_result", "plot_signals", "plot_traces", "plot_steps", "plot_waypoints", "save_figure",
            "save_scenario_png"]

@@ -10,21 +10,20 @@ where the followed robot is, and for the swarm planners (``pso-ba``, ``fastep-ki
 ``aco-kinematic``) the candidates of the robot's latest planning step (the result's
 ``candidates_<robot>`` extra). The title gives the time.
 
-On a tuning job's folder (``hybridnav tune`` writes ``generations.json`` there for a navigation
-job) it draws, generation by generation, the best system of that generation driving the robot on
-one of the job's worlds (the earlier generations' paths stay, faint), titled
-``generation g: score s``.
+:func:`animate_runs` draws several runs on one scenario one after the other, the earlier paths
+faint: :func:`hybridnav.tuner.animate_tuning` draws a tuning job's best system per generation
+with it, titled ``generation g: score s``.
 
 The file is written atomically: a failed or interrupted run leaves no half-written file.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
 import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,28 +37,27 @@ from matplotlib.patches import Circle as CirclePatch
 from matplotlib.patches import Polygon as PolygonPatch
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_path, read_text_file
+from hybridnav.fileio import atomic_path
 from hybridnav.params import short_repr
 from hybridnav.plotting.diagnostics import extras_of
 from hybridnav.plotting.scenes import draw_moving_obstacles, draw_scenario
 from hybridnav.results import Result, read_run
 
-__all__ = ["ANIMATION_FORMATS", "GENERATIONS_FILE", "Animated", "animate", "animate_result",
-           "animate_tuning"]
+__all__ = ["ANIMATION_FORMATS", "Animated", "animate", "animate_result", "animate_runs"]
 
 log = logging.getLogger(__name__)
 
 #: The file suffixes :func:`animate` writes: a GIF (Pillow) or an MP4 (ffmpeg on PATH).
 ANIMATION_FORMATS = ("gif", "mp4")
 
-#: The file a tuning job's folder holds for its animation (written by ``hybridnav tune``).
+#: The file a tuning job's folder holds for its animation (``hybridnav.tuner.write_generations``).
 GENERATIONS_FILE = "generations.json"
 
 #: Most pixels of all a GIF's frames together (they are collected in memory, 1 byte a pixel)
 _MAX_GIF_PIXELS = 2e9
 
-#: Frames per planning generation at most (a generation's system driving its run).
-_PER_GENERATION = 8
+#: Frames per run at most in :func:`animate_runs` (a tuning job's generation driving its run).
+_PER_RUN = 8
 
 _OUTCOME_MARK = {"reached": ("*", "green"), "collided": ("X", "red"),
                  "out_of_bounds": ("X", "purple"), "stuck": ("s", "orange"),
@@ -96,28 +94,26 @@ class Animated:
 
 
 def animate(source: str | os.PathLike[str] | Result, path: str | os.PathLike[str] | None = None,
-            *, scenario: Any = None, world: str | None = None, fps: float | None = None,
-            dpi: int = 80, max_frames: int = 150, fmt: str | None = None) -> Animated:
-    """Write an animation of a run (a result folder or a :class:`~hybridnav.results.Result`) or
-    of a tuning job (its folder) as a GIF or an MP4.
+            *, scenario: Any = None, fps: float = 10.0, dpi: int = 80, max_frames: int = 150,
+            fmt: str | None = None) -> Animated:
+    """Write an animation of a run (a result folder or a :class:`~hybridnav.results.Result`) as
+    a GIF or an MP4 (:func:`animate_result`; a tuning job's folder:
+    :func:`hybridnav.tuner.animate_tuning`).
 
     Parameters
     ----------
     source : str, path-like or Result
-        A folder ``hybridnav run`` wrote (``result.json``), a folder ``hybridnav tune`` wrote
-        (``generations.json``), or a result (then ``scenario`` is required).
+        A folder ``hybridnav run`` wrote (``result.json``), or a result (then ``scenario`` is
+        required).
     path : str or path-like, optional
         The file to write; default ``animation.gif`` in the folder.
     scenario : Scenario, str or path-like, optional
         The scenario the result is of: for a folder, a built-in name or a ``.toml`` file
         (default: the built-in scenario the result names); for a result, a Scenario too.
-    world : str, optional
-        Tuning job only: the name of the world of the job to drive on (default: its first test
-        world, else its first validation world, else its first training world).
-    fps : float, optional
-        Frames per second, in (0, 100] (default 10 for a run, 4 for a tuning job).
+    fps : float
+        Frames per second, in (0, 100].
     dpi : int
-        Resolution, in [10, 600] (the frame is 6.4 x 6.4 inches: 512 x 512 pixels at 80).
+        Resolution, in [10, 600] (a frame is 6.4 x 6.4 inches: 512 x 512 pixels at 80).
     max_frames : int
         Most frames, in [1, 10000].
     fmt : {"gif", "mp4"}, optional
@@ -130,36 +126,29 @@ def animate(source: str | os.PathLike[str] | Result, path: str | os.PathLike[str
     Raises
     ------
     HybridnavError
-        Naming the file and what was expected: a folder that is neither a result nor a tuning
-        job's, a damaged result, a scenario it was not run on, a world the job does not have,
-        an unknown format or suffix, an MP4 without ffmpeg on PATH, settings out of range.
+        Naming the file and what was expected: a folder that is not a result's, a damaged
+        result, a scenario it was not run on, an unknown format or suffix, an MP4 without ffmpeg
+        on PATH, settings out of range.
     """
-    _check_settings(10.0 if fps is None else fps, dpi, max_frames)
+    _check_settings(fps, dpi, max_frames)
     if isinstance(source, Result):
         if path is None:
             raise HybridnavError("animate: path: expected the file to write for a Result "
                                  "(a folder's default is <folder>/animation.gif)")
-        return animate_result(source, _scenario_of(source, scenario), path,
-                              fps=10.0 if fps is None else fps, dpi=dpi, max_frames=max_frames,
-                              fmt=fmt)
+        return animate_result(source, _scenario_of(source, scenario), path, fps=fps, dpi=dpi,
+                              max_frames=max_frames, fmt=fmt)
     folder = Path(source)
     if not folder.is_dir():
         raise HybridnavError(f"{folder}: no such folder (expected a folder written by "
                              "'hybridnav run' or 'hybridnav tune')")
-    out = Path(path) if path is not None else folder / "animation.gif"
     if _is_tuning(folder):
-        if scenario is not None:
-            raise HybridnavError(f"{folder}: scenario: a tuning job's folder drives on one of "
-                                 "the job's worlds: choose it with world, not scenario")
-        return animate_tuning(folder, out, world=world, fps=4.0 if fps is None else fps, dpi=dpi,
-                              max_frames=max_frames, fmt=fmt)
-    if world is not None:
-        raise HybridnavError(f"{folder}: world: only for a tuning job's folder (this is a "
-                             "result folder: its scenario is the result's)")
+        raise HybridnavError(f"{folder}: a tuning job's folder, not a run's: "
+                             "hybridnav.tuner.animate_tuning animates it (hybridnav animate "
+                             "does)")
+    out = Path(path) if path is not None else folder / "animation.gif"
     fmt = _format(out, fmt)                        # before any file is read
     result, scen = read_run(folder, scenario)
-    return animate_result(result, scen, out, fps=10.0 if fps is None else fps, dpi=dpi,
-                          max_frames=max_frames, fmt=fmt)
+    return animate_result(result, scen, out, fps=fps, dpi=dpi, max_frames=max_frames, fmt=fmt)
 
 
 def animate_result(result: Result, scenario: Any, path: str | os.PathLike[str], *,
@@ -203,27 +192,21 @@ def animate_result(result: Result, scenario: Any, path: str | os.PathLike[str], 
     return Animated(path, tuple(float(t) for t in times), tuple(labels), stage.size(dpi), fps)
 
 
-def animate_tuning(folder: str | os.PathLike[str], path: str | os.PathLike[str] | None = None,
-                   *, world: str | None = None, fps: float = 4.0, dpi: int = 80,
-                   max_frames: int = 150, fmt: str | None = None) -> Animated:
-    """Write an animation of a tuning job: generation by generation, the best system of that
-    generation driving the robots on one of the job's worlds.
-
-    Each generation's system is run with the job's planner and settings (a nominal run: no
-    noise) on the world; a generation gets up to a few frames of its run (fewer when there are
-    many generations; with more generations than ``max_frames``, evenly chosen generations, the
-    last among them), its last frame showing the whole path. Earlier generations' paths stay,
-    faint.
+def animate_runs(scenario: Any, runs: Sequence[tuple[str, Any]],
+                 path: str | os.PathLike[str], *, fps: float = 4.0, dpi: int = 80,
+                 max_frames: int = 150, fmt: str | None = None) -> Animated:
+    """Write an animation of several runs on one scenario, one after the other (e.g. a tuning
+    job's best system per generation): each run gets up to a few frames (fewer when there are
+    many runs; with more runs than ``max_frames``, evenly chosen runs, the last among them),
+    its last frame showing its whole path; earlier runs' paths stay, faint.
 
     Parameters
     ----------
-    folder : str or path-like
-        A folder ``hybridnav tune`` wrote for a navigation job (with ``generations.json``).
-    path : str or path-like, optional
-        Default ``<folder>/animation.gif``.
-    world : str, optional
-        The name of one of the job's worlds (default: its first test world, else its first
-        validation world, else its first training world).
+    scenario : Scenario
+    runs : sequence of (str, Result)
+        Each run's title and result (its robots those of ``scenario``).
+    path : str or path-like
+        The ``.gif`` or ``.mp4`` to write.
     fps, dpi, max_frames, fmt :
         As for :func:`animate`.
 
@@ -232,49 +215,36 @@ def animate_tuning(folder: str | os.PathLike[str], path: str | os.PathLike[str] 
     Animated
     """
     fps, dpi, max_frames = _check_settings(fps, dpi, max_frames)
-    folder = Path(folder)
-    path = Path(path) if path is not None else folder / "animation.gif"
+    path = Path(path)
     fmt = _format(path, fmt)
-    gens, systems, planner, params, scenario = _read_generations(folder, world)
-    from hybridnav import planners
-
-    if len(gens) > max_frames:                     # evenly chosen generations, the last kept
-        pick = np.unique(np.linspace(0, len(gens) - 1, max_frames).round().astype(int))
-        gens = [gens[i] for i in pick]
-    per = max(1, min(_PER_GENERATION, max_frames // len(gens)))
-    runs: dict[int, list[_Track]] = {}
-    for g in gens:
-        k = g["system"]
-        if k not in runs:
-            res = planners.get(planner, **{**params, "fis": systems[k]}).run(scenario)
-            runs[k] = [_Track.of(rr) for rr in res.robots]
-    stage = _Stage(scenario, dpi)
-    kfold = len({g["stage"] for g in gens}) > 1
-    plan: list[tuple[int, float]] = []                 # (generation entry, time) per frame
-    for j, g in enumerate(gens):
-        t_end = max(tr.t[-1] for tr in runs[g["system"]])
+    if not runs:
+        raise HybridnavError("animate_runs: runs: expected at least one (title, result)")
+    runs = list(runs)
+    if len(runs) > max_frames:                     # evenly chosen runs, the last kept
+        pick = np.unique(np.linspace(0, len(runs) - 1, max_frames).round().astype(int))
+        runs = [runs[i] for i in pick]
+    tracks = [[_Track.of(rr) for rr in res.robots] for _, res in runs]
+    per = max(1, min(_PER_RUN, max_frames // len(runs)))
+    plan: list[tuple[int, float]] = []                 # (run, time) per frame
+    for j, tr in enumerate(tracks):
+        t_end = max(x.t[-1] for x in tr)
         ts = np.linspace(0.0, t_end, per + 1)[1:] if per > 1 else np.array([t_end])
         plan += [(j, float(t)) for t in ts]
-    labels = []
-    for j, _ in plan:
-        g = gens[j]
-        score = "-" if g["score"] is None else f"{g['score']:.4g}"
-        labels.append(f"generation {g['generation']}"
-                      + (f" (stage {g['stage']})" if kfold else "") + f": score {score}")
-    faded: list[Artist] = []
-    shown = {"entry": -1}
+    labels = [runs[j][0] for j, _ in plan]
+    stage = _Stage(scenario, dpi)
+    shown = {"run": -1}
 
     def frame(k: int) -> None:
         j, t = plan[k]
-        if j != shown["entry"]:
-            if shown["entry"] >= 0:                   # the previous generation's path stays
-                for tr in runs[gens[shown["entry"]]["system"]]:
-                    faded.extend(stage.ax.plot(tr.xy[:, 0], tr.xy[:, 1], color="0.55",
-                                               linewidth=0.8, alpha=0.6, zorder=6))
+        if j != shown["run"]:
+            if shown["run"] >= 0:                     # the previous run's path stays
+                for tr in tracks[shown["run"]]:
+                    stage.ax.plot(tr.xy[:, 0], tr.xy[:, 1], color="0.55", linewidth=0.8,
+                                  alpha=0.6, zorder=6)
                 stage.still()
-            shown["entry"] = j
-            stage.legend(runs[gens[j]["system"]], planner)
-        stage.moment(t, runs[gens[j]["system"]], {})
+            shown["run"] = j
+            stage.legend(tracks[j], runs[j][1].planner)
+        stage.moment(t, tracks[j], {})
         stage.title(labels[k])
 
     _write(stage, path, fmt, fps, dpi, len(plan), frame)
@@ -485,7 +455,7 @@ def _write(stage: _Stage, path: Path, fmt: str, fps: float, dpi: int, n: int, fr
                 images.append(Image.fromarray(stage.render()[..., :3]).quantize(
                     255, method=Image.Quantize.FASTOCTREE))
             images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
-                           duration=max(10, int(round(1000.0 / fps))), loop=0, disposal=1)
+                           duration=max(10, round(1000.0 / fps)), loop=0, disposal=1)
     log.debug("wrote %s: %d frames", path, n)
 
 
@@ -572,84 +542,7 @@ def _scenario_of(result: Result, scenario: Any) -> Any:
     return scen
 
 
-# ---- tuning jobs --------------------------------------------------------------------------------
-
-
 def _is_tuning(folder: Path) -> bool:
-    """A folder ``hybridnav tune`` wrote (its checkpoint or logbook beside ``result.json``)."""
+    """A folder ``hybridnav tune`` wrote (``generations.json``, or its checkpoint and logbook)."""
     return (folder / GENERATIONS_FILE).is_file() or (
         (folder / "logbook.csv").is_file() and (folder / "checkpoint.json").is_file())
-
-
-def _read_generations(folder: Path, world: str | None):
-    """The generations, systems, planner, its settings and the world of a tuning folder."""
-    from hybridnav import fuzzy
-    from hybridnav.tuner.job import load_scenario_set
-
-    path = folder / GENERATIONS_FILE
-    if not path.is_file():
-        raise HybridnavError(f"{path}: no such file: a navigation tuning job run by hybridnav "
-                             "0.3.0 or later writes it (its best system per generation); run "
-                             "the job again to animate it")
-    text = read_text_file(path, "generations file")
-    try:
-        data = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
-
-    def bad(key: str, what: str, got: Any) -> HybridnavError:
-        return HybridnavError(f"{path}: {key}: expected {what}, got {short_repr(got)}")
-
-    if not isinstance(data, dict) or data.get("format") != "hybridnav-generations/1":
-        raise bad("format", "'hybridnav-generations/1'",
-                  data.get("format") if isinstance(data, dict) else data)
-    planner, params = data.get("planner"), data.get("planner_params")
-    if not isinstance(planner, str) or not isinstance(params, dict):
-        raise bad("planner", "a planner name with its planner_params object", planner)
-    sets = data.get("worlds")
-    if not isinstance(sets, dict) or not all(isinstance(sets.get(k), list)
-                                             for k in ("train", "validation", "test")):
-        raise bad("worlds", "an object of train, validation and test lists", sets)
-    systems = data.get("systems")
-    if not isinstance(systems, list) or not systems:
-        raise bad("systems", "a non-empty list of fuzzy systems", systems)
-    loaded = []
-    for i, d in enumerate(systems):
-        try:
-            loaded.append(fuzzy.FuzzySystem.from_dict(d))
-        except HybridnavError as exc:
-            raise HybridnavError(f"{path}: systems[{i}]: {exc}") from None
-        except (TypeError, KeyError, ValueError, AttributeError) as exc:
-            raise HybridnavError(f"{path}: systems[{i}]: expected a fuzzy system "
-                                 f"({type(exc).__name__}: {exc})") from None
-    gens = data.get("generations")
-    if not isinstance(gens, list) or not gens:
-        raise bad("generations", "a non-empty list", gens)
-    for i, g in enumerate(gens):
-        ok = isinstance(g, dict) and all(
-            type(g.get(k)) is int and g[k] >= 0 for k in ("stage", "generation", "system")) \
-            and g["system"] < len(loaded) and (g.get("score") is None or (
-                isinstance(g.get("score"), (int, float)) and not isinstance(g["score"], bool)))
-        if not ok:
-            raise bad(f"generations[{i}]", "an object of stage, generation, system (an index "
-                      f"into systems, < {len(loaded)}) and score (a number or null)", g)
-    base = data.get("base", "")
-    if not isinstance(base, str):
-        raise bad("base", "the job file's folder", base)
-    scenario = None
-    names: list[str] = []
-    for which in ("test", "validation", "train"):          # item by item: generate no more
-        for i, item in enumerate(sets[which]):
-            scen = load_scenario_set([item], base or str(folder), f"{path}: worlds.{which}[{i}]")
-            names += [s.name for s in scen]
-            hit = scen[:1] if world is None else [s for s in scen if s.name == world]
-            if hit:
-                scenario = hit[0]
-                break
-        if scenario is not None:
-            break
-    if scenario is None:
-        raise HybridnavError(f"world: expected the name of one of the job's worlds "
-                             f"({short_repr(names, 300)}), got {short_repr(world)}"
-                             if world is not None else f"{path}: worlds: the job has no world")
-    return gens, loaded, planner, params, scenario
