@@ -159,6 +159,13 @@ def test_python_api_writes_frames_at_the_run_times_and_the_candidates(run_dir, t
     t_end = max(float(r.t[-1]) for r in result.robots)
     assert done.times == pytest.approx(tuple(np.linspace(0.0, t_end, 4)))
     assert done.labels[1] == f"pso-ba-dynamic: pso-ba, t = {t_end / 3:.1f} s"
+    # few samples: a frame at each (the GIF writer would merge frames that look the same)
+    short = dataclasses.replace(result, robots=[dataclasses.replace(
+        r, t=r.t[:4], states=r.states[:4]) for r in result.robots])
+    few = animate(short, tmp_path / "few.gif", scenario="pso-ba-dynamic", dpi=20)
+    assert few.times == pytest.approx((0.0, 0.1, 0.2, 0.3))
+    with Image.open(few.path) as im:
+        assert im.n_frames == 4
     with Image.open(done.path) as im:
         assert im.n_frames == 4 and im.info["duration"] == 200 and im.info["loop"] == 0
 
@@ -352,8 +359,11 @@ def test_a_tuning_job_animates_its_best_system_per_generation(tmp_path):
     assert out == (f"wrote {folder / 'animation.gif'}: 6 frames at 4 fps, 192 x 192 pixels "
                    "(generation 0 to generation 2)\n")
     done = animate_tuning(folder, tmp_path / "t.gif", max_frames=6, dpi=30, world="effc-train-2")
-    assert done.labels == tuple(f"generation {g}: score {s:.4g}" for g, s in
-                                zip((0, 0, 1, 1, 2, 2), np.repeat(result.logbook["min"], 2)))
+    assert [lab.split(", t = ")[0] for lab in done.labels] == [
+        f"generation {g}: score {s:.4g}" for g, s in zip((0, 0, 1, 1, 2, 2),
+                                                         np.repeat(result.logbook["min"], 2))]
+    assert [float(lab.split(", t = ")[1][:-2]) for lab in done.labels] == pytest.approx(
+        done.times, abs=0.051)
     # each generation's last frame is the end of its system's run on that world
     scenario = load_scenario("effc-train-2")
     for j, g in enumerate(result.generations):

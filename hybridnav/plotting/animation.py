@@ -155,7 +155,7 @@ def animate_result(result: Result, scenario: Any, path: str | os.PathLike[str], 
                    fps: float = 10.0, dpi: int = 80, max_frames: int = 150,
                    fmt: str | None = None) -> Animated:
     """Write an animation of one run: frames at evenly spaced times from 0 to the end of the
-    longest robot's run.
+    longest robot's run (at every sample time when there are at most ``max_frames``).
 
     Parameters
     ----------
@@ -175,13 +175,16 @@ def animate_result(result: Result, scenario: Any, path: str | os.PathLike[str], 
     path = Path(path)
     fmt = _format(path, fmt)
     t_end = max(float(rr.t[-1]) for rr in result.robots) if result.robots else 0.0
-    n = max(1, min(max_frames, 1 + sum(len(rr.t) for rr in result.robots)))
-    times = np.linspace(0.0, t_end, n) if n > 1 else np.array([t_end])
+    samples = np.unique(np.concatenate([rr.t for rr in result.robots])) if result.robots \
+        else np.zeros(1)
+    # every sample when there are few, else evenly spaced times (farther apart than samples)
+    times = samples if len(samples) <= max_frames else np.linspace(0.0, t_end, max_frames)
     stage = _Stage(scenario, dpi)
     runs = [_Track.of(rr) for rr in result.robots]
     candidates = extras_of(result, "candidates")
     stage.legend(runs, result.planner)
-    labels = [f"{scenario.name}: {result.planner}, t = {t:.1f} s" for t in times]
+    digits = _digits(times)
+    labels = [f"{scenario.name}: {result.planner}, t = {t:.{digits}f} s" for t in times]
 
     def frame(k: int) -> None:
         t = float(times[k])
@@ -198,7 +201,8 @@ def animate_runs(scenario: Any, runs: Sequence[tuple[str, Any]],
     """Write an animation of several runs on one scenario, one after the other (e.g. a tuning
     job's best system per generation): each run gets up to a few frames (fewer when there are
     many runs; with more runs than ``max_frames``, evenly chosen runs, the last among them),
-    its last frame showing its whole path; earlier runs' paths stay, faint.
+    its last frame showing its whole path; earlier runs' paths stay, faint. A frame's title is
+    its run's, then the time.
 
     Parameters
     ----------
@@ -230,7 +234,8 @@ def animate_runs(scenario: Any, runs: Sequence[tuple[str, Any]],
         t_end = max(x.t[-1] for x in tr)
         ts = np.linspace(0.0, t_end, per + 1)[1:] if per > 1 else np.array([t_end])
         plan += [(j, float(t)) for t in ts]
-    labels = [runs[j][0] for j, _ in plan]
+    digits = _digits(np.array([t for _, t in plan]))
+    labels = [f"{runs[j][0]}, t = {t:.{digits}f} s" for j, t in plan]
     stage = _Stage(scenario, dpi)
     shown = {"run": -1}
 
@@ -512,6 +517,15 @@ def _format(path: Path, fmt: str | None) -> str:
             raise HybridnavError(f"{path}: writing an MP4 needs ffmpeg, and {exe!r} is not on "
                                  "PATH; install ffmpeg or write a GIF (a .gif file name)")
     return fmt
+
+
+def _digits(times: np.ndarray) -> int:
+    """Decimals that tell the frames' times apart (at least 1): a GIF writer merges frames that
+    are the same picture, titles included."""
+    gaps = np.diff(np.unique(times))
+    if not len(gaps):
+        return 1
+    return int(min(6, max(1, math.ceil(-math.log10(float(gaps.min())) - 1e-9))))
 
 
 def _check_settings(fps: Any, dpi: Any, max_frames: Any) -> tuple[float, int, int]:
