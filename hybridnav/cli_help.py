@@ -73,6 +73,13 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
          "five solvable worlds as scenario files"),
     ),
     "models": (("hybridnav models", "every kinematic model and its parameters"),),
+    "animate": (
+        ("hybridnav run pso-ba-dynamic --planner pso-ba -o runs/psoba", "a run to watch"),
+        ("hybridnav animate runs/psoba", "runs/psoba/animation.gif"),
+        ("hybridnav animate runs/psoba --out psoba.mp4 --fps 20", "an MP4 (needs ffmpeg)"),
+        ("hybridnav animate out/tune --world effc-env-b --out tuning.gif",
+         "a tuning job's best system, generation by generation"),
+    ),
     "completion": (
         ('eval "$(hybridnav completion bash)"', "completion in this bash session"),
         ("hybridnav completion zsh > ~/.zfunc/_hybridnav", "install it for zsh"),

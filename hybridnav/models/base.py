@@ -598,6 +598,22 @@ class Model(ABC):
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         return X[:, None, :2].copy(), np.array([self.radius])
 
+    def outline(self, X) -> list[np.ndarray] | None:
+        """The robot's body as polygons, for drawing (collision checks use :meth:`footprint`).
+
+        Parameters
+        ----------
+        X : array_like, shape (N, nx)
+            States.
+
+        Returns
+        -------
+        list of ndarray, shape (N, k, 2), or None
+            One array of ``k`` corners per body (e.g. a tractor and its trailer); None for a
+            robot whose body is its footprint's disks (a disk robot).
+        """
+        return None
+
     @property
     def footprint_extent(self) -> float | None:
         """An upper bound on how far the footprint reaches from the robot's position: every

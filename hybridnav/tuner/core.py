@@ -140,6 +140,9 @@ class _Run:
         self.stopped: int | None = None
         self.folds_done: list[dict[str, Any]] = []
         self.best_train: dict[str, Any] | None = None
+        #: per generation, the best of the carried population (the logbook's min): stage,
+        #: generation, score, x (what an animation of the run drives)
+        self.generation_best: list[dict[str, Any]] = []
         self.max_evals = 0
         self.finished = False
         self._writer: ThreadPoolExecutor | None = None
@@ -278,6 +281,11 @@ class _Run:
                 self.best_train = {"x": x.tolist(), "score": float(f[0]), "feasible": bool(ok),
                                    "stage": self.stage, "generation": gen}
         PX, PF = self.opt.population()
+        if len(PF):
+            b = int(np.argmin(PF[:, 0]))
+            self.generation_best.append({"stage": self.stage, "generation": gen,
+                                         "score": float(PF[b, 0]),
+                                         "x": np.asarray(PX[b], dtype=float).tolist()})
         self.after_generation(gen, PX, PF, X, ev)
         self.elapsed += time.perf_counter() - tic
         row = self._logrow(gen, len(X), PF)
@@ -358,7 +366,7 @@ class _Run:
                 "elapsed": self.elapsed, "evaluations": self.evaluations,
                 "validation": self.val.dump(), "fold": self.fold.dump(),
                 "stopped": self.stopped, "folds_done": self.folds_done,
-                "best_train": self.best_train}
+                "best_train": self.best_train, "generation_best": self.generation_best}
 
     def save(self, rows: list[dict[str, Any]], finished: bool = False) -> None:
         """Append a generation's rows to ``evaluations.jsonl`` and write the checkpoint.
@@ -423,6 +431,8 @@ class _Run:
         self.val, self.fold = _Track.load(state["validation"]), _Track.load(state["fold"])
         self.stopped, self.folds_done = state["stopped"], state["folds_done"]
         self.best_train = state["best_train"]
+        # (checkpoints of hybridnav before 0.3.0 have none: the generations before go unseen)
+        self.generation_best = list(state.get("generation_best", []))
         self.finished = bool(state["finished"])
         pos = (self.stage, self.opt.generation)
         self.records = [r for r in _read_jsonl(self.dir / "evaluations.jsonl")
@@ -743,6 +753,15 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
     vdetails = pd.DataFrame([dict(d, generation=c["generation"], score=c["score"])
                              for c in run.val.cache.values() for d in c["details"]])
     start_val = run.val.cache.get(_key(run.x0))
+    made: dict[bytes, Any] = {}            # one system per distinct vector
+    generations = []
+    for g in run.generation_best:
+        k = _key(g["x"])
+        if k not in made:
+            made[k] = settings.to_system(np.asarray(g["x"], dtype=float),
+                                         name=f"{tuned_name}-generation-{g['generation']}")
+        generations.append({"stage": g["stage"], "generation": g["generation"],
+                            "score": g["score"], "system": made[k]})
     result = TuningResult(
         system=system, start=start, settings=settings, x=chosen_x, x_start=run.x0,
         objectives=np.asarray(chosen_F, dtype=float),
@@ -756,7 +775,7 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
         start_validation_score=start_val["score"] if start_val else None,
         optimizer=opt.config(), cost=cost.describe(), seed=run.seed,
         wall_time=run.elapsed, evaluations=run.evaluations, config_hash=run.config_hash,
-        finished=run.finished, patience=run.patience)
+        finished=run.finished, patience=run.patience, generations=generations)
     result.validation_cost = run.validation
     if settings.to_system(run.x0) != start:   # the repair changed it (e.g. min_overlap)
         score_start(result, start, run.stages[0][0], run.validation, run.seed, run)

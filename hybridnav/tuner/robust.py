@@ -55,10 +55,15 @@ def robust_rounds(job, result, backend, out: Path, kw: dict[str, Any],
         train = train.with_scenarios(list(train.scenarios) + worlds, "train")
         folder = out / f"robust-{r}"
         again = resume and (folder / "checkpoint.json").exists()
+        before = result.generations
         result = tune(result.system, train, **{
             **kw, "settings": TunableSettings.from_table(result.system, table)},
             backend=backend, checkpoint=folder, progress=progress, resume=again,
             stop_after=stop_after, judge=False)
+        # the round's generations follow the earlier ones, as later stages
+        shift = 1 + max((g["stage"] for g in before), default=-1)
+        result.generations = before + [dict(g, stage=g["stage"] + shift)
+                                       for g in result.generations]
         if not result.finished:
             result.robust = rows
             return result
