@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import sys
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -44,6 +46,13 @@ def _cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_completion(args: argparse.Namespace) -> int:
+    from hybridnav.cli_help import completion_script
+
+    print(completion_script(args.shell, build_parser()), end="")
+    return 0
+
+
 def _cmd_models(args: argparse.Namespace) -> int:
     from hybridnav.models import MODELS
 
@@ -58,9 +67,11 @@ def _cmd_models(args: argparse.Namespace) -> int:
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
     from hybridnav.analysis.report import analyze
+    from hybridnav.progress import PhaseLog
 
-    result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
-                     progress=lambda msg: print(f"  {msg} ...", flush=True))
+    with PhaseLog() as say:
+        result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
+                         progress=say)
     width = max(len(c["name"]) for c in result["checks"])
     print(f"{result['model']} on {result['scenario']}, target {result['target']}:")
     for c in result["checks"]:
@@ -139,43 +150,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    import numpy as np
-
     from hybridnav import planners
     from hybridnav.params import short_repr
     from hybridnav.plotting import plot_result, save_figure
-    from hybridnav.results import read_result
-    from hybridnav.world import list_scenarios, load_scenario
+    from hybridnav.results import read_run
 
-    result = read_result(args.result)
+    result, scenario = read_run(args.result, args.scenario)
     listing = Path(args.result) / "result.json"
-    scen = short_repr(result.scenario)
-    if args.scenario is None:
-        # only a built-in by its name: result.json does not choose a file to read
-        if result.scenario not in {n for n, _ in list_scenarios()}:
-            raise HybridnavError(f"{listing}: scenario: {scen} is not a built-in scenario; pass "
-                                 "the scenario file the result was run on with --scenario")
-        scenario = load_scenario(result.scenario)
-    else:
-        scenario = load_scenario(args.scenario)
-    where = f"--scenario {args.scenario}" if args.scenario else f"scenario {scen}"
-    if scenario.name != result.scenario:
-        raise HybridnavError(f"{listing}: scenario: the result is of scenario {scen}, not "
-                             f"{short_repr(scenario.name)} ({where})")
-    # a file scenario may share a built-in's name: the robots must be the result's
-    names = [r.name for r in scenario.robots]
-    if names != [r.name for r in result.robots]:
-        got = [r.name for r in result.robots]
-        raise HybridnavError(f"{listing}: robots: expected the robots of {where} "
-                             f"{short_repr(names)}, got {short_repr(got)}; pass the scenario "
-                             "the result was run on with --scenario")
-    for rr, r in zip(result.robots, scenario.robots):
-        if not np.allclose(rr.states[0, :2], r.start):
-            raise HybridnavError(
-                f"{Path(args.result) / f'trajectory_{rr.name}.csv'}: line 2: robot {rr.name} "
-                f"starts at {tuple(float(v) for v in rr.states[0, :2])}, in {where} at "
-                f"{tuple(float(v) for v in r.start)}: its robots do not start where the "
-                "result's do; pass the scenario the result was run on with --scenario")
     if result.planner not in planners.PLANNERS:
         raise HybridnavError(f"{listing}: planner: expected one of "
                              f"{', '.join(sorted(planners.PLANNERS))}, got "
@@ -189,6 +170,35 @@ def _cmd_plot(args: argparse.Namespace) -> int:
         save_figure(fig, out / name)
     note = "" if figures else f" (the result has no extras {result.planner} draws from)"
     print(f"wrote {out}/: {', '.join(['path.png', *figures])}{note}")
+    return 0
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hybridnav.plotting import animate
+    from hybridnav.tuner.animation import animate_tuning, is_tuning_folder
+
+    folder = Path(args.folder)
+    if folder.is_dir() and is_tuning_folder(folder):
+        if args.scenario is not None:
+            raise HybridnavError(f"{folder}: --scenario: a tuning job's folder drives on one of "
+                                 "the job's worlds: choose it with --world")
+        done = animate_tuning(folder, args.out, world=args.world,
+                              fps=4.0 if args.fps is None else args.fps, dpi=args.dpi,
+                              max_frames=args.max_frames)
+    else:
+        if args.world is not None:
+            raise HybridnavError(f"{folder}: --world: only for a tuning job's folder (this is "
+                                 "not one: a run's scenario is its result's)")
+        done = animate(folder, args.out, scenario=args.scenario,
+                       fps=10.0 if args.fps is None else args.fps, dpi=args.dpi,
+                       max_frames=args.max_frames)
+    w, h = done.size
+    what = (f"t = 0 to {done.times[-1]:.1f} s" if not done.labels[0].startswith("generation")
+            else f"{done.labels[0].split(':')[0]} to {done.labels[-1].split(':')[0]}")
+    print(f"wrote {done.path}: {done.frames} frames at {done.fps:g} fps, {w} x {h} pixels "
+          f"({what})")
     return 0
 
 
@@ -213,7 +223,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         if set(compiled.input_names) != set(system.input_names):
             raise HybridnavError(f"{args.c_file}: its inputs {', '.join(compiled.input_names)} "
                                  f"are not those of {args.fis} ({', '.join(system.input_names)})")
-        from hybridnav.analysis.sil import verify   # seconds to import: after the C's checks
+        from hybridnav.fuzzy.export.closedloop import verify   # seconds to import: after the C's checks
 
         rows = verify(system, compiled, scenarios, seed=args.seed, **params)
     shown = "".join(f", {k}={v}" for k, v in params.items())
@@ -243,7 +253,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from hybridnav.progress import bar as progress_bar
 
-    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.experiments.compare import compare, write_comparison
     from hybridnav.planners import parse_assignments
 
     plans = [p.strip() for p in args.planners.split(",") if p.strip()]
@@ -276,8 +286,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from hybridnav.progress import PhaseLog
     from hybridnav.progress import bar as progress_bar
-
     from hybridnav.reproduce import PROTOCOLS, reproduce, variants
 
     if args.update_readme:
@@ -323,12 +333,14 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             bar.refresh()
         bar.update(done - bar.n)
 
-    try:
-        result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
-                           workers=args.workers, dask=args.dask, progress=progress,
-                           scenarios=scens, layouts=args.layouts)
-    finally:
-        bar.close()
+    with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
+        try:
+            result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
+                               workers=args.workers, dask=args.dask, progress=progress,
+                               scenarios=scens, layouts=args.layouts,
+                               phase=lambda msg: (bar.close(), phases(msg)))
+        finally:
+            bar.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
         print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, " + "; ".join(
@@ -362,9 +374,8 @@ def _cmd_fis(args: argparse.Namespace) -> int:
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
+    from hybridnav.progress import PhaseLog
     from hybridnav.progress import bar as progress_bar
-    from hybridnav.progress import phase
-
     from hybridnav.tuner.job import load_job, quick
     from hybridnav.tuner.run import run_job
 
@@ -385,11 +396,12 @@ def _cmd_tune(args: argparse.Namespace) -> int:
                         **extra, evals_s=f"{rate:.0f}")
         bar.update(1)
 
-    try:
-        result = run_job(job, args.out, resume=args.resume, force=args.force,
-                         progress=progress, phase=lambda msg: (bar.close(), phase(msg)))
-    finally:
-        bar.close()
+    with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
+        try:
+            result = run_job(job, args.out, resume=args.resume, force=args.force,
+                             progress=progress, phase=lambda msg: (bar.close(), phases(msg)))
+        finally:
+            bar.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
           f"{result.start_objectives[0]:.4f} -> returned {result.objectives[0]:.4f} "
           f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
@@ -408,7 +420,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
     from hybridnav.planners import parse_assignments
     from hybridnav.world import save_scenario
-    from hybridnav.worldgen import generator_from_table
+    from hybridnav.world.generator import generator_from_table
 
     table: dict[str, object] = {"generate": args.count, "seed": args.seed}
     for key, text in parse_assignments(args.set or []).items():
@@ -526,10 +538,13 @@ _TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
+    from hybridnav.cli_help import epilog
+
     parser = _Parser(
         prog="hybridnav",
         description="Hybrid mobile-robot navigation: kinematic models, planners, analysis, "
                     "fuzzy tuning.",
+        epilog=epilog(""), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"hybridnav {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
@@ -542,7 +557,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="log more (repeat for debug output)")
 
     def add_command(name: str, **kwargs: Any) -> argparse.ArgumentParser:
-        return sub.add_parser(name, parents=[common], **kwargs)
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        return sub.add_parser(name, parents=[common], epilog=epilog(name), **kwargs)
 
     p = add_command("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
@@ -560,7 +576,8 @@ def build_parser() -> argparse.ArgumentParser:
     from hybridnav import models
     from hybridnav.fuzzy.export import FORMATS
 
-    p.add_argument("model", choices=sorted(models.analyzable()))
+    p.add_argument("model", choices=sorted(models.analyzable()),
+                   help="the kinematic model to analyse (see 'hybridnav models')")
     p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
                                       "one per model)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for analysis.json, "
@@ -579,8 +596,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="set a planner parameter (repeatable)")
     p.add_argument("--fis", metavar="FIS", help="effc, fuzzy-steer: the fuzzy system (a built-in "
                                                 "name, a .json, .fll or .fis file, or "
-                                                "file.py:NAME naming a scikit-fuzzy "
-                                                "ControlSystem)")
+                                                "file.py:NAME / module:NAME naming a "
+                                                "FuzzySystem or a scikit-fuzzy ControlSystem)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
@@ -592,7 +609,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("c_file", metavar="C_FILE", help="the exported .c file (its .h beside it)")
     p.add_argument("--scenarios", default="effc-train-1,effc-train-2,effc-env-a,effc-env-b",
                    help="comma-separated scenarios (default: the EFFC paper's four)")
-    p.add_argument("--seed", type=_SEED, default=0)
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the runs (default 0)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="an effc parameter for both runs, e.g. safety_margin=0.05 (what a tuned "
                         "system's deployment.json says; repeatable)")
@@ -614,6 +631,37 @@ def build_parser() -> argparse.ArgumentParser:
                                       "(default: the result's scenario name)")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for the figures (default: DIR)")
     p.set_defaults(func=_cmd_plot)
+
+    p = add_command("animate", help="write a GIF or MP4 of a run (a folder written by 'run') "
+                                    "or of a tuning job's best system per generation",
+                    formatter_class=argparse.RawDescriptionHelpFormatter,
+                    description="Animate a run: the robots' trails and poses (footprints), the\n"
+                                "moving obstacles and targets where they are, and for swarm\n"
+                                "planners (pso-ba, fastep-kinematic, aco-kinematic) the\n"
+                                "candidates of each planning step. On a tuning job's folder:\n"
+                                "generation by generation, the best system of that generation\n"
+                                "driving on one of the job's worlds.")
+    p.add_argument("folder", metavar="DIR", help="a folder written by 'hybridnav run' "
+                                                  "(result.json) or 'hybridnav tune'")
+    p.add_argument("-o", "--out", metavar="FILE",
+                   help="the .gif or .mp4 to write (.mp4 needs ffmpeg on PATH; default "
+                        "DIR/animation.gif)")
+    p.add_argument("--scenario", help="a run's scenario when it is not built in (a .toml file; "
+                                      "default: the result's scenario name)")
+    p.add_argument("--world", metavar="NAME", help="tuning job: which of the job's worlds "
+                                                    "(default: its first test world, else "
+                                                    "validation)")
+    p.add_argument("--fps", type=_typed("a number of frames per second in (0, 100]", float,
+                                        _between(0.0, 100.0, lo_open=True)),
+                   default=None, metavar="N", help="frames per second (default 10; 4 for a "
+                                                   "tuning job)")
+    p.add_argument("--dpi", type=_typed("an integer in [10, 600]", int, _between(10, 600)),
+                   default=80, metavar="N", help="resolution: a frame is 6.4 x 6.4 inches "
+                                                 "(default 80: 512 x 512 pixels)")
+    p.add_argument("--max-frames", type=_typed("an integer in [1, 10000]", int,
+                                               _between(1, 10000)),
+                   default=150, metavar="N", help="most frames (default 150)")
+    p.set_defaults(func=_cmd_animate)
 
     p = add_command("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
                                        "plots")
@@ -659,7 +707,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "control surface")
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned, ...), a "
                                   ".json, .fll or .fis file, or file.py:NAME / module:NAME "
-                                  "naming a scikit-fuzzy ControlSystem")
+                                  "naming a FuzzySystem or a scikit-fuzzy ControlSystem")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png")
     p.set_defaults(func=_cmd_fis)
 
@@ -683,8 +731,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
                                       "IEC 61131-7 FCL or standalone C")
-    p.add_argument("fis", metavar="FIS", help="built-in name or a .json/.fll/.fis file")
-    p.add_argument("--format", required=True, choices=list(FORMATS))
+    p.add_argument("fis", metavar="FIS", help="built-in name, a .json/.fll/.fis file, or "
+                                              "file.py:NAME / module:NAME (a FuzzySystem or "
+                                              "a scikit-fuzzy ControlSystem)")
+    p.add_argument("--format", required=True, choices=list(FORMATS),
+                   help="json: hybridnav's own file; fll: fuzzylite; fis: MATLAB Fuzzy Logic "
+                        "Toolbox; fcl: IEC 61131-7; c: a standalone C evaluator (.h and .c)")
     p.add_argument("-o", "--out", metavar="PATH", help="output file; for c a prefix (PATH.h, "
                                                        "PATH.c); default <name>.<ext>")
     p.add_argument("--sampled", action="store_true", help="fll/fcl: terms as their sampled "
@@ -710,7 +762,40 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)
+
+    from hybridnav.cli_help import SHELLS
+
+    p = add_command("completion", help="print a shell completion script (bash, zsh, tcsh)")
+    p.add_argument("shell", choices=SHELLS, help="the shell the script is for")
+    p.set_defaults(func=_cmd_completion)
     return parser
+
+
+def _show_deprecations() -> None:
+    """Show old names used by the files and code a command loads, one line each: Python hides
+    ``DeprecationWarning`` outside ``__main__`` unless a filter (``-W``, pytest's settings) says
+    otherwise. Call inside ``warnings.catch_warnings()``, which restores both."""
+    from hybridnav.deprecation import HybridnavDeprecationWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, HybridnavDeprecationWarning):
+            print(f"hybridnav: warning: {message}", file=file or sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    if sys.warnoptions:                      # the user chose (-W, PYTHONWARNINGS): as they say
+        return
+    for action, msg, category, module, _ in warnings.filters:   # the filter that would apply
+        if isinstance(module, str):                 # a filter as Python's defaults store it
+            module = re.compile(re.escape(module) + r"\Z")
+        if msg is None and issubclass(HybridnavDeprecationWarning, category) and (
+                module is None or module.match("hybridnav.cli")):
+            if action == "ignore":
+                warnings.filterwarnings("default", category=HybridnavDeprecationWarning)
+            return
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -730,7 +815,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # in this process and in its worker processes: the config says warnings too
         os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "warning")
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            _show_deprecations()
+            return args.func(args)
     except HybridnavError as exc:
         print(f"hybridnav: error: {exc}", file=sys.stderr)
         return 2

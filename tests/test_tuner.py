@@ -17,7 +17,7 @@ import pytest
 from hybridnav import HybridnavError, fuzzy, planners
 from hybridnav.fileio import LOCK_NAME, locked_folder
 from hybridnav.fuzzy.family import SystemFamily
-from hybridnav.tuner.backends import DaskBackend, ProcessBackend, SerialBackend
+from hybridnav.backends import DaskBackend, ProcessBackend, SerialBackend
 from hybridnav.tuner import tune as tune_objects
 from hybridnav.tuner.costs.base import Candidates, Context, evaluate_chunk
 from hybridnav.tuner.genome import GenomeSpace
@@ -427,6 +427,11 @@ def test_tune_cli_quick_writes_every_output(tmp_path, capsys):
 
     o = tmp_path / "o"
     assert main(["tune", str(job_file), "--out", str(o)]) == 0
+    # every phase after the GA is named, with its time, as plain lines (not a terminal)
+    phases = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("  ")]
+    assert phases[0] == "  judging start and tuned on the validation and test data ..."
+    assert phases[1].startswith("  judging start and tuned on the validation and test data: ")
+    assert phases[1].endswith(" s") and len(phases) >= 4 and len(phases) % 2 == 0
     # a second run into the same folder neither overwrites it nor starts silently
     capsys.readouterr()
     assert main(["tune", str(job_file), "--out", str(o)]) == 2
@@ -859,7 +864,7 @@ def test_the_path_figure_draws_the_held_out_runs():
     from hybridnav.tuner.heldout import baseline
     from hybridnav.tuner.run import _lockstep_traces
     from hybridnav.world import load_scenario
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     scen = [load_scenario("effc-env-a"), load_scenario("effc-env-b")] \
         + WorldGenerator().generate(3, seed=4)

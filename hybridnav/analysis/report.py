@@ -189,7 +189,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     pick = np.linspace(0, len(Vt) - 1, min(12, len(Vt))).astype(int)
     plot(plot_V_time(t, Vt[pick]), "V_time.png")
 
-    result = {"model": model_name, "params": model.params, "scenario": scen.name,
+    result = {"model": model_name, "params": model.values, "scenario": scen.name,
               "target": target.tolist(), "region": {k: list(v) for k, v in region.items()},
               "seed": seed, "version": __version__, "checks": checks, "plots": plots}
     result = json_ready(result)

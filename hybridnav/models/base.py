@@ -38,6 +38,7 @@ import casadi as cs
 import numpy as np
 
 import hybridnav.models.kernel as _kernel
+from hybridnav.deprecation import RenamedAttribute
 from hybridnav.errors import HybridnavError
 from hybridnav.models.compile import _Buffered, _compile, jit_available
 from hybridnav.params import Param, check_real
@@ -268,14 +269,8 @@ class Model(ABC):
         """Check what one declaration cannot say, e.g. relations between values (subclasses
         raise :class:`HybridnavError`)."""
 
-    @property
-    def params(self) -> dict[str, float]:
-        """Old name of :attr:`values` (the numeric parameter values), kept for one version."""
-        return self.values
-
-    @params.setter
-    def params(self, values: dict[str, float]) -> None:
-        self.values = values
+    #: old name of :attr:`values`; warns, removed in 0.4.0
+    params = RenamedAttribute.writable("values")
 
     # ---- symbolic views ------------------------------------------------------------------------
 
@@ -602,6 +597,22 @@ class Model(ABC):
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         return X[:, None, :2].copy(), np.array([self.radius])
+
+    def outline(self, X) -> list[np.ndarray] | None:
+        """The robot's body as polygons, for drawing (collision checks use :meth:`footprint`).
+
+        Parameters
+        ----------
+        X : array_like, shape (N, nx)
+            States.
+
+        Returns
+        -------
+        list of ndarray, shape (N, k, 2), or None
+            One array of ``k`` corners per body (e.g. a tractor and its trailer); None for a
+            robot whose body is its footprint's disks (a disk robot).
+        """
+        return None
 
     @property
     def footprint_extent(self) -> float | None:

@@ -3,7 +3,7 @@
 A job is validated completely before any work starts; every error names the file and the key.
 Scenario sets (``scenarios.train``, ``scenarios.validation``, ``scenarios.test``) are lists whose
 items are built-in names, scenario files, or generated sets ``{generate = N, seed = S, ...}``
-(:mod:`hybridnav.worldgen`; the other keys are generator settings).
+(:mod:`hybridnav.world.generator`; the other keys are generator settings).
 A job is a thin front over the tuning objects: :meth:`Job.tunable` (the
 :class:`~hybridnav.tuner.TunableSettings`), :meth:`Job.cost` (navigation, data or python),
 :meth:`Job.optimizer` and :meth:`Job.validation_arg` are what :func:`hybridnav.tuner.tune`
@@ -28,7 +28,7 @@ from hybridnav.fileio import parse_toml, read_text_file
 from hybridnav.params import Param, check_value, short_repr
 from hybridnav.tuner.costs.navigation import COVERAGE, PLANNER, REWARD
 
-__all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "quick"]
+__all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "load_scenario_set", "quick"]
 
 _POS = {"lo": 0.0}                  # a non-negative number
 _UNIT = {"lo": 0.0, "hi": 1.0}       # a fraction
@@ -119,7 +119,7 @@ SCHEMA: dict[str, dict[str, Param]] = {
         "test": Param(["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3},
                        {"generate": 8, "seed": 13, **TRAPS}],
                       "the worlds only reported"),
-        "heldout": Param([], "the old name of test"),
+        "heldout": Param([], "the old name of test (warns; removed in 0.4.0)"),
     },
     "reward": REWARD,
     "coverage": COVERAGE,
@@ -565,6 +565,9 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
     sc = data["scenarios"]
     given = raw.get("scenarios", {}) if isinstance(raw.get("scenarios"), dict) else {}
     if "heldout" in given:
+        from hybridnav.deprecation import warn_renamed
+
+        warn_renamed(f"{where}scenarios.heldout", "scenarios.test")
         if "test" in given:
             raise fail("scenarios.heldout", "expected either test or its old name heldout, "
                                             "not both")
@@ -582,7 +585,7 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
                     raise fail(f"scenarios.{key}[{i}]", "expected a scenario name or path, "
                                                         "got an empty string")
             elif isinstance(item, dict):
-                from hybridnav.worldgen import generator_from_table
+                from hybridnav.world.generator import generator_from_table
 
                 generator_from_table(item, where, f"scenarios.{key}[{i}]")
             else:
@@ -619,11 +622,42 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
                            f"step serves them all; got {len(keys)} different ones")
 
 
+def load_scenario_set(items: list, base: str | os.PathLike, where: str) -> list:
+    """The scenarios of a set as a job lists them: built-in names, scenario files (relative to
+    ``base``) and generated sets ``{generate = N, seed = S, ...}``.
+
+    Parameters
+    ----------
+    items : list
+        The set's items, as ``scenarios.train`` (``validation``, ``test``) of a job holds them.
+    base : str or path-like
+        The folder relative file names are in (the job file's).
+    where : str
+        What the messages start with (e.g. ``"job.toml: scenarios.test"``).
+
+    Returns
+    -------
+    list of Scenario
+
+    Raises
+    ------
+    HybridnavError
+        An item that is not a scenario, a file, or a generated set, or scenarios of one name.
+    """
+    if not isinstance(items, list):
+        raise HybridnavError(f"{where}: expected a list of scenario names, files and generated "
+                             f"sets, got {type(items).__name__}")
+    try:
+        return list(_load_set(json.dumps(items, sort_keys=True), str(base)))
+    except HybridnavError as exc:
+        raise HybridnavError(f"{where}{exc}") from None
+
+
 @functools.lru_cache(maxsize=16)
 def _load_set(items_json: str, base: str) -> list:
     """The scenarios of one set (cached: generated worlds are drawn once per process)."""
     from hybridnav.world import load_scenario
-    from hybridnav.worldgen import generator_from_table
+    from hybridnav.world.generator import generator_from_table
 
     out = []
     for i, item in enumerate(json.loads(items_json)):

@@ -5,7 +5,8 @@ system it started from), ``logbook.csv`` (gen, evals, min, mean, max, std, val_g
 wall_time), ``evaluations.csv`` (every individual's outcome, length, time and clearance per
 training environment), ``validation.csv`` (every validated candidate per validation world),
 ``heldout.csv`` (start, tuned and ``apf`` on every validation and test world) and
-``heldout_summary.csv``, ``convergence.png`` (training and validation curves), ``mfs.png``
+``heldout_summary.csv``, ``generations.json`` (the best system of each generation, what
+``hybridnav animate DIR`` drives), ``convergence.png`` (training and validation curves), ``mfs.png``
 (start and tuned), ``surface.png``, ``coverage.png`` (where no rule fires), ``paths.png``,
 ``report.md`` with the verdict, and the deployment exports: ``fis.fll`` (fuzzylite),
 ``fis.fis`` (MATLAB), ``fis.fcl`` (IEC 61131-7) and ``effc.h``/``effc.c`` (standalone C, the names
@@ -40,7 +41,8 @@ from hybridnav.tuner.result import TuningResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job", "write_outputs"]
+__all__ = ["OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job", "write_generations",
+           "write_outputs"]
 
 #: File name stem of the C export a tuning job writes (effc.h, effc.c; functions effc_*)
 C_BASENAME = "effc"
@@ -53,7 +55,8 @@ C_BASENAME = "effc"
 OUTPUT_FILES = ("checkpoint.json", "evaluations.jsonl", "evaluations.csv", "logbook.csv",
                 "result.json", "start.json", "report.md", "fis.json", "fis.fll", "fis.fis",
                 "fis.fcl", f"{C_BASENAME}.c", f"{C_BASENAME}.h", f"{C_BASENAME}_safety.c",
-                f"{C_BASENAME}_safety.h", "deployment.json", "pareto.csv", "validation.csv",
+                f"{C_BASENAME}_safety.h", "deployment.json", "generations.json", "pareto.csv",
+                "validation.csv",
                 "heldout.csv", "heldout_summary.csv", "falsified.csv", "falsification.csv",
                 "convergence.png", "coverage.png", "front.png", "mfs.png", "paths.png",
                 "surface.png")
@@ -177,17 +180,17 @@ def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
                            optimizer=job.optimizer(),
                            settings=lambda learned: TunableSettings.from_table(learned, table),
                            backend=backend, checkpoint=out, progress=progress, resume=resume,
-                           stop_after=stop_after, **kw)
+                           stop_after=stop_after, phase=phase, **kw)
         else:
             robust = job["robust"]["rounds"] > 0
             result = tune(job.start_system(), job.cost("train"), backend=backend,
                           checkpoint=out, progress=progress, resume=resume,
-                          stop_after=stop_after, **kw)
+                          stop_after=stop_after, phase=phase, **kw)
             if robust and result.finished:     # falsification in the training loop
                 from hybridnav.tuner.robust import robust_rounds
 
-                result = robust_rounds(job, result, backend, out, kw, progress, resume,
-                                       stop_after)
+                result = robust_rounds(job, result, backend, out, {**kw, "phase": phase},
+                                       progress, resume, stop_after)
         if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
         result.files = write_outputs(job, result, out, backend=backend, phase=phase)
@@ -267,6 +270,7 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
             files.append("coverage.png")
         say("path figure: start, tuned and apf on the paper's and some test worlds")
         files += _paths(job, result, out, backend)
+        files += write_generations(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     say("exports (FLL, FIS, FCL, C)")
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
@@ -285,6 +289,49 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
                                                  sil))
     files.append("report.md")
     return files
+
+
+def write_generations(job: Job, result: TuningResult, out: str | Path) -> list[str]:
+    """Write ``generations.json`` into ``out``: the best system of each generation of a
+    navigation job (each distinct system once), its planner and settings and the job's world
+    sets, what :func:`hybridnav.plotting.animate` drives generation by generation.
+
+    Parameters
+    ----------
+    job : Job
+    result : TuningResult
+        Its ``generations``.
+    out : str or Path
+        The job's output folder.
+
+    Returns
+    -------
+    list of str
+        ``["generations.json"]``, or ``[]`` for a job that is not a navigation job (no world to
+        drive on) or a result without generations.
+    """
+    out = Path(out)
+    if job["cost"]["kind"] != "navigation":
+        return []
+    if not result.generations:
+        return []
+    systems: list[dict[str, Any]] = []
+    index: dict[int, int] = {}
+    rows = []
+    for g in result.generations:
+        k = index.setdefault(id(g["system"]), len(systems))
+        if k == len(systems):
+            systems.append(g["system"].to_dict())
+        rows.append({"stage": int(g["stage"]), "generation": int(g["generation"]),
+                     "score": float(g["score"]) if math.isfinite(g["score"]) else None,
+                     "system": k})
+    data = {"format": "hybridnav-generations/1", "job": job.name,
+            "objective": result.objective_names[0], "planner": job["cost"]["planner"],
+            "planner_params": dict(job["planner"]),
+            "worlds": {k: job["scenarios"][k] for k in ("train", "validation", "test")},
+            "base": str(Path(job.base).resolve()), "generations": rows, "systems": systems}
+    atomic_write_text(out / "generations.json", json.dumps(data, indent=1))
+    return ["generations.json"]
 
 
 def _path_run(planner: str, params: dict[str, Any], scenario):
@@ -306,7 +353,7 @@ def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = 
         failed = set(h[(h.set == "test") & (h.system == "tuned")
                        & (h.outcome != "reached")].scenario)
     def generated(s) -> bool:
-        return "(hybridnav.worldgen)" in (s.description or "")
+        return "(hybridnav.world.generator)" in (s.description or "")
 
     shown = [("train", s) for s in job.scenarios("train") if not generated(s)]
     shown += [("test", s) for s in test if not generated(s)]
@@ -548,7 +595,7 @@ def _fmt(v: float, spec: str = ".3f") -> str:
 def _sil_lines(job: Job, system, out: Path) -> list[str]:
     """The report's software-in-the-loop check of the C export: the compiled C controller against
     the Python evaluator in closed loop on the first training and (up to) two test worlds."""
-    from hybridnav.analysis.sil import verify
+    from hybridnav.fuzzy.export.closedloop import verify
     from hybridnav.fuzzy.export.sil import CompiledFIS
 
     head = ["", "## Software in the loop: the exported C controller", ""]
