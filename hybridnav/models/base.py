@@ -133,6 +133,9 @@ class Model(ABC):
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()
     input_names: ClassVar[tuple[str, ...]] = ()
+    #: the unit of each state (the figures' axis labels): ``"length"`` is the scenario's length
+    #: unit, ``"rad"`` an angle; see :mod:`hybridnav.plotting.labels`
+    state_units: ClassVar[dict[str, str]] = {"x": "length", "y": "length"}
     #: the model's settings, declared once: real-valued :class:`~hybridnav.params.Param` entries
     #: are its numeric parameters (the vector ``p`` in declaration order), the others (strings
     #: with choices, tuples) its options
