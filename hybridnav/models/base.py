@@ -129,6 +129,9 @@ class Model(ABC):
     smooth_at_target: ClassVar[bool] = False
     straight_driving: ClassVar[tuple[float, ...] | None] = None
     candidate_name: ClassVar[str] = "1/2 distance^2"
+    #: the unit of that candidate (figures: ``V``, ``dV/dt``); ``"length²"`` for half a squared
+    #: distance, None where it has no one unit
+    candidate_unit: ClassVar[str | None] = "length²"
     #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()

@@ -189,7 +189,7 @@ def mark_outcome(ax: Axes, point, outcome: str, labelled: set[str] | None = None
             **{"markersize": 11, "markeredgecolor": "black", "zorder": 8, **style}, label=label)
 
 
-def legend_outside(ax: Axes, fontsize: float = 8, ncols: int = 2):
+def legend_outside(ax: Axes, fontsize: float = 8, ncols: int = 2, handles=None):
     """The axes' legend below it (it covers no data; constrained layout makes room); None when
     nothing is labelled.
 
@@ -198,12 +198,24 @@ def legend_outside(ax: Axes, fontsize: float = 8, ncols: int = 2):
     ax : matplotlib.axes.Axes
     fontsize : float
     ncols : int
+    handles : list of artists, optional
+        Stand-ins for drawn artists, each with the label of the artist it stands for (default:
+        the axes' labelled artists).
     """
-    handles, labels = ax.get_legend_handles_labels()
+    from matplotlib.transforms import offset_copy
+
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    else:
+        labels = [h.get_label() for h in handles]
     if not handles:
         return None
-    return ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.1),
-                     fontsize=fontsize, ncols=min(ncols, len(handles)), frameon=False)
+    # anchored a fixed distance below the axes: under the tick labels and the x label
+    below = offset_copy(ax.transAxes, fig=ax.figure, y=-3.4 * ax.xaxis.label.get_size(),
+                        units="points")
+    return ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                     bbox_transform=below, fontsize=fontsize, ncols=min(ncols, len(handles)),
+                     frameon=False)
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,8 @@ __all__ = ["PROFILES", "PROTOCOLS", "Claim", "Protocol", "Row", "Value", "label_
 def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
               workers: int = 1, dask: str | Any | None = None,
               progress: Callable[[int, int], None] | None = None,
-              scenarios: Sequence[str] | None = None, layouts: int | None = None
-              ) -> dict[str, Any]:
+              scenarios: Sequence[str] | None = None, layouts: int | None = None,
+              fmt: str = "png", dpi: int = 120) -> dict[str, Any]:
     """Run protocol ``name`` and write its report into ``out``.
 
     Parameters
@@ -62,6 +62,11 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         (:mod:`hybridnav.reproduce.layouts`; default :data:`LAYOUTS`; ``min(runs,
         LAYOUT_RUNS)`` runs per planner and layout; 0: no layout sensitivity). They are written to ``out/layouts/``, their verdicts
         to ``layouts.csv`` and their runs' summary to ``layouts_summary.csv``.
+    fmt : str
+        The figures' format: ``png``, ``pdf`` or ``svg`` (their names, and the report's links,
+        carry it).
+    dpi : int
+        The figures' resolution in dots per inch.
 
     Returns
     -------
@@ -79,9 +84,12 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
 
     from hybridnav.reproduce.tuning import EXPERIMENTS, run_experiment
 
+    from hybridnav.params import check_dpi, check_figure_format
+
     if name not in PROTOCOLS and name not in EXPERIMENTS:
         raise HybridnavError(f"reproduce: unknown protocol {name!r}; expected one of: "
                              + ", ".join(sorted([*PROTOCOLS, *EXPERIMENTS])))
+    figures = {"fmt": check_figure_format(fmt, "fmt"), "dpi": check_dpi(dpi)}
     if name in EXPERIMENTS:
         if scenarios:
             raise HybridnavError(f"reproduce {name}: --scenarios: this target tunes before it "
@@ -93,7 +101,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
             check_count("--runs", runs, 1)
         with locked_folder(out, f"reproduce {name}"):
             return run_experiment(name, out, runs=runs, seed=seed, workers=workers, dask=dask,
-                                  progress=progress)
+                                  progress=progress, **figures)
     protocol = PROTOCOLS[name]
     if scenarios:
         known = [row.scenario for row in protocol.rows]
@@ -109,12 +117,13 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     scenarios = [row.scenario for row in protocol.rows]
     with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
         return _reproduce(name, protocol, specs, scenarios, int(n), Path(out), seed, workers,
-                          dask, progress, int(layouts))
+                          dask, progress, int(layouts), figures)
 
 
 
 
-def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts):
+def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts,
+               figures=None):
     from hybridnav.analysis.compare import compare, write_comparison
     from hybridnav.fileio import atomic_write_text
     from hybridnav.reproduce.layouts import layout_sensitivity
@@ -142,7 +151,7 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
                 "workers": workers if dask is None else f"dask {dask}",
                 "elapsed_s": round(elapsed, 1), "load": load_average(), "layouts": layouts,
                 "layout_runs": layout_runs}
-    files = write_comparison(out, table, summary, settings=settings)
+    files = write_comparison(out, table, summary, settings=settings, **(figures or {}))
     if not verdicts.empty:
         atomic_write_text(out / "layouts.csv", verdicts.to_csv(index=False))
         atomic_write_text(out / "layouts_summary.csv", lsummary.to_csv(index=False))

@@ -146,7 +146,8 @@ def _worlds(experiment: Experiment, seed: int) -> dict[str, list]:
 
 def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
                    workers: int = 1, dask: Any = None,
-                   progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+                   progress: Callable[[int, int], None] | None = None, fmt: str = "png",
+                   dpi: int = 120) -> dict[str, Any]:
     """Tune in every profile with ``runs`` seeds, judge every system, write ``report.md``.
 
     Parameters
@@ -161,6 +162,8 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
         GA seeds per profile (default :attr:`Experiment.runs`); run ``k`` uses ``seed + k``.
     seed, workers, dask, progress
         As for :func:`hybridnav.reproduce.reproduce` (``progress(done, total)`` per GA run).
+    fmt, dpi
+        The GA runs' figures: format (``png``, ``pdf``, ``svg``) and dots per inch.
 
     Returns
     -------
@@ -189,7 +192,7 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
         for k in range(int(n)):
             job = _job(experiment, profile, seed + k, workers, dask)
             folder = out / "tuning" / f"{profile}-seed{seed + k}"
-            run_job(job, folder, force=True)
+            run_job(job, folder, force=True, fmt=fmt, dpi=dpi)
             tuned[f"{profile}/seed{seed + k}"] = load_any(str(folder / "fis.json"))
             done += 1
             if progress is not None:
