@@ -7,7 +7,7 @@
   PDF or SVG by the path's suffix; :func:`hybridnav.plotting.save_figure`).
 
 Axes carry the variables' units where the planner that feeds the system declares them
-(:func:`hybridnav.plotting.labels.fuzzy_units`: EFFC's ``dtheta`` in rad, ``alpha`` and ``w``
+(:func:`hybridnav.planners.fuzzy_units`: EFFC's ``dtheta`` in rad, ``alpha`` and ``w``
 dimensionless); a system no planner takes is labelled by its variable names alone.
 """
 
@@ -32,7 +32,7 @@ log = logging.getLogger(__name__)
 
 
 def _units(system: FuzzySystem, units: Mapping[str, str] | None) -> dict[str, str]:
-    from hybridnav.plotting.labels import fuzzy_units
+    from hybridnav.planners import fuzzy_units
 
     return dict(fuzzy_units(system) if units is None else units)
 
@@ -48,7 +48,7 @@ def plot_memberships(system: FuzzySystem, fig: Figure | None = None,
         Figure to draw into (it is cleared); a new one is made otherwise.
     units : mapping, optional
         Variable name -> unit (``""``: dimensionless); default what the planner that feeds
-        the system declares (:func:`hybridnav.plotting.labels.fuzzy_units`).
+        the system declares (:func:`hybridnav.planners.fuzzy_units`).
 
     Returns
     -------

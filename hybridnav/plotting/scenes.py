@@ -164,7 +164,7 @@ _OUTCOME_MARK = {"reached": ("*", "green"), "collided": ("X", "red"),
 
 
 def mark_outcome(ax: Axes, point, outcome: str, labelled: set[str] | None = None,
-                 **style) -> None:
+                 markersize: float = 11) -> None:
     """Mark where a run ended with its outcome's marker (reached: green star, collided: red X,
     out of bounds: purple X, stuck: orange square, timeout: grey diamond).
 
@@ -177,16 +177,15 @@ def mark_outcome(ax: Axes, point, outcome: str, labelled: set[str] | None = None
     labelled : set of str, optional
         Outcomes that already have a legend entry; the first marker of each outcome gets one
         (``"end: <outcome>"``) and is added. None: no legend entry.
-    **style
-        Passed to :meth:`~matplotlib.axes.Axes.plot` (e.g. ``markersize``).
+    markersize : float
     """
     mark, mcol = _OUTCOME_MARK.get(outcome, ("o", "black"))
     label = None
     if labelled is not None and outcome not in labelled:
         labelled.add(outcome)
         label = f"end: {outcome}"
-    ax.plot(*point, linestyle="none", marker=mark, color=mcol,
-            **{"markersize": 11, "markeredgecolor": "black", "zorder": 8, **style}, label=label)
+    ax.plot(*point, linestyle="none", marker=mark, color=mcol, markersize=markersize,
+            markeredgecolor="black", zorder=8, label=label)
 
 
 def legend_outside(ax: Axes, fontsize: float = 8, ncols: int = 2, handles=None):

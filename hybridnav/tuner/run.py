@@ -34,7 +34,7 @@ from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, clean_temporaries, locked_folder
 from hybridnav.params import DEFAULT_DPI, FIGURE_FORMATS
 from hybridnav.plotting import Trace, check_dpi, check_format, figure_name, plot_traces, save_figure
-from hybridnav.plotting.labels import axis_label, fuzzy_units
+from hybridnav.plotting.labels import axis_label
 from hybridnav.plotting.scenes import legend_outside
 from hybridnav.tuner.core import tune
 from hybridnav.tuner.costs import NavigationCost
@@ -573,6 +573,8 @@ def _coverage(job: Job, systems: dict[str, Any], unc: np.ndarray) -> Figure:
                           {a.name: A.ravel(), b.name: B.ravel()}).reshape(A.shape)
         ax.pcolormesh(xa, xb, (~fired).T.astype(float), cmap="Reds", vmin=0, vmax=1.5,
                       shading="nearest")
+        from hybridnav.planners import fuzzy_units
+
         units = fuzzy_units(system)
         ax.set_xlabel(axis_label(a.name, units.get(a.name)))
         ax.set_ylabel(axis_label(b.name, units.get(b.name)))
