@@ -681,6 +681,7 @@ def _bars(summary: pd.DataFrame, metric: str, label: str) -> Figure:
                                 color=bars.patches[0].get_facecolor() if bars.patches
                                 else "black")
         ax.set_xticks(np.arange(len(scen)), scen, rotation=20)
+        ax.set_xlabel("scenario")
         text = label.replace("{units}", unit or "scenario units")
         ax.set_ylabel(text)
         if metric == "success_rate":
