@@ -207,6 +207,9 @@ def legend_outside(ax: Axes, fontsize: float = 8, ncols: int = 2, handles=None):
         handles, labels = ax.get_legend_handles_labels()
     else:
         labels = [h.get_label() for h in handles]
+    # the outcome markers (mark_outcome) after what they end
+    order = sorted(range(len(labels)), key=lambda i: labels[i].startswith("end: "))
+    handles, labels = [handles[i] for i in order], [labels[i] for i in order]
     if not handles:
         return None
     # anchored a fixed distance below the axes: under the tick labels and the x label
