@@ -30,9 +30,9 @@ PHYSICS = {"t": "s", "x": "length", "y": "length", "theta": "rad", "theta0": "ra
            "alpha": "", "w": "", "xdot": "length/s", "ydot": "length/s", "speed": "length/s",
            "Re λ": "1/s", "Im λ": "1/s"}
 #: labels deliberately without a unit: counts, scores and objectives with no physical unit
-UNITLESS = re.compile(r"^(generation|iteration|step|scenario|best cost \(the search's objective\)"
-                      r"|step cost f|fitness of the path point|V = L|log10 L|dV/dt$"
-                      r"|deploy reward|[a-z_ ]+ \(minimized\)|control effort)")
+UNITLESS = re.compile(r"^(generation|iteration|step|scenario|best cost: the search's objective"
+                      r"|fitness of the path point|V = L|log10 L|dV/dt$|[a-z_ ]+, minimized$"
+                      r"|control effort)")
 LABEL = re.compile(r"^(?P<head>.+?) \((?P<unit>[^()]+)\)$")
 
 

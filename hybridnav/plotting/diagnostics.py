@@ -213,7 +213,7 @@ def plot_steps(result: Result, length: str | None = None) -> Figure | None:
         axes[0].plot(tab["t"], tab["cost"], linewidth=1.0, label=name)
         axes[1].plot(tab["t"], tab["xdot"], linewidth=1.0, label=name)
         axes[2].plot(tab["t"], tab["ydot"], linewidth=1.0, label=name)
-    axes[0].set_ylabel("step cost f (the planner's objective)")
+    axes[0].set_ylabel("step cost f: the planner's objective")
     axes[1].set_ylabel(axis_label("xdot", "length/s", length))
     axes[2].set_ylabel(axis_label("ydot", "length/s", length))
     axes[2].set_xlabel(axis_label("t", "s"))

@@ -519,7 +519,7 @@ def _convergence(result: TuningResult) -> Figure:
         ax.set_yscale("log")
     ax.set_xlabel("generation" + (" (all k-fold stages)" if "stage" in df else ""))
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))      # generations are whole
-    ax.set_ylabel(f"{result.objective_names[0]} (minimized)")
+    ax.set_ylabel(f"{result.objective_names[0]}, minimized")
     ax.set_title(f"{result.system.name}: training and validation")
     legend_outside(ax, fontsize=7, ncols=1)
     return fig
@@ -548,8 +548,8 @@ def _front(result: TuningResult) -> Figure:
                    edgecolors="red", linestyles="--", linewidths=1.2,
                    label="returned, on validation")
     inf = int((~np.isfinite(f[["objective_0", "objective_1"]].to_numpy())).any(axis=1).sum())
-    ax.set_xlabel(f"{names[0]} (minimized)")
-    ax.set_ylabel(f"{names[1]} (minimized)")
+    ax.set_xlabel(f"{names[0]}, minimized")
+    ax.set_ylabel(f"{names[1]}, minimized")
     ax.set_title(f"Pareto front: {len(f)} members"
                  + (f" ({inf} with an infinite objective not drawn)" if inf else ""))
     ax.legend(fontsize=8)
