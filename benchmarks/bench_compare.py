@@ -1,6 +1,6 @@
 """``compare`` with one and with two worker processes: wall time and speed-up, measured in one run.
 
-``hybridnav.analysis.compare.compare`` of ``--planners`` x ``--scenarios`` x ``--runs`` (by
+``hybridnav.experiments.compare.compare`` of ``--planners`` x ``--scenarios`` x ``--runs`` (by
 default the four field planners on the EFFC paper's four worlds, 2 runs each: 32 short runs)
 with ``workers = 1`` (in this process) and ``workers = 2`` (the local process pool ``compare``
 keeps for the life of the process, as ``reproduce`` uses it: the first repeat starts it),
@@ -26,7 +26,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pandas as pd
 
-from hybridnav.analysis.compare import compare
+from hybridnav.experiments.compare import compare
 
 from _reference import burn, uptime  # this folder: the reference job every parallel benchmark times
 

@@ -113,7 +113,7 @@ def main() -> None:
         results[label] = best_of(lambda: m.rollout(X0, T, steps), args.repeat)
         print(f"  {label:24s} {results[label] * 1e3:9.3f} ms   (first call incl. build "
               f"{build * 1e3:.0f} ms)")
-    q = m.params
+    q = m.values
     ref = numpy_rollout(X0, T, steps, m.dt, q)
     results["numpy"] = best_of(lambda: numpy_rollout(X0, T, steps, m.dt, q), args.repeat)
     print(f"  {'NumPy vectorized RK4':24s} {results['numpy'] * 1e3:9.3f} ms   "
@@ -223,7 +223,7 @@ def batch_table(batches, steps, budget):
         X_all, T_all = _states(m, max(batches), rng)
         for n in batches:
             X0, T = np.ascontiguousarray(X_all[:n]), np.ascontiguousarray(T_all[:n])
-            cols = {"numpy": partial(numpy_rollout, X0, T, steps, m.dt, m.params, rhs_of[name]),
+            cols = {"numpy": partial(numpy_rollout, X0, T, steps, m.dt, m.values, rhs_of[name]),
                     "default": partial(m.rollout, X0, T, steps),
                     "map": partial(m_map.rollout, X0, T, steps)}
             if k_exact is not None:

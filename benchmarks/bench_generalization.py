@@ -37,7 +37,7 @@ def fresh(job, result, count: int, traps: int) -> None:
     """The returned system on worlds no set of the job uses, with the job's planner settings."""
     from hybridnav.tuner.heldout import run_systems, summarize
     from hybridnav.tuner.job import TRAPS
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     seed = 2027
     kinds = {k: tuple(v) if isinstance(v, list) else v for k, v in TRAPS.items()}

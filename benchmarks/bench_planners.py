@@ -16,7 +16,7 @@ compare throughput.
    the rest of ``feasible_steps`` (the swept-footprint check). What is left is the step fitness,
    the optimizer and the bookkeeping. Rollouts outside planning (re-checking the current move) are
    reported apart.
-3. ``hybridnav.analysis.compare.compare`` on both planners x fastep-s1, fastep-s3 x ``--runs`` runs
+3. ``hybridnav.experiments.compare.compare`` on both planners x fastep-s1, fastep-s3 x ``--runs`` runs
    with 1 and 2 worker processes, each in a fresh interpreter (cold caches, as the CLI starts):
    runs per second, the speedup, and the CPU seconds used (the processes' own plus the
    pool's; CPU/wall near 2 with 2 workers means both cores were ours -- on a shared machine the
@@ -237,7 +237,7 @@ def compare_child(workers: int, runs: int) -> None:
     """Run in a fresh interpreter: time one compare() call, print JSON."""
     import resource
 
-    from hybridnav.analysis.compare import compare
+    from hybridnav.experiments.compare import compare
 
     tic, cpu0 = time.perf_counter(), time.process_time()
     from hybridnav.backends import close_shared

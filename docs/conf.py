@@ -79,7 +79,9 @@ API = {
     "hybridnav": "Top level: errors and the version",
     "hybridnav.models": "Kinematic models (CasADi)",
     "hybridnav.world": "Worlds, obstacles, scenarios and their files",
-    "hybridnav.analysis": "Stability analysis and planner comparisons",
+    "hybridnav.world.grid": "Occupancy grids and MovingAI maps",
+    "hybridnav.world.generator": "Generated worlds",
+    "hybridnav.analysis": "Stability analysis",
     "hybridnav.fuzzy": "Mamdani fuzzy systems, their files and exports",
     "hybridnav.tuner": "Tuning fuzzy systems",
     "hybridnav.planners": "Planners",
@@ -88,7 +90,12 @@ API = {
     "hybridnav.plotting": "Figures",
     "hybridnav.params": "Settings and their checks",
     "hybridnav.backends": "Parallel backends",
+    "hybridnav.experiments.compare": "Planner comparisons",
+    "hybridnav.experiments.convergence": "Convergence of the swarm searches",
     "hybridnav.reproduce": "Reproductions of the papers",
+    "hybridnav.fuzzy.export.sil": "Software in the loop: the C export compiled and called",
+    "hybridnav.fuzzy.export.closedloop": "Software in the loop: the C export in closed loop",
+    "hybridnav.deprecation": "Deprecated names and when they go",
 }
 
 

@@ -8,6 +8,7 @@ systems. See ``README.md`` and the documentation built from ``docs/``.
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 
+from hybridnav import deprecation as _deprecation
 from hybridnav.errors import HybridnavError
 
 try:
@@ -16,3 +17,5 @@ except PackageNotFoundError:  # running from a source tree that was never instal
     __version__ = "0.0.0+unknown"
 
 __all__ = ["HybridnavError", "__version__"]
+
+_deprecation.install()   # the old module names of 0.2 warn and serve their new modules until 0.4.0

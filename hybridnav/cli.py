@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import sys
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -53,6 +55,13 @@ def _cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_completion(args: argparse.Namespace) -> int:
+    from hybridnav.cli_help import completion_script
+
+    print(completion_script(args.shell, build_parser()), end="")
+    return 0
+
+
 def _cmd_models(args: argparse.Namespace) -> int:
     from hybridnav.models import MODELS
 
@@ -67,10 +76,11 @@ def _cmd_models(args: argparse.Namespace) -> int:
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
     from hybridnav.analysis.report import analyze
+    from hybridnav.progress import PhaseLog
 
-    result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
-                     progress=lambda msg: print(f"  {msg} ...", flush=True), fmt=args.format,
-                     dpi=args.dpi)
+    with PhaseLog() as say:
+        result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
+                         progress=say, fmt=args.format, dpi=args.dpi)
     width = max(len(c["name"]) for c in result["checks"])
     print(f"{result['model']} on {result['scenario']}, target {result['target']}:")
     for c in result["checks"]:
@@ -236,7 +246,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         if set(compiled.input_names) != set(system.input_names):
             raise HybridnavError(f"{args.c_file}: its inputs {', '.join(compiled.input_names)} "
                                  f"are not those of {args.fis} ({', '.join(system.input_names)})")
-        from hybridnav.analysis.sil import verify   # seconds to import: after the C's checks
+        from hybridnav.fuzzy.export.closedloop import verify   # seconds to import: after the C's checks
 
         rows = verify(system, compiled, scenarios, seed=args.seed, **params)
     shown = "".join(f", {k}={v}" for k, v in params.items())
@@ -266,7 +276,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from hybridnav.progress import bar as progress_bar
 
-    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.experiments.compare import compare, write_comparison
     from hybridnav.planners import parse_assignments
 
     plans = [p.strip() for p in args.planners.split(",") if p.strip()]
@@ -300,8 +310,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from hybridnav.progress import PhaseLog
     from hybridnav.progress import bar as progress_bar
-
     from hybridnav.reproduce import PROTOCOLS, reproduce, variants
 
     if args.update_readme:
@@ -347,13 +357,16 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             bar.refresh()
         bar.update(done - bar.n)
 
+    phases = PhaseLog()
     try:
         result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
                            workers=args.workers, dask=args.dask, progress=progress,
-                           scenarios=scens, layouts=args.layouts, fmt=args.format,
+                           scenarios=scens, layouts=args.layouts,
+                           phase=lambda msg: (bar.close(), phases(msg)), fmt=args.format,
                            dpi=args.dpi)
     finally:
         bar.close()
+        phases.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
         print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, " + "; ".join(
@@ -390,9 +403,8 @@ def _cmd_fis(args: argparse.Namespace) -> int:
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
+    from hybridnav.progress import PhaseLog
     from hybridnav.progress import bar as progress_bar
-    from hybridnav.progress import phase
-
     from hybridnav.tuner.job import load_job, quick
     from hybridnav.tuner.run import run_job
 
@@ -413,12 +425,14 @@ def _cmd_tune(args: argparse.Namespace) -> int:
                         **extra, evals_s=f"{rate:.0f}")
         bar.update(1)
 
+    phases = PhaseLog()
     try:
         result = run_job(job, args.out, resume=args.resume, force=args.force,
-                         progress=progress, phase=lambda msg: (bar.close(), phase(msg)),
+                         progress=progress, phase=lambda msg: (bar.close(), phases(msg)),
                          fmt=args.format, dpi=args.dpi)
     finally:
         bar.close()
+        phases.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
           f"{result.start_objectives[0]:.4f} -> returned {result.objectives[0]:.4f} "
           f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
@@ -437,7 +451,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
     from hybridnav.planners import parse_assignments
     from hybridnav.world import save_scenario
-    from hybridnav.worldgen import generator_from_table
+    from hybridnav.world.generator import generator_from_table
 
     table: dict[str, object] = {"generate": args.count, "seed": args.seed}
     for key, text in parse_assignments(args.set or []).items():
@@ -571,10 +585,13 @@ def _figure_options() -> argparse.ArgumentParser:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
+    from hybridnav.cli_help import epilog
+
     parser = _Parser(
         prog="hybridnav",
         description="Hybrid mobile-robot navigation: kinematic models, planners, analysis, "
                     "fuzzy tuning.",
+        epilog=epilog(""), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"hybridnav {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
@@ -589,7 +606,9 @@ def build_parser() -> argparse.ArgumentParser:
     figures = _figure_options()
 
     def add_command(name: str, draws: bool = False, **kwargs: Any) -> argparse.ArgumentParser:
-        return sub.add_parser(name, parents=[common, figures] if draws else [common], **kwargs)
+        return sub.add_parser(name, parents=[common, figures] if draws else [common],
+                              epilog=epilog(name),
+                              formatter_class=argparse.RawDescriptionHelpFormatter, **kwargs)
 
     p = add_command("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
@@ -610,7 +629,8 @@ def build_parser() -> argparse.ArgumentParser:
     from hybridnav import models
     from hybridnav.fuzzy.export import FORMATS
 
-    p.add_argument("model", choices=sorted(models.analyzable()))
+    p.add_argument("model", choices=sorted(models.analyzable()),
+                   help="the kinematic model to analyse (see 'hybridnav models')")
     p.add_argument("--scenario", help="scenario giving target, region and obstacles (default: "
                                       "one per model)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for analysis.json, "
@@ -629,8 +649,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="set a planner parameter (repeatable)")
     p.add_argument("--fis", metavar="FIS", help="effc, fuzzy-steer: the fuzzy system (a built-in "
                                                 "name, a .json, .fll or .fis file, or "
-                                                "file.py:NAME naming a scikit-fuzzy "
-                                                "ControlSystem)")
+                                                "file.py:NAME / module:NAME naming a "
+                                                "FuzzySystem or a scikit-fuzzy ControlSystem)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="folder for result.json, "
                                                               "trajectories and plots")
     p.set_defaults(func=_cmd_run)
@@ -642,7 +662,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("c_file", metavar="C_FILE", help="the exported .c file (its .h beside it)")
     p.add_argument("--scenarios", default="effc-train-1,effc-train-2,effc-env-a,effc-env-b",
                    help="comma-separated scenarios (default: the EFFC paper's four)")
-    p.add_argument("--seed", type=_SEED, default=0)
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the runs (default 0)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="an effc parameter for both runs, e.g. safety_margin=0.05 (what a tuned "
                         "system's deployment.json says; repeatable)")
@@ -709,7 +729,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "control surface")
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned, ...), a "
                                   ".json, .fll or .fis file, or file.py:NAME / module:NAME "
-                                  "naming a scikit-fuzzy ControlSystem")
+                                  "naming a FuzzySystem or a scikit-fuzzy ControlSystem")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png (or "
                                                       ".pdf, .svg: --format)")
     p.set_defaults(func=_cmd_fis)
@@ -734,8 +754,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("export", help="write a fuzzy system as JSON, fuzzylite FLL, MATLAB .fis, "
                                       "IEC 61131-7 FCL or standalone C")
-    p.add_argument("fis", metavar="FIS", help="built-in name or a .json/.fll/.fis file")
-    p.add_argument("--format", required=True, choices=list(FORMATS))
+    p.add_argument("fis", metavar="FIS", help="built-in name, a .json/.fll/.fis file, or "
+                                              "file.py:NAME / module:NAME (a FuzzySystem or "
+                                              "a scikit-fuzzy ControlSystem)")
+    p.add_argument("--format", required=True, choices=list(FORMATS),
+                   help="json: hybridnav's own file; fll: fuzzylite; fis: MATLAB Fuzzy Logic "
+                        "Toolbox; fcl: IEC 61131-7; c: a standalone C evaluator (.h and .c)")
     p.add_argument("-o", "--out", metavar="PATH", help="output file; for c a prefix (PATH.h, "
                                                        "PATH.c); default <name>.<ext>")
     p.add_argument("--sampled", action="store_true", help="fll/fcl: terms as their sampled "
@@ -761,7 +785,38 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add_command("models", help="list the kinematic models and their parameters")
     p.set_defaults(func=_cmd_models)
+
+    from hybridnav.cli_help import SHELLS
+
+    p = add_command("completion", help="print a shell completion script (bash, zsh, tcsh)")
+    p.add_argument("shell", choices=SHELLS, help="the shell the script is for")
+    p.set_defaults(func=_cmd_completion)
     return parser
+
+
+def _show_deprecations() -> None:
+    """Show old names used by the files and code a command loads, one line each: Python hides
+    ``DeprecationWarning`` outside ``__main__`` unless a filter (``-W``, pytest's settings) says
+    otherwise. Call inside ``warnings.catch_warnings()``, which restores both."""
+    from hybridnav.deprecation import HybridnavDeprecationWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, HybridnavDeprecationWarning):
+            print(f"hybridnav: warning: {message}", file=file or sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    for action, msg, category, module, _ in warnings.filters:   # the filter that would apply
+        if isinstance(module, str):                 # a filter as Python's defaults store it
+            module = re.compile(re.escape(module) + r"\Z")
+        if msg is None and issubclass(HybridnavDeprecationWarning, category) and (
+                module is None or module.match("hybridnav.cli")):
+            if action == "ignore":
+                warnings.filterwarnings("default", category=HybridnavDeprecationWarning)
+            return
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -781,7 +836,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # in this process and in its worker processes: the config says warnings too
         os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "warning")
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            _show_deprecations()
+            return args.func(args)
     except HybridnavError as exc:
         print(f"hybridnav: error: {exc}", file=sys.stderr)
         return 2

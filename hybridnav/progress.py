@@ -3,15 +3,19 @@
 In a log file (output redirected, CI) tqdm's carriage-return updates run together on one line;
 :func:`bar` gives the same interface (``update``, ``set_postfix``, ``total``, ``n``, ``refresh``,
 ``close``) printing one line per tenth of the work (and the last), with the postfix.
+:class:`PhaseLog` names each long phase of a command that has no count to show (``analyze``,
+``tune`` after its optimizer, ``reproduce`` after its runs) and how long it took; on a terminal
+the running phase's clock ticks.
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Any, TextIO
 
-__all__ = ["PlainProgress", "bar", "phase"]
+__all__ = ["PhaseLog", "PlainProgress", "bar", "phase"]
 
 
 class PlainProgress:
@@ -79,3 +83,82 @@ def bar(total: int, unit: str, desc: str, file: TextIO | None = None):
 def phase(msg: str, file: TextIO | None = None) -> None:
     """One line naming a long phase as it starts (``"  <msg> ..."``)."""
     print(f"  {msg} ...", file=file if file is not None else sys.stdout, flush=True)
+
+
+class PhaseLog:
+    """``say(message)`` at the start of each phase: the phase before it ends there.
+
+    Each phase gets a line ``"  <message> ... <seconds> s"`` once it ends. On a terminal the line
+    is written at once and its clock updated every ``interval`` seconds while the phase runs; in
+    a log file (no carriage returns) the start is a line of its own (``"  <message> ..."``) and
+    the end another (``"  <message>: <seconds> s"``). Use it as a context manager, or call
+    :meth:`close` after the last phase.
+
+    Parameters
+    ----------
+    file : file object, optional
+        Where to write (default standard output).
+    live : bool, optional
+        Tick the clock (default: whether ``file`` is a terminal).
+    interval : float
+        Seconds between clock updates.
+    """
+
+    def __init__(self, file: TextIO | None = None, live: bool | None = None,
+                 interval: float = 0.5) -> None:
+        self.file = file if file is not None else sys.stdout
+        self.live = getattr(self.file, "isatty", lambda: False)() if live is None else live
+        self.interval = interval
+        self.done: list[tuple[str, float]] = []        # (message, seconds) of ended phases
+        self._msg: str | None = None
+        self._t0 = 0.0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def __call__(self, msg: str) -> None:
+        self._end()
+        with self._lock:
+            self._msg, self._t0 = msg, time.perf_counter()
+            self._write(f"  {msg} ...", newline=not self.live)
+        if self.live:
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._tick, daemon=True)
+            self._thread.start()
+
+    def _write(self, text: str, newline: bool) -> None:
+        self.file.write(("\r" if self.live else "") + text + ("\n" if newline else ""))
+        self.file.flush()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(self.interval):
+            with self._lock:
+                if self._msg is not None:
+                    self._write(f"  {self._msg} ... {time.perf_counter() - self._t0:.1f} s",
+                                newline=False)
+
+    def _end(self) -> None:
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()
+            self._thread = None
+        with self._lock:
+            if self._msg is None:
+                return
+            seconds = time.perf_counter() - self._t0
+            self.done.append((self._msg, seconds))
+            if self.live:
+                self._write(f"  {self._msg} ... {seconds:.1f} s", newline=True)
+            else:
+                self._write(f"  {self._msg}: {seconds:.1f} s", newline=True)
+            self._msg = None
+
+    def close(self) -> None:
+        """End the running phase (its line gets its time)."""
+        self._end()
+
+    def __enter__(self) -> PhaseLog:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()

@@ -9,7 +9,7 @@ import casadi as cs
 import control
 import numpy as np
 import pytest
-from hybridnav.analysis.linearize import (
+from hybridnav.analysis.linearization import (
     controllability_rank,
     is_stable,
     linearize,
@@ -353,7 +353,7 @@ def test_a_system_without_inputs_is_not_called_uncontrollable():
 
 
 def test_rk4_stability_limit_and_the_simulated_point_mass():
-    from hybridnav.analysis.linearize import discrete_step, rk4_stability_limit
+    from hybridnav.analysis.linearization import discrete_step, rk4_stability_limit
 
     z = rk4_stability_limit()
     R = lambda z: 1 - z + z * z / 2 - z ** 3 / 6 + z ** 4 / 24      # noqa: E731  R(-z) by hand

@@ -240,3 +240,45 @@ def test_plain_progress_past_its_total_without_one_and_closed():
     p.set_postfix({"best": 1}, refresh=False, gen=3)
     p.update(2)
     assert buf.getvalue().rstrip().endswith("; best=1, gen=3")
+
+
+def test_phase_log_names_each_phase_and_its_time():
+    """Plain lines in a log (a start line, an end line with the seconds); on a terminal one
+    line per phase, rewritten with carriage returns as its clock ticks, ended by its time."""
+    import io
+    import re
+    import time
+
+    from hybridnav.progress import PhaseLog
+
+    buf = io.StringIO()
+    with PhaseLog(buf) as say:
+        say("first")
+        say("second")
+    assert re.fullmatch(r"  first \.\.\.\n  first: \d+\.\d s\n  second \.\.\.\n  second: \d+\.\d s\n",
+                        buf.getvalue()), buf.getvalue()
+    assert [m for m, _ in say.done] == ["first", "second"]
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = Terminal()
+    say = PhaseLog(term, interval=0.01)
+    say("slow")
+    time.sleep(0.1)
+    say.close()
+    say.close()                                          # once only
+    text = term.getvalue()
+    assert text.startswith("\r  slow ...") and text.count("\n") == 1 and text.endswith(" s\n")
+    assert text.count("\r") >= 3                          # the clock ticked
+    assert "slow ... " in text.rsplit("\r", 1)[1]
+
+
+def test_analyze_names_its_phases_with_their_times(tmp_path, capsys):
+    from hybridnav.cli import main
+
+    assert main(["analyze", "point_mass", "-o", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "  Lyapunov check ..." and out[1].startswith("  Lyapunov check: ")
+    assert any(line.startswith("  closed-loop sweep: ") and line.endswith(" s") for line in out)

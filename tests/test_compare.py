@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from hybridnav import HybridnavError
-from hybridnav.analysis.compare import RUN_COLUMNS, compare, run_seed, write_comparison
+from hybridnav.experiments.compare import RUN_COLUMNS, compare, run_seed, write_comparison
 
 ARGS = (["apf", "pbpf"], ["effc-train-1", "effc-train-2"], 2)
 PARAMS = {"pbpf": {"population": 3, "generations": 1}}
@@ -53,7 +53,7 @@ def test_workers_are_kept_between_calls_and_need_not_share_the_working_directory
     forked elsewhere (the loaded scenario travels, not its name)."""
     import os
 
-    from hybridnav.analysis import compare as module
+    from hybridnav.experiments import compare as module
     from hybridnav.backends import shared_backend
     from hybridnav.world import load_scenario, save_scenario
 
@@ -143,7 +143,7 @@ def test_relative_fis_paths_survive_a_worker_in_another_directory(tmp_path, monk
     import os
 
     from hybridnav import fuzzy
-    from hybridnav.analysis import compare as module
+    from hybridnav.experiments import compare as module
 
     (tmp_path / "tuned").mkdir()
     fuzzy.builtin("effc-5rule").save(tmp_path / "tuned" / "fis.json")
@@ -184,7 +184,7 @@ def test_relative_fis_paths_survive_a_worker_in_another_directory(tmp_path, monk
     ([3], r"planners\[0\]: expected NAME"),
 ])
 def test_bad_planner_items_fail_before_any_run(planners, message, monkeypatch):
-    from hybridnav.analysis import compare as module
+    from hybridnav.experiments import compare as module
 
     def no_runs(task):
         raise AssertionError("a run started")
@@ -318,7 +318,7 @@ def test_bars_are_honest():
     import numpy as np
     import pandas as pd
 
-    from hybridnav.analysis.compare import _bars
+    from hybridnav.experiments.compare import _bars
     from hybridnav.tuner.heldout import wilson
 
     summary = pd.DataFrame({

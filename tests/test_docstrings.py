@@ -22,12 +22,12 @@ import hybridnav
 import hybridnav.planners
 from hybridnav import HybridnavError
 
-MODULES = sorted(m.name for m in pkgutil.walk_packages(hybridnav.__path__, "hybridnav.")
-                 if m.name not in hybridnav.planners.MOVED)
+MODULES = sorted(m.name for m in pkgutil.walk_packages(hybridnav.__path__, "hybridnav."))
 #: the packages users import from (their ``__all__`` is the API of the README)
 API = ("hybridnav", "hybridnav.analysis", "hybridnav.tuner", "hybridnav.planners",
        "hybridnav.models", "hybridnav.world", "hybridnav.fuzzy", "hybridnav.results",
-       "hybridnav.params", "hybridnav.planners.swarm", "hybridnav.plotting", "hybridnav.backends")
+       "hybridnav.params", "hybridnav.planners.swarm", "hybridnav.plotting", "hybridnav.backends",
+       "hybridnav.experiments.compare", "hybridnav.deprecation")
 
 
 def _public():
@@ -163,9 +163,9 @@ def _kwargs_calls():
     if _CC:
         calls["hybridnav.fuzzy.export.sil.CompiledFIS.evaluate"] = \
             lambda: _compiled().evaluate(dtheta=0.1, alpha=0.5, bogus=1.0)
-        from hybridnav.analysis.sil import verify
+        from hybridnav.fuzzy.export.closedloop import verify
 
-        calls["hybridnav.analysis.sil.verify"] = lambda: verify(
+        calls["hybridnav.fuzzy.export.closedloop.verify"] = lambda: verify(
             fuzzy.builtin("effc-2rule"), _compiled(), [load_scenario("effc-env-a")], bogus=1.0)
     for name, cls in models.MODELS.items():
         calls[f"{cls.__module__}.{cls.__name__}"] = lambda cls=cls: cls(bogus=1.0)
@@ -207,7 +207,7 @@ EXEMPT = {
 }
 if not _CC:
     EXEMPT.update(dict.fromkeys(("hybridnav.fuzzy.export.sil.CompiledFIS.evaluate",
-                                 "hybridnav.analysis.sil.verify"), "needs a C compiler"))
+                                 "hybridnav.fuzzy.export.closedloop.verify"), "needs a C compiler"))
 
 
 def _kwargs_functions():

@@ -11,7 +11,7 @@ import pytest
 from hybridnav import planners
 from hybridnav.tuner.falsify import bounds, falsify, world_from_vector
 from hybridnav.tuner.job import load_job
-from hybridnav.worldgen import WorldGenerator, solvable
+from hybridnav.world.generator import WorldGenerator, solvable
 
 JOB = """
 name = "f"
@@ -101,7 +101,7 @@ def test_structures_in_the_search_space_are_switched_and_placed_as_the_generator
     from hybridnav.errors import HybridnavError
     from hybridnav.tuner.falsify import STRUCTURES
     from hybridnav.world import Segment
-    from hybridnav.worldgen import cup_parts
+    from hybridnav.world.generator import cup_parts
 
     gen = WorldGenerator(resolution=0.05)
     lo, hi = bounds(gen, 1, {"cups": 1, "gaps": 1})

@@ -246,7 +246,7 @@ def test_fis_figures(name):
 
 
 def test_compare_figures(tmp_path, captured):
-    from hybridnav.analysis.compare import compare, write_comparison
+    from hybridnav.experiments.compare import compare, write_comparison
 
     # apf reaches on the one, is stuck in the cup of the other: two outcome markers
     table, summary = compare(["apf", "pbpf@pbpf:population=3:generations=1"],

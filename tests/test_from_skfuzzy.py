@@ -197,9 +197,14 @@ def test_python_files_run_as_imported_and_their_exits_are_errors(tmp_path, capsy
                    "o = ctrl.Consequent(np.linspace(0, 1, 11), 'o')\no.automf(3)\n"
                    "CS = ctrl.ControlSystem([ctrl.Rule(a['poor'], o['good'])])\nNONE = None\n")
     assert load_any(f"{src}:CS").name == "CS"
-    with pytest.raises(HybridnavError, match="expected a skfuzzy.control.ControlSystem, got "
-                                             "NoneType"):
+    with pytest.raises(HybridnavError, match=r":NONE: expected a hybridnav FuzzySystem or a "
+                                             r"skfuzzy\.control\.ControlSystem, got NoneType$"):
         load_any(f"{src}:NONE")
+    # a system built with hybridnav's own API is taken as it is
+    (tmp_path / "own.py").write_text("from hybridnav.fuzzy import builtin\nSYS = builtin('effc-5rule')\n")
+    from hybridnav.fuzzy import builtin
+
+    assert load_any(f"{tmp_path / 'own.py'}:SYS").to_json() == builtin("effc-5rule").to_json()
     (tmp_path / "exits.py").write_text("import sys\nsys.exit(3)\n")
     assert main(["fis", f"{tmp_path / 'exits.py'}:CS"]) == 2
     assert "cannot import" in capsys.readouterr().err

@@ -21,7 +21,7 @@ import pytest
 from hybridnav import fuzzy, planners
 from hybridnav.tuner.heldout import run_systems, summarize, verdict
 from hybridnav.tuner.job import load_job
-from hybridnav.worldgen import WorldGenerator
+from hybridnav.world.generator import WorldGenerator
 
 FRESH_SEED = 2027
 

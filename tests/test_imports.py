@@ -81,33 +81,6 @@ def test_every_module_imports_alone():
     assert out.stdout.strip() == "", out.stdout
 
 
-def test_old_import_paths_still_work():
-    from hybridnav.grid import OccupancyGrid, build_grid, load_movingai_map
-    from hybridnav.world import Circle, World, load_scenario, scenario_to_dict
-    from hybridnav.world.grid import OccupancyGrid as moved
-
-    assert OccupancyGrid is moved and callable(build_grid) and callable(load_movingai_map)
-    s = load_scenario("aco-local-minimum")
-    assert isinstance(s.world, World) and isinstance(s.world.obstacles[0], Circle)
-    assert scenario_to_dict(s)["name"] == "aco-local-minimum"
-
-
-def test_old_planner_module_paths_are_aliases_of_the_new_ones():
-    import importlib
-
-    from hybridnav import planners
-
-    for old, new in planners.MOVED.items():
-        assert importlib.import_module(f"hybridnav.planners.{old}") is importlib.import_module(
-            f"hybridnav.planners.{new}")
-    from hybridnav.planners.field import FieldPlanner          # 0.2: the module field.py
-    from hybridnav.planners.paths import AStarPlanner
-    from hybridnav.planners.psoba import PSOBAPlanner          # 0.2: the module psoba.py
-
-    assert planners.PLANNERS["astar"] is AStarPlanner and planners.PLANNERS["pso-ba"] is PSOBAPlanner
-    assert issubclass(planners.PLANNERS["apf"], FieldPlanner)
-
-
 def test_every_module_declares_its_public_names_and_documents_them():
     """``__all__`` everywhere: each name it lists exists, and functions and classes have
     docstrings (the python-control convention the design follows)."""

@@ -68,7 +68,7 @@ def test_unicycle_heading_controller_holds_input_over_each_cycle():
     ours = m.rollout(x[None], target[None], 40)[0]
     for k in range(40):
         u = np.asarray(ctrl(x, target, p)).ravel()
-        omega = (u[1] - u[0]) / m.params["L"]
+        omega = (u[1] - u[0]) / m.values["L"]
         assert abs(omega * m.dt) <= math.pi / 4 + 1e-12
         sol = solve_ivp(lambda t, z: np.asarray(f(z, u, p)).ravel(), (0, m.dt), x,
                         method="Radau", rtol=1e-12, atol=1e-12)
@@ -174,7 +174,7 @@ def test_tractor_trailer_orbits_a_target_that_is_too_close_to_turn_onto():
                                                    "theta1": math.pi - error})
         traj = m.rollout(x0[None], np.zeros((1, 2)), 3000)[0]
         dist = np.hypot(traj[-600:, 0], traj[-600:, 1])    # the last minute
-        assert 0.5 < dist.min() and dist.max() < 2 * m.params["L"]
+        assert 0.5 < dist.min() and dist.max() < 2 * m.values["L"]
 
 
 def test_tractor_trailer_filter_law_reaches_without_jackknife_and_paper_law_circles():
@@ -200,7 +200,7 @@ def test_tractor_trailer_retarget_sets_xi_to_heading_error():
 
 def test_tractor_trailer_footprint_covers_both_bodies():
     m = models.get("tractor_trailer")
-    q = m.params
+    q = m.values
     X = np.array([[10.0, 5.0, 0.7, -0.4, 0.0]])
     centers, radii = m.footprint(X)
     assert centers.shape == (1, len(radii), 2)

@@ -26,7 +26,7 @@ from hybridnav.tuner.evaluate import scenario_set
 from hybridnav.world import load_scenario
 from hybridnav.world.schema import scenario_from_dict
 from hybridnav.world.writer import scenario_to_dict
-from hybridnav.worldgen import WorldGenerator
+from hybridnav.world.generator import WorldGenerator
 
 from fuzzy_strategies import antecedents, variables
 

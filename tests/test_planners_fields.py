@@ -209,7 +209,7 @@ def test_apf_lockstep_is_the_planner_run_by_run():
     beside worlds with (the packed arrays' padding must add no force)."""
     from hybridnav.planners.field.apf import apf_lockstep
     from hybridnav.tuner.evaluate import scenario_set
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     scen = [load_scenario("effc-env-a"), load_scenario("effc-train-1")] + \
         WorldGenerator(segments=(0, 2), rectangles=(0, 2)).generate(6, seed=4)

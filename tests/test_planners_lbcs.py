@@ -81,7 +81,7 @@ def test_lbcs_commands_at_most_the_go_to_goal_speed_along_the_lbcs_velocity():
     V = np.array([[3.0, 0.0], [0.0, 0.1], [0.0, 0.0]])   # capped, free, zero
     T = _capped_carrot(m, X, V, goals)
     np.testing.assert_allclose(T[0], goals[0])           # along the goal at the cap: the goal
-    np.testing.assert_allclose(T[1], [1.0, 1.0 + 0.1 / m.params["alpha"]])
+    np.testing.assert_allclose(T[1], [1.0, 1.0 + 0.1 / m.values["alpha"]])
     np.testing.assert_allclose(T[2], X[2, :2])
 
 
@@ -107,7 +107,7 @@ def test_lbcs_tractor_trailer_speed_stays_within_the_go_to_goal_law_near_obstacl
     s = load_scenario("tractor-trailer-1")
     r = planners.get("lbcs", beta=0.1).run(s).robots[0]
     assert r.outcome == "reached" and r.min_clearance > 0
-    alpha = s.model(s.robots[0]).params["alpha"]
+    alpha = s.model(s.robots[0]).values["alpha"]
     dist = np.hypot(*(r.states[:, :2] - s.robots[0].goal).T)
     step = np.hypot(*np.diff(r.states[:, :2], axis=0).T)
     bound = s.dt * alpha * dist.max() * np.sqrt(1 + np.tan(7 / 9 * np.pi / 2) ** 2 / 4)

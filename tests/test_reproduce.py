@@ -175,7 +175,7 @@ def test_readme_blocks_are_the_stored_full_runs(tmp_path):
     import json
     from pathlib import Path
 
-    from hybridnav.analysis.compare import PlannerSpec
+    from hybridnav.experiments.compare import PlannerSpec
     from hybridnav.reproduce.readme import STORE, blocks, render, rewrite_report
 
     import shutil

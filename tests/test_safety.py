@@ -16,7 +16,7 @@ from hybridnav.fuzzy.family import SystemFamily
 from hybridnav.planners.field.safety import escape_filter, escape_radius
 from hybridnav.tuner.evaluate import lockstep_effc, scenario_set
 from hybridnav.world import Circle, Segment, World
-from hybridnav.worldgen import WorldGenerator
+from hybridnav.world.generator import WorldGenerator
 
 SPEED, DT, TURN, MARGIN, R = 0.1, 0.1, math.pi / 4, 0.02, 0.1
 PLANNER = {"speed": SPEED, "max_turn": TURN, "stuck_window": 10.0, "stuck_radius": 2.0,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hybridnav import HybridnavError, fuzzy, planners
-from hybridnav.analysis.sil import verify
+from hybridnav.fuzzy.export.closedloop import verify
 from hybridnav.cli import main
 from hybridnav.fuzzy.export import export
 from hybridnav.fuzzy.export.sil import CompiledFIS

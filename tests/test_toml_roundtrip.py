@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from hybridnav.errors import HybridnavError
 from hybridnav.tuner.job import load_job
 from hybridnav.world import load_scenario, save_scenario, scenario_to_dict, toml_dumps
-from hybridnav.worldgen import WorldGenerator
+from hybridnav.world.generator import WorldGenerator
 
 # any text, control characters (DEL, NUL, escapes) and non-BMP characters included
 TEXT = st.text(st.characters(codec="utf-8", exclude_categories=("Cs",)), max_size=12)

@@ -17,7 +17,7 @@ import pytest
 from hybridnav import HybridnavError, fuzzy, planners
 from hybridnav.fileio import LOCK_NAME, locked_folder
 from hybridnav.fuzzy.family import SystemFamily
-from hybridnav.tuner.backends import DaskBackend, ProcessBackend, SerialBackend
+from hybridnav.backends import DaskBackend, ProcessBackend, SerialBackend
 from hybridnav.tuner import tune as tune_objects
 from hybridnav.tuner.costs.base import Candidates, Context, evaluate_chunk
 from hybridnav.tuner.genome import GenomeSpace
@@ -847,7 +847,7 @@ def test_the_path_figure_draws_the_held_out_runs():
     from hybridnav.tuner.heldout import baseline
     from hybridnav.tuner.run import _lockstep_traces
     from hybridnav.world import load_scenario
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     scen = [load_scenario("effc-env-a"), load_scenario("effc-env-b")] \
         + WorldGenerator().generate(3, seed=4)

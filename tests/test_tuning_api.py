@@ -479,7 +479,7 @@ def test_worldstack_nearest_each_is_the_worlds():
 
 def test_fuzzy_steer_lockstep_is_the_planner_and_tunes_on_the_same_worlds(tmp_path):
     from hybridnav import planners
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     worlds = WorldGenerator().generate(6, 2027)
     start = fuzzy.builtin("steer-7rule")

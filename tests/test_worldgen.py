@@ -18,7 +18,7 @@ from hybridnav.world import (
     save_scenario,
 )
 from hybridnav.world.grid import rasterize
-from hybridnav.worldgen import WorldGenerator, generator_from_table, solvable
+from hybridnav.world.generator import WorldGenerator, generator_from_table, solvable
 
 
 def test_worlds_are_seeded_and_independent_of_the_count():
@@ -154,7 +154,7 @@ def test_impossible_settings_fail_cleanly():
 
 
 def test_no_gap_narrower_than_min_gap():
-    from hybridnav.worldgen import _outline
+    from hybridnav.world.generator import _outline
 
     gen = WorldGenerator(circles=(6, 10), radius=(0.2, 0.5), rectangles=(0, 2), min_gap=0.3)
     for w in gen.generate(10, seed=6):
@@ -257,7 +257,7 @@ def test_generate_command_takes_the_trap_classes(tmp_path):
 def test_every_world_has_the_obstacles_its_settings_ask_for():
     # large circles often cannot be placed clear of start and goal; such a draw is redone
     # (a world with fewer circles than asked for was written silently before)
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     for n in (4, 6):
         g = WorldGenerator(circles=(n, n), radius=(2.0, 2.4))
@@ -266,10 +266,32 @@ def test_every_world_has_the_obstacles_its_settings_ask_for():
 
 
 def test_a_generator_that_cannot_place_what_was_asked_says_so():
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     g = WorldGenerator(circles=(200, 200), radius=(2.0, 2.4), max_tries=20)
     with pytest.raises(HybridnavError, match=r"^world generator: no solvable world in 20 draws "
                                              r"for gen-0-000 \(seed 0\): \d+ with no room for "
                                              r"the circles asked for"):
         g.world(0, 0)
+
+
+def test_grid_connectivity_is_the_verdict_of_the_grid_search():
+    """``connected`` (one labelling) says what the planners' A* (8-connected, no corner
+    cutting) finds, on random grids of every density, including blocked and outside points."""
+    from hybridnav.errors import HybridnavError
+    from hybridnav.planners.path.gridsearch import search_world
+    from hybridnav.world.grid import OccupancyGrid, connected
+
+    rng = np.random.default_rng(5)
+    verdicts = []
+    for trial in range(300):
+        h, w = rng.integers(1, 14, size=2)
+        grid = OccupancyGrid(rng.random((h, w)) < rng.uniform(0.1, 0.6), 0.5, (-1.0, 2.0))
+        a, b = (rng.uniform([-1.6, 1.4], [-1.0 + 0.5 * w + 0.6, 2.0 + 0.5 * h + 0.6]) for _ in "ab")
+        try:
+            found = search_world(grid, a, b).found
+        except HybridnavError:              # outside the grid or in a blocked cell
+            found = False
+        assert connected(grid, a, b) == found, (trial, grid.occ.astype(int), a, b)
+        verdicts.append(found)
+    assert 30 < sum(verdicts) < 270                  # both verdicts were tested

@@ -53,7 +53,7 @@ def test_lockstep_with_a_stack_equals_the_planner_runs():
     from hybridnav.planners.field.effc import effc_force, effc_inputs_from
     from hybridnav.planners.field.lockstep import lockstep_field
     from hybridnav.world import load_scenario
-    from hybridnav.worldgen import WorldGenerator
+    from hybridnav.world.generator import WorldGenerator
 
     scen = [load_scenario("effc-env-a"), load_scenario("effc-env-b")] + \
         WorldGenerator(segments=(1, 2), rectangles=(0, 1)).generate(3, seed=8)

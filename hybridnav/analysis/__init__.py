@@ -10,8 +10,8 @@ matplotlib.
 """
 
 import sys as _sys
+import types as _types
 
-from hybridnav.analysis import linearization as _linearization
 from hybridnav.analysis.certificate import Certificate, certify
 from hybridnav.analysis.linearization import (
     DiscreteStepReport,
@@ -42,9 +42,20 @@ from hybridnav.analysis.roa import (
 from hybridnav.analysis.sweep import closed_loop_sweep, grid_starts
 from hybridnav.analysis.system import System, as_system
 
-# ``hybridnav.analysis.linearize`` was the module until 0.2; it is the function now. The old
-# ``from hybridnav.analysis.linearize import ...`` keeps working for one version through this alias.
-_sys.modules[__name__ + ".linearize"] = _linearization
+
+
+class _Package(_types.ModuleType):
+    """This package, keeping its function ``linearize`` when the deprecated module name
+    ``hybridnav.analysis.linearize`` (served by :mod:`hybridnav.deprecation` until 0.4.0) is
+    imported: the import system would otherwise set the alias module as the package attribute."""
+
+    def __setattr__(self, name, value):
+        if name == "linearize" and isinstance(value, _types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Package
 
 __all__ = ["Box", "Certificate", "DiscreteStepReport", "Equilibrium", "LinearizationReport",
            "LyapunovReport", "RoaEstimate", "System", "as_box", "as_system", "basin",

@@ -206,7 +206,7 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
                                         getattr(model, "candidate_unit", None), length)),
          "V_time.png")
 
-    result = {"model": model_name, "params": model.params, "scenario": scen.name,
+    result = {"model": model_name, "params": model.values, "scenario": scen.name,
               "target": target.tolist(), "region": {k: list(v) for k, v in region.items()},
               "seed": seed, "version": __version__, "checks": checks, "plots": plots}
     result = json_ready(result)

@@ -38,6 +38,7 @@ import casadi as cs
 import numpy as np
 
 import hybridnav.models.kernel as _kernel
+from hybridnav.deprecation import RenamedAttribute
 from hybridnav.errors import HybridnavError
 from hybridnav.models.compile import _Buffered, _compile, jit_available
 from hybridnav.params import Param, check_real
@@ -274,14 +275,8 @@ class Model(ABC):
         """Check what one declaration cannot say, e.g. relations between values (subclasses
         raise :class:`HybridnavError`)."""
 
-    @property
-    def params(self) -> dict[str, float]:
-        """Old name of :attr:`values` (the numeric parameter values), kept for one version."""
-        return self.values
-
-    @params.setter
-    def params(self, values: dict[str, float]) -> None:
-        self.values = values
+    #: old name of :attr:`values`; warns, removed in 0.4.0
+    params = RenamedAttribute("values")
 
     # ---- symbolic views ------------------------------------------------------------------------
 

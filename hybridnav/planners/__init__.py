@@ -4,14 +4,12 @@ optimizers, which know nothing about robots; :mod:`.simulate` is the loop every 
 
 ``get(name, **params)`` returns a planner; :data:`PLANNERS` maps names to classes.
 
-The modules' paths before 0.3 (``hybridnav.planners.apf``, ``.paths``, ``.stepping``, ...) are
-aliases of their new places for one version (listed in the README).
+The deprecated module paths of 0.2 (``hybridnav.planners.apf``, ``.paths``, ``.stepping``, ...)
+still import, with a warning, until 0.4.0 (:data:`hybridnav.deprecation.MOVED_MODULES`).
 """
 
 from __future__ import annotations
 
-import importlib
-import sys
 from typing import Any
 
 from hybridnav.errors import HybridnavError
@@ -40,17 +38,6 @@ PLANNERS: dict[str, type[Planner]] = {
 }
 
 __all__ = ["PLANNERS", "Param", "Planner", "fuzzy_units", "get", "parse_assignments"]
-
-#: where the flat modules of 0.2 went (``field`` and ``psoba`` are packages now that export their
-#: old public names)
-MOVED = {"apf": "field.apf", "effc": "field.effc", "hapf": "field.hapf", "pbpf": "field.pbpf",
-         "lockstep": "field.lockstep", "worldstack": "field.worldstack",
-         "fastepk": "step.fastepk", "acok": "step.acok", "stepping": "step.base",
-         "stepfit": "step.stepfit", "paths": "path.planners", "gridsearch": "path.gridsearch",
-         "rfd_core": "path.rfd_core", "psoba_sensors": "psoba.sensors"}
-for _old, _new in MOVED.items():
-    sys.modules[f"{__name__}.{_old}"] = importlib.import_module(f"{__name__}.{_new}")
-
 
 def get(name: str, **params: Any) -> Planner:
     """The planner ``name`` with parameter overrides (strings are parsed as on the CLI).
@@ -91,3 +78,14 @@ def fuzzy_units(system) -> dict[str, str]:
                 and all(n in units for n in system.input_names):
             return {n: units[n] for n in names if n in units}
     return {}
+
+
+def __getattr__(name: str) -> Any:
+    if name == "MOVED":                     # the flat 0.2 module names, now hybridnav.deprecation's
+        from hybridnav.deprecation import MOVED_MODULES, warn_renamed
+
+        warn_renamed("hybridnav.planners.MOVED", "hybridnav.deprecation.MOVED_MODULES")
+        prefix = f"{__name__}."
+        return {k[len(prefix):]: v[len(prefix):] for k, v in MOVED_MODULES.items()
+                if k.startswith(prefix)}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybridnav.deprecation import RenamedAttribute, warn_renamed
 from hybridnav.errors import HybridnavError
 from hybridnav.params import Param
 from hybridnav.results import Result
@@ -42,7 +43,7 @@ class Planner(ABC):
 
     Subclasses set :attr:`name`, :attr:`description`, :attr:`parameters` (the declarations; the
     instance's values are :attr:`values`) and implement :meth:`run`. ``params`` is the old name
-    of ``parameters``, kept as an alias for one version.
+    of ``parameters`` (it warns; removed in 0.4.0).
     ``drives`` says which robot models it can drive, by capability (a model qualifies when it has
     every capability of one of the sets; see :attr:`hybridnav.models.Model.capabilities`), and
     ``models`` lists the registered models that qualify (derived, never written by hand);
@@ -53,6 +54,8 @@ class Planner(ABC):
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     parameters: ClassVar[dict[str, Param]] = {}
+    #: old name of :attr:`parameters`; warns, removed in 0.4.0
+    params = RenamedAttribute("parameters")
     drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"robot"}),)
     models: ClassVar[tuple[str, ...]] = ()
     moving_obstacles: ClassVar[bool] = True
@@ -69,11 +72,14 @@ class Planner(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "params" in cls.__dict__ and "parameters" not in cls.__dict__:
-            cls.parameters = cls.params            # a planner written against the old name
+        if "params" in cls.__dict__ and not isinstance(cls.__dict__["params"], RenamedAttribute):
+            # a planner written against the old name: declare under the new one, and warn
+            warn_renamed(f"{cls.__name__}.params", f"{cls.__name__}.parameters")
+            if "parameters" not in cls.__dict__:
+                cls.parameters = cls.__dict__["params"]
+            delattr(cls, "params")
         if cls.profiles:
             _declare_profiles(cls)
-        cls.params = cls.parameters
         cls.models = _driven(cls.drives)
 
     def __init__(self, **params: Any) -> None:

@@ -1,6 +1,6 @@
 """``hybridnav reproduce NAME``: run a paper's protocol in both profiles and report beside it.
 
-:func:`reproduce` runs :data:`PROTOCOLS` ``[name]`` through :func:`hybridnav.analysis.compare`
+:func:`reproduce` runs :data:`PROTOCOLS` ``[name]`` through :func:`hybridnav.experiments.compare`
 (every planner with profiles as ``NAME/paper`` with ``profile=paper`` and as ``NAME`` with the
 default ``hybridnav`` profile; planners without profiles once; the protocol's ablations with the
 default profile), writes the comparison's tables and figures, and ``report.md``
@@ -33,7 +33,8 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
               workers: int = 1, dask: str | Any | None = None,
               progress: Callable[[int, int], None] | None = None,
               scenarios: Sequence[str] | None = None, layouts: int | None = None,
-              fmt: str = "png", dpi: int = 120) -> dict[str, Any]:
+              phase: Callable[[str], None] | None = None, fmt: str = "png",
+              dpi: int = 120) -> dict[str, Any]:
     """Run protocol ``name`` and write its report into ``out``.
 
     Parameters
@@ -62,6 +63,9 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         (:mod:`hybridnav.reproduce.layouts`; default :data:`LAYOUTS`; ``min(runs,
         LAYOUT_RUNS)`` runs per planner and layout; 0: no layout sensitivity). They are written to ``out/layouts/``, their verdicts
         to ``layouts.csv`` and their runs' summary to ``layouts_summary.csv``.
+    phase : callable, optional
+        ``phase(message)`` as each phase after the runs starts (tables and figures, the
+        report; for ``effc-ga``, as its experiment names them).
     fmt : str
         The figures' format: ``png``, ``pdf`` or ``svg`` (their names, and the report's links,
         carry it).
@@ -80,7 +84,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
         An unknown protocol or a bad ``runs``; another job writing ``out`` (the folder is
         locked while a reproduction runs).
     """
-    from hybridnav.analysis.compare import PlannerSpec
+    from hybridnav.experiments.compare import PlannerSpec
 
     from hybridnav.reproduce.tuning import EXPERIMENTS, run_experiment
 
@@ -101,7 +105,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
             check_count("--runs", runs, 1)
         with locked_folder(out, f"reproduce {name}"):
             return run_experiment(name, out, runs=runs, seed=seed, workers=workers, dask=dask,
-                                  progress=progress, **figures)
+                                  progress=progress, phase=phase, **figures)
     protocol = PROTOCOLS[name]
     if scenarios:
         known = [row.scenario for row in protocol.rows]
@@ -117,14 +121,14 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     scenarios = [row.scenario for row in protocol.rows]
     with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
         return _reproduce(name, protocol, specs, scenarios, int(n), Path(out), seed, workers,
-                          dask, progress, int(layouts), figures)
+                          dask, progress, int(layouts), phase or (lambda msg: None), figures)
 
 
 
 
 def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts,
-               figures=None):
-    from hybridnav.analysis.compare import compare, write_comparison
+               say, figures=None):
+    from hybridnav.experiments.compare import compare, write_comparison
     from hybridnav.fileio import atomic_write_text
     from hybridnav.reproduce.layouts import layout_sensitivity
     from hybridnav.reproduce.report import check_claims, write_report
@@ -151,6 +155,7 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
                 "workers": workers if dask is None else f"dask {dask}",
                 "elapsed_s": round(elapsed, 1), "load": load_average(), "layouts": layouts,
                 "layout_runs": layout_runs}
+    say("tables and figures")
     files = write_comparison(out, table, summary, settings=settings, **(figures or {}))
     if not verdicts.empty:
         atomic_write_text(out / "layouts.csv", verdicts.to_csv(index=False))
@@ -165,6 +170,7 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
             for old in (out / "layouts").glob("*.toml"):
                 if LAYOUT_FILE.fullmatch(old.name) and old.name.split(".")[0] in scenarios:
                     old.unlink()
+    say("claims and report")
     claims = check_claims(protocol, summary)
     write_report(Path(out) / "report.md", protocol, summary, claims, runs=int(n), seed=seed,
                  version=__version__, files=files, layouts=verdicts, layout_runs=layout_runs)

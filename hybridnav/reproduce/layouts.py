@@ -336,7 +336,7 @@ def layout_sensitivity(protocol: Protocol, summary: pd.DataFrame, *, count: int 
     runs : int
         Runs per planner and layout.
     seed, workers, dask, progress
-        As for :func:`hybridnav.analysis.compare`.
+        As for :func:`hybridnav.experiments.compare`.
     folder : str or Path, optional
         Where the layouts are written as scenario files (``layouts/<scenario>.<tag>.toml``;
         default a temporary folder).
@@ -356,7 +356,7 @@ def layout_sensitivity(protocol: Protocol, summary: pd.DataFrame, *, count: int 
 
     import pandas as pd
 
-    from hybridnav.analysis.compare import PlannerSpec, compare
+    from hybridnav.experiments.compare import PlannerSpec, compare
     from hybridnav.reproduce.report import row_verdict
     from hybridnav.reproduce.variants import label_for, levels, variants
     from hybridnav.world import load_scenario, save_scenario

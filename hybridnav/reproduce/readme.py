@@ -151,7 +151,7 @@ _TEXT_COLUMNS = ("planner", "scenario", "units")
 
 
 def _check_summary(path: Path, summary: pd.DataFrame, protocol) -> pd.DataFrame:
-    """A stored ``summary.csv`` as :func:`hybridnav.analysis.compare.summarize` writes it: the
+    """A stored ``summary.csv`` as :func:`hybridnav.experiments.compare.summarize` writes it: the
     key columns, numbers where numbers belong, a row for every scenario of the protocol."""
     need = ("planner", "scenario", "robots", "success_rate")
     for col in need + _READ_COLUMNS + (("min_robot_clearance_mean",)

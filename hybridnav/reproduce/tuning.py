@@ -146,7 +146,8 @@ def _worlds(experiment: Experiment, seed: int) -> dict[str, list]:
 
 def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
                    workers: int = 1, dask: Any = None,
-                   progress: Callable[[int, int], None] | None = None, fmt: str = "png",
+                   progress: Callable[[int, int], None] | None = None,
+                   phase: Callable[[str], None] | None = None, fmt: str = "png",
                    dpi: int = 120) -> dict[str, Any]:
     """Tune in every profile with ``runs`` seeds, judge every system, write ``report.md``.
 
@@ -162,6 +163,9 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
         GA seeds per profile (default :attr:`Experiment.runs`); run ``k`` uses ``seed + k``.
     seed, workers, dask, progress
         As for :func:`hybridnav.reproduce.reproduce` (``progress(done, total)`` per GA run).
+    phase : callable, optional
+        ``phase(message)`` as each phase after the GA runs starts (judging every system on
+        each world set, the report).
     fmt, dpi
         The GA runs' figures: format (``png``, ``pdf``, ``svg``) and dots per inch.
 
@@ -203,12 +207,15 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
     filtered = {label: (load_any(fis), margin) for label, (fis, margin)
                 in experiment.beside.items() if margin != 0.0}
     speed = experiment.profiles[next(iter(experiment.profiles))]["planner"]["speed"]
+    say = phase or (lambda msg: None)
     parts = []
     for label, scen in worlds.items():
+        say(f"every system on the {label} worlds ({len(scen)})")
         parts.append(run_systems(systems, scen, speed=speed, set_name=label))
         for flabel, (system, margin) in filtered.items():
             parts.append(run_systems({flabel: system}, scen, speed=speed, set_name=label,
                                      apf=False, safety_margin=margin))
+    say("verdicts and report")
     table = pd.concat(parts, ignore_index=True)
     summary = summarize(table)
     radius = worlds["held-out"][0].robots[0].radius

@@ -12,7 +12,7 @@ costs more than getting stuck, which costs more than any detour) — so the sear
 collisions, then traps. Every candidate world obeys the generator's rules: circles that would
 overlap the start or goal footprint (plus ``margin``) or leave a gap narrower than ``min_gap``
 are dropped, start and goal are at least ``min_distance`` apart, and the world must be
-solvable (:func:`hybridnav.worldgen.solvable`); a candidate breaking a rule scores ``+inf``.
+solvable (:func:`hybridnav.world.generator.solvable`); a candidate breaking a rule scores ``+inf``.
 Each swarm iteration simulates all its worlds in one lockstep batch.
 
 The worst distinct worlds where the system did not reach its goal are kept (sorted by cost),
@@ -33,7 +33,7 @@ import numpy as np
 if TYPE_CHECKING:
     import pandas as pd
 
-from hybridnav.worldgen import WorldGenerator, _no_narrow_gap, _shape, solvable
+from hybridnav.world.generator import WorldGenerator, _no_narrow_gap, _shape, solvable
 
 __all__ = ["FalsifyResult", "falsify", "falsify_systems", "rates", "world_from_vector"]
 
@@ -102,7 +102,7 @@ def bounds(gen: WorldGenerator, n: int, structures: dict[str, int] | None = None
 
 def _structure_parts(kind: str, g: np.ndarray, start: np.ndarray, goal: np.ndarray
                      ) -> list[dict]:
-    from hybridnav.worldgen import corridor_parts, cup_parts, gap_parts
+    from hybridnav.world.generator import corridor_parts, cup_parts, gap_parts
 
     along = goal - start
     u = along / max(float(np.hypot(*along)), 1e-12)

@@ -3,7 +3,7 @@
 A job is validated completely before any work starts; every error names the file and the key.
 Scenario sets (``scenarios.train``, ``scenarios.validation``, ``scenarios.test``) are lists whose
 items are built-in names, scenario files, or generated sets ``{generate = N, seed = S, ...}``
-(:mod:`hybridnav.worldgen`; the other keys are generator settings).
+(:mod:`hybridnav.world.generator`; the other keys are generator settings).
 A job is a thin front over the tuning objects: :meth:`Job.tunable` (the
 :class:`~hybridnav.tuner.TunableSettings`), :meth:`Job.cost` (navigation, data or python),
 :meth:`Job.optimizer` and :meth:`Job.validation_arg` are what :func:`hybridnav.tuner.tune`
@@ -119,7 +119,7 @@ SCHEMA: dict[str, dict[str, Param]] = {
         "test": Param(["effc-env-a", "effc-env-b", {"generate": 30, "seed": 3},
                        {"generate": 8, "seed": 13, **TRAPS}],
                       "the worlds only reported"),
-        "heldout": Param([], "the old name of test"),
+        "heldout": Param([], "the old name of test (warns; removed in 0.4.0)"),
     },
     "reward": REWARD,
     "coverage": COVERAGE,
@@ -565,6 +565,9 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
     sc = data["scenarios"]
     given = raw.get("scenarios", {}) if isinstance(raw.get("scenarios"), dict) else {}
     if "heldout" in given:
+        from hybridnav.deprecation import warn_renamed
+
+        warn_renamed(f"{where}scenarios.heldout", "scenarios.test", stacklevel=2)
         if "test" in given:
             raise fail("scenarios.heldout", "expected either test or its old name heldout, "
                                             "not both")
@@ -582,7 +585,7 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
                     raise fail(f"scenarios.{key}[{i}]", "expected a scenario name or path, "
                                                         "got an empty string")
             elif isinstance(item, dict):
-                from hybridnav.worldgen import generator_from_table
+                from hybridnav.world.generator import generator_from_table
 
                 generator_from_table(item, where, f"scenarios.{key}[{i}]")
             else:
@@ -623,7 +626,7 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
 def _load_set(items_json: str, base: str) -> list:
     """The scenarios of one set (cached: generated worlds are drawn once per process)."""
     from hybridnav.world import load_scenario
-    from hybridnav.worldgen import generator_from_table
+    from hybridnav.world.generator import generator_from_table
 
     out = []
     for i, item in enumerate(json.loads(items_json)):

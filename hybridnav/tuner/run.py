@@ -326,7 +326,7 @@ def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = 
         failed = set(h[(h.set == "test") & (h.system == "tuned")
                        & (h.outcome != "reached")].scenario)
     def generated(s) -> bool:
-        return "(hybridnav.worldgen)" in (s.description or "")
+        return "(hybridnav.world.generator)" in (s.description or "")
 
     shown = [("train", s) for s in job.scenarios("train") if not generated(s)]
     shown += [("test", s) for s in test if not generated(s)]
@@ -590,7 +590,7 @@ def _fmt(v: float, spec: str = ".3f") -> str:
 def _sil_lines(job: Job, system, out: Path) -> list[str]:
     """The report's software-in-the-loop check of the C export: the compiled C controller against
     the Python evaluator in closed loop on the first training and (up to) two test worlds."""
-    from hybridnav.analysis.sil import verify
+    from hybridnav.fuzzy.export.closedloop import verify
     from hybridnav.fuzzy.export.sil import CompiledFIS
 
     head = ["", "## Software in the loop: the exported C controller", ""]

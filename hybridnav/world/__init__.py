@@ -7,7 +7,9 @@ This package holds the geometry every planner and model shares:
 * :class:`World`: a rectangular workspace plus obstacles, with queries vectorized over ``(N, 2)``
   point arrays *and* over obstacles (obstacles are packed into arrays once, at construction);
 * :class:`Robot` and :class:`Scenario`, and the TOML loader :func:`load_scenario` with validation
-  (:func:`scenario_from_dict`) and its inverse :func:`scenario_to_dict`.
+  (:func:`scenario_from_dict`) and its inverse :func:`scenario_to_dict`;
+* :class:`WorldGenerator` (:mod:`~hybridnav.world.generator`): seeded random solvable worlds;
+* occupancy grids and MovingAI maps in :mod:`hybridnav.world.grid`.
 
 Conventions
 -----------
@@ -43,6 +45,7 @@ from hybridnav.world.schema import (
     load_scenario,
     scenario_from_dict,
 )
+from hybridnav.world.generator import WorldGenerator
 from hybridnav.world.world import World
 from hybridnav.world.writer import (
     save_scenario,
@@ -75,4 +78,5 @@ __all__ = [
     "list_scenarios",
     "builtin_data_path",
     "toml_dumps",
+    "WorldGenerator",
 ]

@@ -46,6 +46,7 @@ from hybridnav.world.world import World
 
 __all__ = [
     "OccupancyGrid",
+    "connected",
     "MovingAIQuery",
     "PASSABLE",
     "BLOCKED",
@@ -572,3 +573,35 @@ def build_grid(scenario: Scenario, resolution: float | None = None, inflate: flo
         res = min(xmax - xmin, ymax - ymin) / 100.0
         log.info("scenario %s has no [grid]; rasterizing at resolution %g", scenario.name, res)
     return rasterize(scenario.world, float(res), inflate=inflate)
+
+
+def connected(grid: OccupancyGrid, a: ArrayLike, b: ArrayLike) -> bool:
+    """Whether a grid path joins the cells of the world points ``a`` and ``b``.
+
+    The moves are those of the planners' default search (8-connected without corner cutting: a
+    diagonal move needs both cells beside it free), which join exactly the cells that 4-connected
+    moves join; so this is one connected-component labelling (:func:`scipy.ndimage.label`), not a
+    search. A point outside the grid or in a blocked cell is joined to nothing.
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+    a, b : array_like, shape (2,)
+        World coordinates ``(x, y)``.
+
+    Returns
+    -------
+    bool
+    """
+    from scipy import ndimage
+
+    cells = grid.to_cell(np.vstack([np.asarray(a, dtype=float).reshape(2),
+                                    np.asarray(b, dtype=float).reshape(2)]))
+    (ca, ra), (cb, rb) = (tuple(int(v) for v in c) for c in cells)
+    h, w = grid.shape
+    if not (0 <= ca < w and 0 <= ra < h and 0 <= cb < w and 0 <= rb < h):
+        return False
+    if grid.occ[ra, ca] or grid.occ[rb, cb]:
+        return False
+    labels, _ = ndimage.label(~grid.occ)          # the default structure: 4-connected
+    return bool(labels[ra, ca] == labels[rb, cb])

@@ -238,14 +238,15 @@ def read_text(text: str, format: str, source: str | None = None, *,
 
 def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POINTS) -> FuzzySystem:
     """Load a system from a ``.json``, ``.fll`` or ``.fis`` file, a built-in one by name, or a
-    scikit-fuzzy ``ControlSystem`` in Python code (``module:NAME`` or ``path/file.py:NAME``;
-    :func:`hybridnav.fuzzy.from_skfuzzy`).
+    :class:`FuzzySystem` or scikit-fuzzy ``ControlSystem`` in Python code (``module:NAME`` or
+    ``path/file.py:NAME``; :func:`hybridnav.fuzzy.from_skfuzzy`).
 
     Parameters
     ----------
     name_or_path : str or path-like
         A file (the suffix picks the reader), a built-in name (``effc-5rule``), or
-        ``module:NAME`` / ``file.py:NAME`` naming a ``ControlSystem`` (the code is run).
+        ``module:NAME`` / ``file.py:NAME`` naming a ``FuzzySystem`` or a ``ControlSystem`` (the
+        code is run).
     points : int
         Universe points for FLL / .fis files without hybridnav metadata (default 101).
 
@@ -277,7 +278,8 @@ def load_any(name_or_path: str | os.PathLike[str], *, points: int = DEFAULT_POIN
 
 
 def _from_python(spec: str) -> FuzzySystem:
-    """The scikit-fuzzy ``ControlSystem`` ``module:NAME`` or ``file.py:NAME`` names, converted."""
+    """The system ``module:NAME`` or ``file.py:NAME`` names: a ``FuzzySystem`` as it is, a
+    scikit-fuzzy ``ControlSystem`` converted."""
     import importlib
     import importlib.util
 
@@ -312,4 +314,11 @@ def _from_python(spec: str) -> FuzzySystem:
     if not hasattr(module, attr):
         raise HybridnavError(f"{spec}: {where!r} has no {attr!r}")
     obj = getattr(module, attr)
+    if isinstance(obj, FuzzySystem):           # a system built with hybridnav's own API
+        return obj
+    from skfuzzy.control import ControlSystem
+
+    if not isinstance(obj, ControlSystem):
+        raise HybridnavError(f"{spec}: expected a hybridnav FuzzySystem or a "
+                             f"skfuzzy.control.ControlSystem, got {type(obj).__name__}")
     return from_skfuzzy(obj, name=attr)

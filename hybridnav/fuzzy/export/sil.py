@@ -5,8 +5,8 @@ export --format c`` writes them) with a small driver into a program that runs in
 (:mod:`~hybridnav.fuzzy.export.sandbox`: time and resource limits, never in this process), and
 offers the ``evaluate(**inputs)`` and ``input_names`` the EFFC planner calls. So ``hybridnav run
 SCENARIO --planner effc --fis build/effc.c`` drives the closed loop with the deployment artifact
-itself, and :func:`hybridnav.analysis.sil.verify` compares that run with the Python evaluator's,
-trajectory and ``w`` signal, sample by sample.
+itself, and :func:`hybridnav.fuzzy.export.closedloop.verify` compares that run with the Python
+evaluator's, trajectory and ``w`` signal, sample by sample.
 
 Only unmodified exports are compiled unless ``trust=True``: the source ends with the system it
 was generated from (:func:`~hybridnav.fuzzy.export.c.embedded_system`), and both files must be

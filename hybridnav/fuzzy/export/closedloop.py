@@ -1,4 +1,4 @@
-"""Software in the loop: the compiled C controller against the Python evaluator, in closed loop.
+"""Software in the loop, in closed loop: the compiled C controller against the Python evaluator.
 
 :func:`verify` runs the EFFC planner with a :class:`~hybridnav.fuzzy.FuzzySystem` and with its C
 export compiled (:class:`hybridnav.fuzzy.export.sil.CompiledFIS`: the C runs in a child process,

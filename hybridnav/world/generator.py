@@ -10,13 +10,14 @@ start, corridors, narrow gaps and walls of segments — can be placed across the
 (off by default).
 
 Every world is **solvable**: its obstacles are rasterized at ``resolution`` inflated by the robot
-radius (and kept that far from the border), and an 8-connected A* path (no corner cutting) must
-join the start and goal cells; a world without one is drawn again (up to ``max_tries`` times).
+radius (and kept that far from the border), and a grid path (8-connected, no corner cutting: the
+planners' default moves, :func:`hybridnav.world.grid.connected`) must join the start and goal
+cells; a world without one is drawn again (up to ``max_tries`` times).
 
 World ``i`` of a set seeded ``seed`` uses ``numpy.random.SeedSequence(seed, spawn_key=(i,))``,
 so it does not depend on how many worlds are drawn, and two seeds give disjoint sets.
 
->>> from hybridnav.worldgen import WorldGenerator
+>>> from hybridnav.world.generator import WorldGenerator
 >>> worlds = WorldGenerator(circles=(2, 4)).generate(3, seed=7)   # list of Scenario
 """
 
@@ -154,7 +155,7 @@ class WorldGenerator:
 
     def world(self, index: int, seed: int = 0):
         """World ``index`` of the set seeded ``seed``: a :class:`hybridnav.world.Scenario`."""
-        from hybridnav.world import scenario_from_dict
+        from hybridnav.world.schema import scenario_from_dict
 
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
         name = f"{self.name}-{seed}-{index:03d}"
@@ -309,7 +310,7 @@ class WorldGenerator:
                 return "rectangles"
         return {
             "name": name,
-            "description": f"generated world {index} of seed {seed} (hybridnav.worldgen)",
+            "description": f"generated world {index} of seed {seed} (hybridnav.world.generator)",
             "units": "m", "dt": self.dt, "max_time": self.max_time,
             "workspace": {"xmin": 0.0, "xmax": L, "ymin": 0.0, "ymax": L},
             "obstacles": obstacles,
@@ -355,7 +356,7 @@ def gap_parts(c: np.ndarray, u: np.ndarray, width: float, left: float, right: fl
 
 
 def _shape(obs: dict):
-    from hybridnav.world import Circle, Rectangle, Segment
+    from hybridnav.world.obstacles import Circle, Rectangle, Segment
 
     if obs["type"] == "circle":
         return Circle(tuple(obs["center"]), obs["radius"])
@@ -370,7 +371,7 @@ def _clear_of(shape, points, keep: float) -> bool:
 
 def _outline(shape, n: int = 96) -> np.ndarray:
     """Points on a shape's boundary (exact for circles' distances to other circles)."""
-    from hybridnav.world import Circle, Segment
+    from hybridnav.world.obstacles import Circle, Segment
 
     if isinstance(shape, Circle):
         a = np.linspace(0, 2 * np.pi, n, endpoint=False)
@@ -382,7 +383,8 @@ def _outline(shape, n: int = 96) -> np.ndarray:
 
 def _no_narrow_gap(shape, placed: list, size: float, gap: float) -> bool:
     """Whether ``shape`` overlaps or keeps ``gap`` from every placed obstacle and the border."""
-    from hybridnav.world import Circle, World
+    from hybridnav.world.obstacles import Circle
+    from hybridnav.world.world import World
 
     pts = _outline(shape)
     border = np.min(np.minimum.reduce([pts[:, 0], size - pts[:, 0], pts[:, 1],
@@ -406,11 +408,10 @@ def solvable(scenario, resolution: float | None = None) -> bool:
 
     The static obstacles are rasterized at ``resolution`` (default: 1/200 of the shorter
     workspace side) with cells closer than the robot radius to an obstacle or the border
-    blocked; the start and goal cells must be free and joined by an 8-connected A* path without
-    corner cutting.
+    blocked; the start and goal cells must be free and joined by a grid path (8-connected without
+    corner cutting; :func:`hybridnav.world.grid.connected`).
     """
-    from hybridnav.planners.path.gridsearch import search_world
-    from hybridnav.world.grid import rasterize
+    from hybridnav.world.grid import connected, rasterize
 
     xmin, xmax, ymin, ymax = scenario.world.workspace
     res = resolution or min(xmax - xmin, ymax - ymin) / 200.0
@@ -418,10 +419,7 @@ def solvable(scenario, resolution: float | None = None) -> bool:
         if r.goal is None:
             continue
         grid = rasterize(scenario.world, res, inflate=r.radius, border=True)
-        try:
-            if not search_world(grid, r.start, r.goal).found:
-                return False
-        except HybridnavError:              # start or goal cell blocked
+        if not connected(grid, r.start[:2], r.goal[:2]):
             return False
     return True
 

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from hybridnav.analysis.convergence import CONVERGENCE_COLUMNS, convergence_rows, plot_convergence
+from hybridnav.experiments.convergence import CONVERGENCE_COLUMNS, convergence_rows, plot_convergence
 from hybridnav.backends import shared_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
@@ -61,7 +61,20 @@ def _cut(text: str) -> str:
 
 
 def run_seed(seed: int, run: int) -> int:
-    """The seed of run ``run`` of a comparison seeded with ``seed``."""
+    """The seed of run ``run`` of a comparison seeded with ``seed``.
+
+    Parameters
+    ----------
+    seed : int
+        The comparison's seed.
+    run : int
+        The run's index (the same for every planner and scenario: common random numbers).
+
+    Returns
+    -------
+    int
+        ``SeedSequence(seed, spawn_key=(run,))``'s first 32-bit word.
+    """
     return int(np.random.SeedSequence(seed, spawn_key=(run,)).generate_state(1)[0])
 
 
