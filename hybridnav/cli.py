@@ -140,8 +140,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         path_name = figure_name("path", args.format)
         save_figure(plot_result(scenario, result), out / path_name, dpi=args.dpi)
         # figures drawn from the result alone, named in the chosen format
-        extra = [figure_name(name, args.format)
-                 for name in _save_all(planner.diagnostics(scenario, result), out, args)]
+        extra = _save_all(planner.diagnostics(scenario, result), out, args)
     print(f"{scenario.name} with {planner.name} (seed {args.seed}):")
     print(f"  {'robot':<10} {'outcome':<14} {'length':>10} {'time':>9} {'clearance':>10} "
           f"{'compute':>9}")
@@ -160,43 +159,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    import numpy as np
-
     from hybridnav import planners
     from hybridnav.params import short_repr
     from hybridnav.plotting import figure_name, plot_result, save_figure
-    from hybridnav.results import read_result
-    from hybridnav.world import list_scenarios, load_scenario
+    from hybridnav.results import read_run
 
-    result = read_result(args.result)
+    result, scenario = read_run(args.result, args.scenario)
     listing = Path(args.result) / "result.json"
-    scen = short_repr(result.scenario)
-    if args.scenario is None:
-        # only a built-in by its name: result.json does not choose a file to read
-        if result.scenario not in {n for n, _ in list_scenarios()}:
-            raise HybridnavError(f"{listing}: scenario: {scen} is not a built-in scenario; pass "
-                                 "the scenario file the result was run on with --scenario")
-        scenario = load_scenario(result.scenario)
-    else:
-        scenario = load_scenario(args.scenario)
-    where = f"--scenario {args.scenario}" if args.scenario else f"scenario {scen}"
-    if scenario.name != result.scenario:
-        raise HybridnavError(f"{listing}: scenario: the result is of scenario {scen}, not "
-                             f"{short_repr(scenario.name)} ({where})")
-    # a file scenario may share a built-in's name: the robots must be the result's
-    names = [r.name for r in scenario.robots]
-    if names != [r.name for r in result.robots]:
-        got = [r.name for r in result.robots]
-        raise HybridnavError(f"{listing}: robots: expected the robots of {where} "
-                             f"{short_repr(names)}, got {short_repr(got)}; pass the scenario "
-                             "the result was run on with --scenario")
-    for rr, r in zip(result.robots, scenario.robots):
-        if not np.allclose(rr.states[0, :2], r.start):
-            raise HybridnavError(
-                f"{Path(args.result) / f'trajectory_{rr.name}.csv'}: line 2: robot {rr.name} "
-                f"starts at {tuple(float(v) for v in rr.states[0, :2])}, in {where} at "
-                f"{tuple(float(v) for v in r.start)}: its robots do not start where the "
-                "result's do; pass the scenario the result was run on with --scenario")
     if result.planner not in planners.PLANNERS:
         raise HybridnavError(f"{listing}: planner: expected one of "
                              f"{', '.join(sorted(planners.PLANNERS))}, got "
@@ -223,6 +192,35 @@ def _save_all(figures, out, args: argparse.Namespace) -> list[str]:
         save_figure(fig, out / name, dpi=args.dpi)
         names.append(name)
     return names
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hybridnav.plotting import animate
+    from hybridnav.tuner.animation import animate_tuning, is_tuning_folder
+
+    folder = Path(args.folder)
+    if folder.is_dir() and is_tuning_folder(folder):
+        if args.scenario is not None:
+            raise HybridnavError(f"{folder}: --scenario: a tuning job's folder drives on one of "
+                                 "the job's worlds: choose it with --world")
+        done = animate_tuning(folder, args.out, world=args.world,
+                              fps=4.0 if args.fps is None else args.fps, dpi=args.dpi,
+                              max_frames=args.max_frames)
+    else:
+        if args.world is not None:
+            raise HybridnavError(f"{folder}: --world: only for a tuning job's folder (this is "
+                                 "not one: a run's scenario is its result's)")
+        done = animate(folder, args.out, scenario=args.scenario,
+                       fps=10.0 if args.fps is None else args.fps, dpi=args.dpi,
+                       max_frames=args.max_frames)
+    w, h = done.size
+    what = (f"t = 0 to {done.times[-1]:.1f} s" if not done.labels[0].startswith("generation")
+            else f"{done.labels[0].split(':')[0]} to {done.labels[-1].split(':')[0]}")
+    print(f"wrote {done.path}: {done.frames} frames at {done.fps:g} fps, {w} x {h} pixels "
+          f"({what})")
+    return 0
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
@@ -357,16 +355,15 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             bar.refresh()
         bar.update(done - bar.n)
 
-    phases = PhaseLog()
-    try:
-        result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
-                           workers=args.workers, dask=args.dask, progress=progress,
-                           scenarios=scens, layouts=args.layouts,
-                           phase=lambda msg: (bar.close(), phases(msg)), fmt=args.format,
-                           dpi=args.dpi)
-    finally:
-        bar.close()
-        phases.close()
+    with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
+        try:
+            result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
+                               workers=args.workers, dask=args.dask, progress=progress,
+                               scenarios=scens, layouts=args.layouts,
+                               phase=lambda msg: (bar.close(), phases(msg)),
+                               fmt=args.format, dpi=args.dpi)
+        finally:
+            bar.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
     for c in result["claims"]:
         print(f"{c['text']}: paper's numbers {words[c['paper']]}; ours, " + "; ".join(
@@ -425,14 +422,13 @@ def _cmd_tune(args: argparse.Namespace) -> int:
                         **extra, evals_s=f"{rate:.0f}")
         bar.update(1)
 
-    phases = PhaseLog()
-    try:
-        result = run_job(job, args.out, resume=args.resume, force=args.force,
-                         progress=progress, phase=lambda msg: (bar.close(), phases(msg)),
-                         fmt=args.format, dpi=args.dpi)
-    finally:
-        bar.close()
-        phases.close()
+    with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
+        try:
+            result = run_job(job, args.out, resume=args.resume, force=args.force,
+                             progress=progress, phase=lambda msg: (bar.close(), phases(msg)),
+                             fmt=args.format, dpi=args.dpi)
+        finally:
+            bar.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
           f"{result.start_objectives[0]:.4f} -> returned {result.objectives[0]:.4f} "
           f"({len(result.system.rules)} rules kept; chosen on {result.selected_by}, generation "
@@ -606,9 +602,9 @@ def build_parser() -> argparse.ArgumentParser:
     figures = _figure_options()
 
     def add_command(name: str, draws: bool = False, **kwargs: Any) -> argparse.ArgumentParser:
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
         return sub.add_parser(name, parents=[common, figures] if draws else [common],
-                              epilog=epilog(name),
-                              formatter_class=argparse.RawDescriptionHelpFormatter, **kwargs)
+                              epilog=epilog(name), **kwargs)
 
     p = add_command("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
@@ -684,6 +680,37 @@ def build_parser() -> argparse.ArgumentParser:
                                       "(default: the result's scenario name)")
     p.add_argument("-o", "--out", metavar="DIR", help="folder for the figures (default: DIR)")
     p.set_defaults(func=_cmd_plot)
+
+    p = add_command("animate", help="write a GIF or MP4 of a run (a folder written by 'run') "
+                                    "or of a tuning job's best system per generation",
+                    formatter_class=argparse.RawDescriptionHelpFormatter,
+                    description="Animate a run: the robots' trails and poses (footprints), the\n"
+                                "moving obstacles and targets where they are, and for swarm\n"
+                                "planners (pso-ba, fastep-kinematic, aco-kinematic) the\n"
+                                "candidates of each planning step. On a tuning job's folder:\n"
+                                "generation by generation, the best system of that generation\n"
+                                "driving on one of the job's worlds.")
+    p.add_argument("folder", metavar="DIR", help="a folder written by 'hybridnav run' "
+                                                  "(result.json) or 'hybridnav tune'")
+    p.add_argument("-o", "--out", metavar="FILE",
+                   help="the .gif or .mp4 to write (.mp4 needs ffmpeg on PATH; default "
+                        "DIR/animation.gif)")
+    p.add_argument("--scenario", help="a run's scenario when it is not built in (a .toml file; "
+                                      "default: the result's scenario name)")
+    p.add_argument("--world", metavar="NAME", help="tuning job: which of the job's worlds "
+                                                    "(default: its first test world, else "
+                                                    "validation)")
+    p.add_argument("--fps", type=_typed("a number of frames per second in (0, 100]", float,
+                                        _between(0.0, 100.0, lo_open=True)),
+                   default=None, metavar="N", help="frames per second (default 10; 4 for a "
+                                                   "tuning job)")
+    p.add_argument("--dpi", type=_typed("an integer in [10, 600]", int, _between(10, 600)),
+                   default=80, metavar="N", help="resolution: a frame is 6.4 x 6.4 inches "
+                                                 "(default 80: 512 x 512 pixels)")
+    p.add_argument("--max-frames", type=_typed("an integer in [1, 10000]", int,
+                                               _between(1, 10000)),
+                   default=150, metavar="N", help="most frames (default 150)")
+    p.set_defaults(func=_cmd_animate)
 
     p = add_command("compare", draws=True, help="run planners x scenarios x runs; runs.csv, summary.csv, "
                                        "plots")
@@ -809,6 +836,8 @@ def _show_deprecations() -> None:
             default(message, category, filename, lineno, file, line)
 
     warnings.showwarning = show
+    if sys.warnoptions:                      # the user chose (-W, PYTHONWARNINGS): as they say
+        return
     for action, msg, category, module, _ in warnings.filters:   # the filter that would apply
         if isinstance(module, str):                 # a filter as Python's defaults store it
             module = re.compile(re.escape(module) + r"\Z")

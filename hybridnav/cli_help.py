@@ -4,8 +4,8 @@ completion scripts.
 :data:`EXAMPLES` holds each command's examples (``hybridnav COMMAND --help`` prints them; a test
 parses every one with the real parser). :func:`completion_script` writes a bash, zsh or tcsh
 completion script generated from the parser itself (``shtab``), so it completes every command,
-option and choice the installed version has, files where a command takes a file, and the
-built-in scenario and planner names where it takes those.
+option and choice the installed version has, files where a command takes a file, and (bash,
+zsh) the built-in scenario and planner names where it takes those.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ __all__ = ["EXAMPLES", "SHELLS", "completion_script", "epilog"]
 EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     "": (
         ("hybridnav tune -o out/tune", "tune the built-in EFFC controller (about a minute)"),
-        ("hybridnav run effc-env-a --planner effc -o out/run", "one run, its files and figures"),
+        ("hybridnav run effc-env-b --planner effc -o out/run", "one run, its files and figures"),
         ("hybridnav analyze unicycle -o out/analysis", "stability analysis of a model"),
         ("hybridnav COMMAND --help", "a command's options and examples"),
     ),
@@ -33,11 +33,12 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     ),
     "planners": (("hybridnav planners", "every planner, its parameters and profiles"),),
     "run": (
-        ("hybridnav run effc-env-a --planner effc -o out/run", "EFFC with its built-in system"),
+        ("hybridnav run effc-env-b --planner effc -o out/run", "EFFC with its built-in system"),
         ("hybridnav run fastep-s1 --planner fastep-kinematic --set profile=paper -o out/fs",
          "a planner in its paper's settings"),
-        ("hybridnav run effc-env-b --planner effc --fis out/tune/fis.json -o out/tuned",
-         "a tuned system"),
+        ("hybridnav run effc-env-b --planner effc --fis out/tune/fis.json "
+         "--set safety_margin=0.05 -o out/tuned",
+         "a tuned system with the safety filter it was tuned with (its deployment.json)"),
     ),
     "verify": (
         ("hybridnav verify out/tune/fis.json out/tune/effc.c", "the exported C in closed loop"),
@@ -47,7 +48,7 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     "compare": (
         ("hybridnav compare --planners apf,effc --scenarios effc-env-a,effc-env-b --runs 5 "
          "-o out/cmp --workers 2", "two planners, two scenarios, five runs each"),
-        ("hybridnav compare --planners effc,effc@tuned:fis=out/tune/fis.json "
+        ("hybridnav compare --planners effc,effc@tuned:fis=out/tune/fis.json:safety_margin=0.05 "
          "--scenarios effc-env-a -o out/cmp2", "one planner against itself, retuned"),
     ),
     "reproduce": (
@@ -70,10 +71,17 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
         ("hybridnav export effc-5rule --format fll", "fuzzylite's language"),
     ),
     "generate": (
-        ("hybridnav generate --count 5 --seed 3 --set circles=[4,8] -o worlds",
+        ("hybridnav generate --count 5 --seed 3 --set 'circles=[4,8]' -o worlds",
          "five solvable worlds as scenario files"),
     ),
     "models": (("hybridnav models", "every kinematic model and its parameters"),),
+    "animate": (
+        ("hybridnav run pso-ba-dynamic --planner pso-ba -o runs/psoba", "a run to watch"),
+        ("hybridnav animate runs/psoba", "runs/psoba/animation.gif"),
+        ("hybridnav animate runs/psoba --out psoba.mp4 --fps 20", "an MP4 (needs ffmpeg)"),
+        ("hybridnav animate out/tune --world effc-env-b --out tuning.gif",
+         "a tuning job's best system, generation by generation"),
+    ),
     "completion": (
         ('eval "$(hybridnav completion bash)"', "completion in this bash session"),
         ("hybridnav completion zsh > ~/.zfunc/_hybridnav", "install it for zsh"),
@@ -113,6 +121,7 @@ def epilog(command: str) -> str | None:
 _PREAMBLE = {
     "bash": """
 _shtab_hybridnav_scenarios() {{
+  compopt -o filenames 2>/dev/null
   compgen -W "{scenarios}" -- "$1"
   compgen -f -X '!*.toml' -- "$1"
   compgen -d -- "$1"

@@ -19,9 +19,11 @@ default).
 
 from __future__ import annotations
 
+import abc
 import importlib
 import importlib.abc
 import importlib.machinery
+import os
 import sys
 import types
 import warnings
@@ -61,23 +63,50 @@ def _message(old: str, new: str) -> str:
     return f"{old} is deprecated since {SINCE} and will be removed in {REMOVAL}: use {new}"
 
 
-def warn_renamed(old: str, new: str, stacklevel: int = 3) -> None:
-    """Warn that ``old`` was renamed ``new`` (a :class:`HybridnavDeprecationWarning`).
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def _ours(filename: str) -> bool:
+    """Frames a warning should not be attributed to: hybridnav's own, the class machinery's
+    (``abc``) and the import system's."""
+    return (filename.startswith(_PACKAGE) or filename in ("<frozen abc>", abc.__file__)
+            or "importlib" in filename)
+
+
+def _user_stacklevel() -> int:
+    """The ``stacklevel`` (counted as :func:`warnings.warn` counts it from its caller,
+    :func:`warn_renamed`) of the first frame outside :func:`_ours`: the user's line."""
+    frame, level = sys._getframe(2), 2       # warn_renamed is level 1, its caller 2
+    while frame is not None and _ours(frame.f_code.co_filename):
+        frame = frame.f_back
+        # warnings steps over the import system's bootstrap frames without counting them
+        while frame is not None and "importlib._bootstrap" in frame.f_code.co_filename:
+            frame = frame.f_back
+        level += 1
+    return level
+
+
+def warn_renamed(old: str, new: str) -> None:
+    """Warn that ``old`` was renamed ``new`` (a :class:`HybridnavDeprecationWarning`),
+    attributed to the first line outside hybridnav (the user's code), so that Python's default
+    filters show it there.
 
     Parameters
     ----------
     old, new : str
         How a user wrote the old name and how to write the new one (e.g. ``"Model.params"``,
-        ``"Model.values"``; ``"scenarios.heldout in job.toml"``, ``"scenarios.test"``).
-    stacklevel : int
-        As in :func:`warnings.warn`; the default points at the caller of the function that calls
-        this one.
+        ``"Model.values"``; ``"job.toml: scenarios.heldout"``, ``"scenarios.test"``).
     """
-    warnings.warn(_message(old, new), HybridnavDeprecationWarning, stacklevel=stacklevel)
+    warnings.warn(_message(old, new), HybridnavDeprecationWarning, stacklevel=_user_stacklevel())
 
 
 class RenamedAttribute:
-    """A class attribute's old name: reading or setting it warns and uses the new name.
+    """An attribute's old name: reading it warns and gives the new name's value.
+
+    Setting the old name on an instance sets an instance attribute, as it did before the rename
+    (use :meth:`writable` where the old name was a property that set the new one). Read on the
+    class, where the new name is an instance attribute only, it is the descriptor itself (so
+    ``help`` and ``inspect`` do not warn).
 
     Parameters
     ----------
@@ -88,29 +117,54 @@ class RenamedAttribute:
     --------
     >>> class Model:
     ...     values = {"L": 1.0}
-    ...     params = RenamedAttribute("values")      # Model().params warns, gives .values
+    ...     params = RenamedAttribute.writable("values")   # Model().params warns, gives .values
     """
 
     def __init__(self, new: str) -> None:
         self.new = new
-        self.old = self.owner = "?"
+        self.old = "?"
+
+    @classmethod
+    def writable(cls, new: str) -> RenamedAttribute:
+        """The old name of a property whose setter set ``new``: setting it warns and sets
+        ``new``.
+
+        Parameters
+        ----------
+        new : str
+
+        Returns
+        -------
+        RenamedAttribute
+        """
+        return _WritableRenamed(new)
 
     def __set_name__(self, owner: type, name: str) -> None:
-        self.owner, self.old = owner.__name__, name
+        self.old = name
 
     def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+        if obj is None and not hasattr(objtype, self.new):
+            return self
         owner = (objtype or type(obj)).__name__
         warn_renamed(f"{owner}.{self.old}", f"{owner}.{self.new}")
         return getattr(obj if obj is not None else objtype, self.new)
 
+
+class _WritableRenamed(RenamedAttribute):
     def __set__(self, obj: Any, value: Any) -> None:
         owner = type(obj).__name__
         warn_renamed(f"{owner}.{self.old}", f"{owner}.{self.new}")
         setattr(obj, self.new, value)
 
 
+#: what the import system keeps on the alias itself; every other attribute is the target's
+_OWN = frozenset({"__name__", "__spec__", "__loader__", "__package__", "__file__", "__path__",
+                  "__cached__", "__builtins__", "__doc__", "_target"})
+
+
 class _Alias(types.ModuleType):
-    """A moved module's old name: every attribute is the new module's."""
+    """A moved module's old name: every attribute is the new module's, read and written (so
+    ``mock.patch("old.name.f")`` patches the real module, as when the old name was the module)."""
 
     def __init__(self, name: str, target: types.ModuleType) -> None:
         super().__init__(name, target.__doc__)
@@ -118,6 +172,18 @@ class _Alias(types.ModuleType):
 
     def __getattr__(self, attr: str) -> Any:
         return getattr(object.__getattribute__(self, "_target"), attr)
+
+    def __setattr__(self, attr: str, value: Any) -> None:
+        if attr in _OWN:
+            object.__setattr__(self, attr, value)
+        else:
+            setattr(object.__getattribute__(self, "_target"), attr, value)
+
+    def __delattr__(self, attr: str) -> None:
+        if attr in _OWN:
+            object.__delattr__(self, attr)
+        else:
+            delattr(object.__getattribute__(self, "_target"), attr)
 
     def __dir__(self) -> list[str]:
         return dir(object.__getattribute__(self, "_target"))
@@ -136,6 +202,10 @@ class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         # attributed to the import statement: warnings skips importlib's own frames
         warnings.warn(_message(spec.name, new), HybridnavDeprecationWarning, stacklevel=2)
         return _Alias(spec.name, importlib.import_module(new))
+
+    def get_code(self, fullname: str) -> None:
+        """No code: ``python -m <old name>`` says so (runpy asks for it)."""
+        return None
 
     def exec_module(self, module: types.ModuleType) -> None:
         old = module.__name__

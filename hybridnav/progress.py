@@ -91,8 +91,9 @@ class PhaseLog:
     Each phase gets a line ``"  <message> ... <seconds> s"`` once it ends. On a terminal the line
     is written at once and its clock updated every ``interval`` seconds while the phase runs; in
     a log file (no carriage returns) the start is a line of its own (``"  <message> ..."``) and
-    the end another (``"  <message>: <seconds> s"``). Use it as a context manager, or call
-    :meth:`close` after the last phase.
+    the end another (``"  <message>: <seconds> s"``). Use it as a context manager (a phase left
+    by an exception ends ``(failed)``, by Ctrl-C ``(interrupted)``), or call :meth:`close` after
+    the last phase.
 
     Parameters
     ----------
@@ -137,7 +138,7 @@ class PhaseLog:
                     self._write(f"  {self._msg} ... {time.perf_counter() - self._t0:.1f} s",
                                 newline=False)
 
-    def _end(self) -> None:
+    def _end(self, status: str = "") -> None:
         if self._thread is not None:
             self._stop.set()
             self._thread.join()
@@ -147,10 +148,11 @@ class PhaseLog:
                 return
             seconds = time.perf_counter() - self._t0
             self.done.append((self._msg, seconds))
+            note = f" ({status})" if status else ""
             if self.live:
-                self._write(f"  {self._msg} ... {seconds:.1f} s", newline=True)
+                self._write(f"  {self._msg} ... {seconds:.1f} s{note}", newline=True)
             else:
-                self._write(f"  {self._msg}: {seconds:.1f} s", newline=True)
+                self._write(f"  {self._msg}: {seconds:.1f} s{note}", newline=True)
             self._msg = None
 
     def close(self) -> None:
@@ -160,5 +162,7 @@ class PhaseLog:
     def __enter__(self) -> PhaseLog:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, kind: Any, *exc: Any) -> None:
+        # a phase that did not end normally does not read as done
+        self._end("" if kind is None else
+                  "interrupted" if issubclass(kind, KeyboardInterrupt) else "failed")

@@ -66,6 +66,7 @@ __all__ = [
     "check_extras",
     "path_length",
     "read_result",
+    "read_run",
     "smoothness",
     "write_result",
 ]
@@ -392,6 +393,63 @@ def read_result(folder: str | Path) -> Result:
                       seed=seed, robots=robots, version=data["version"], extras=extras)
     except HybridnavError as exc:
         raise HybridnavError(f"{path}: {exc}") from None
+
+
+def read_run(folder: str | Path, scenario: str | Path | None = None) -> tuple[Result, Any]:
+    """A result folder with the scenario it was run on (what ``hybridnav plot`` and
+    ``hybridnav animate`` draw).
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder :func:`write_result` wrote.
+    scenario : str or Path, optional
+        The scenario the result is of (a built-in name or a ``.toml`` file); default: the
+        built-in scenario of the name ``result.json`` gives (``result.json`` never chooses a file
+        to read).
+
+    Returns
+    -------
+    (Result, Scenario)
+
+    Raises
+    ------
+    HybridnavError
+        As :func:`read_result`; a scenario name that is not built in (without ``scenario``); a
+        scenario of another name, other robots or other starts than the result's.
+    """
+    from hybridnav.world import list_scenarios, load_scenario
+
+    result = read_result(folder)
+    listing = Path(folder) / "result.json"
+    scen = short_repr(result.scenario)
+    if scenario is None:
+        # only a built-in by its name: result.json does not choose a file to read
+        if result.scenario not in {n for n, _ in list_scenarios()}:
+            raise HybridnavError(f"{listing}: scenario: {scen} is not a built-in scenario; pass "
+                                 "the scenario file the result was run on with --scenario")
+        loaded = load_scenario(result.scenario)
+    else:
+        loaded = load_scenario(scenario)
+    where = f"--scenario {scenario}" if scenario else f"scenario {scen}"
+    if loaded.name != result.scenario:
+        raise HybridnavError(f"{listing}: scenario: the result is of scenario {scen}, not "
+                             f"{short_repr(loaded.name)} ({where})")
+    # a file scenario may share a built-in's name: the robots must be the result's
+    names = [r.name for r in loaded.robots]
+    if names != [r.name for r in result.robots]:
+        got = [r.name for r in result.robots]
+        raise HybridnavError(f"{listing}: robots: expected the robots of {where} "
+                             f"{short_repr(names)}, got {short_repr(got)}; pass the scenario "
+                             "the result was run on with --scenario")
+    for rr, r in zip(result.robots, loaded.robots):
+        if not np.allclose(rr.states[0, :2], r.start):
+            raise HybridnavError(
+                f"{Path(folder) / f'trajectory_{rr.name}.csv'}: line 2: robot {rr.name} "
+                f"starts at {tuple(float(v) for v in rr.states[0, :2])}, in {where} at "
+                f"{tuple(float(v) for v in r.start)}: its robots do not start where the "
+                "result's do; pass the scenario the result was run on with --scenario")
+    return result, loaded
 
 
 class _Unreadable:

@@ -254,6 +254,10 @@ EXTRAS: dict[str, Table | Array] = {
                            rows=1, less=(("x0", "x1"), ("y0", "y1"))),
     # every swarm search (pbpf, path planners, step planners, pso-ba): best cost per iteration
     "swarm_best": Table({"plan": "index", "iteration": "index", "best": "extended"}),
+    # step planners, pso-ba: the final candidates of each search (at most MAX_CANDIDATES of
+    # hybridnav.planners.base each; cost inf where infeasible), for the animations
+    "candidates": Table({"plan": "index", "t": "finite", "x": "finite", "y": "finite",
+                         "cost": "extended"}),
     # path planners
     "planned": _XY, "rfd_path": _XY, "rfd_seed": _XY,
     # step planners

@@ -282,3 +282,17 @@ def test_analyze_names_its_phases_with_their_times(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "  Lyapunov check ..." and out[1].startswith("  Lyapunov check: ")
     assert any(line.startswith("  closed-loop sweep: ") and line.endswith(" s") for line in out)
+
+
+def test_a_phase_left_by_an_error_or_ctrl_c_does_not_read_as_done():
+    import io
+
+    from hybridnav.progress import PhaseLog
+
+    for error, word in ((RuntimeError("boom"), "failed"), (KeyboardInterrupt(), "interrupted")):
+        buf = io.StringIO()
+        with pytest.raises(type(error)):
+            with PhaseLog(buf) as say:
+                say("work")
+                raise error
+        assert buf.getvalue().splitlines()[-1].endswith(f" s ({word})"), buf.getvalue()

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 import hybridnav
+from hybridnav.errors import HybridnavError
 from hybridnav.deprecation import MOVED_MODULES, REMOVAL, HybridnavDeprecationWarning
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,6 +46,32 @@ def test_from_import_of_an_old_module_gives_the_same_objects():
     from hybridnav.world.grid import OccupancyGrid as new
 
     assert OccupancyGrid is new
+
+
+def test_patching_through_an_old_module_name_patches_the_module():
+    """Until 0.3 the old name was the module itself: ``mock.patch`` through it, or setting an
+    attribute on it, reached the module; the alias forwards both."""
+    from unittest import mock
+
+    from hybridnav.planners.path import gridsearch as real
+
+    with pytest.warns(HybridnavDeprecationWarning):
+        gs = _fresh_import("hybridnav.planners.gridsearch")
+    with mock.patch("hybridnav.planners.gridsearch.search_world", side_effect=RuntimeError):
+        assert isinstance(real.search_world, mock.Mock)
+    assert not isinstance(real.search_world, mock.Mock)
+    gs.custom_attribute = 1
+    assert real.custom_attribute == 1
+    del gs.custom_attribute
+    assert not hasattr(real, "custom_attribute")
+    assert gs.__name__ == "hybridnav.planners.gridsearch" and real.__name__.endswith("path.gridsearch")
+
+
+def test_running_an_old_module_name_is_a_clean_error():
+    out = subprocess.run([sys.executable, "-m", "hybridnav.grid"], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode != 0 and "Traceback" not in out.stderr
+    assert "No code object available for hybridnav.grid" in out.stderr
 
 
 def test_import_linearize_as_module_works_and_keeps_the_function():
@@ -91,7 +118,8 @@ def test_a_planner_declared_with_the_old_name_warns_and_is_declared_under_the_ne
     from hybridnav.params import Param
     from hybridnav.planners.base import Planner
 
-    with pytest.warns(HybridnavDeprecationWarning, match=r"Old\.params .* use Old\.parameters"):
+    with pytest.warns(HybridnavDeprecationWarning, match=r"Old\.params .* use Old\.parameters") \
+            as caught:
         class Old(Planner):
             name = "old-style"
             params = {"k": Param(1.0, "a gain")}
@@ -99,8 +127,68 @@ def test_a_planner_declared_with_the_old_name_warns_and_is_declared_under_the_ne
             def run(self, scenario, seed=0):
                 raise NotImplementedError
 
+    assert caught[0].filename == __file__         # the class statement: shown by default there
     assert Old.parameters["k"].default == 1.0
     assert Old(k=2.0).values["k"] == 2.0
+    with pytest.raises(HybridnavError, match=r"^planner Both: expected its settings under "
+                                             r"parameters only, got params \(their old name\)"):
+        class Both(Planner):
+            parameters = {"a": Param(1.0, "a")}
+            params = {"b": Param(2.0, "b")}
+
+            def run(self, scenario, seed=0):
+                raise NotImplementedError
+
+
+def test_a_planners_own_params_attribute_is_left_alone():
+    """Only a dict of declarations is the old name; a property or an instance attribute named
+    params is a planner's own (as before the rename)."""
+    import warnings
+
+    from hybridnav.params import Param
+    from hybridnav.planners.base import Planner
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+
+        class Prop(Planner):
+            parameters = {"a": Param(1.0, "a")}
+
+            @property
+            def params(self):
+                return "mine"
+
+            def run(self, scenario, seed=0):
+                raise NotImplementedError
+
+        class Inst(Planner):
+            parameters = {"a": Param(1.0, "a")}
+
+            def __init__(self, **kw):
+                super().__init__(**kw)
+                self.params = {"cache": 1}
+
+            def run(self, scenario, seed=0):
+                raise NotImplementedError
+
+        assert Prop().params == "mine" and Prop(a=3.0).values["a"] == 3.0
+        inst = Inst()
+        assert inst.params == {"cache": 1} and set(Inst.parameters) == {"a"}
+
+
+def test_the_old_name_read_on_a_class_without_the_new_is_the_descriptor():
+    """``help(Unicycle)`` and ``inspect.getmembers`` read every class attribute: no warning, no
+    AttributeError for ``values``, which only instances have."""
+    import inspect
+    import warnings
+
+    from hybridnav.deprecation import RenamedAttribute
+    from hybridnav.models import Unicycle
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert isinstance(Unicycle.params, RenamedAttribute)
+        inspect.getmembers(Unicycle)
 
 
 def test_the_jobs_old_heldout_key_warns_naming_the_file(tmp_path):
@@ -112,6 +200,7 @@ def test_the_jobs_old_heldout_key_warns_naming_the_file(tmp_path):
         j = load_job(job)
     assert str(caught[0].message) == (f"{job}: scenarios.heldout is deprecated since 0.3.0 and "
                                       "will be removed in 0.4.0: use scenarios.test")
+    assert caught[0].filename == __file__          # the caller's line, not hybridnav's
     assert [s.name for s in j.scenarios("test")] == ["effc-env-b"]
 
 
@@ -125,6 +214,15 @@ def test_the_command_line_shows_an_old_key_as_one_line(tmp_path):
     assert lines[0] == (f"hybridnav: warning: {job}: scenarios.heldout is deprecated since 0.3.0 "
                         "and will be removed in 0.4.0: use scenarios.test")
     assert lines[1].startswith(f"hybridnav: error: {job}: scenarios.train[0]: ")
+
+
+def test_the_command_line_keeps_quiet_when_the_user_silences_warnings(tmp_path):
+    job = tmp_path / "job.toml"
+    job.write_text('[scenarios]\ntrain = ["no-such-world"]\nheldout = ["effc-env-b"]\n')
+    out = subprocess.run([sys.executable, "-W", "ignore", "-m", "hybridnav", "tune", str(job),
+                          "--out", str(tmp_path / "out")], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 2 and "warning" not in out.stderr, out.stderr
 
 
 def test_the_version_and_the_changelog_name_every_old_name():

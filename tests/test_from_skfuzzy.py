@@ -205,6 +205,18 @@ def test_python_files_run_as_imported_and_their_exits_are_errors(tmp_path, capsy
     from hybridnav.fuzzy import builtin
 
     assert load_any(f"{tmp_path / 'own.py'}:SYS").to_json() == builtin("effc-5rule").to_json()
+    # a subclass is taken as its data (what the exports describe), a class is not a system
+    (tmp_path / "sub.py").write_text(
+        "from hybridnav.fuzzy import FuzzySystem, builtin\n"
+        "class Mine(FuzzySystem):\n    def evaluate(self, **kw):\n        raise RuntimeError('own')\n"
+        "base = builtin('effc-5rule')\n"
+        "SUB = Mine(base.name, base.inputs, base.output, base.rules, base.description)\n"
+        "CLS = FuzzySystem\n")
+    sub = load_any(f"{tmp_path / 'sub.py'}:SUB")
+    assert type(sub) is FuzzySystem and sub.to_json() == builtin("effc-5rule").to_json()
+    with pytest.raises(HybridnavError, match=r":CLS: got the class FuzzySystem; expected an "
+                                             r"instance"):
+        load_any(f"{tmp_path / 'sub.py'}:CLS")
     (tmp_path / "exits.py").write_text("import sys\nsys.exit(3)\n")
     assert main(["fis", f"{tmp_path / 'exits.py'}:CS"]) == 2
     assert "cannot import" in capsys.readouterr().err

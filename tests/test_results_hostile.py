@@ -122,7 +122,7 @@ def _table_cases():
     writer = {"signals": "effc", "harmonic_grid": "hapf", "swarm_best": "rfd-pso",
               "planned": "rfd-pso", "rfd_path": "rfd-pso", "rfd_seed": "rfd-pso",
               "steps": "fastep-kinematic", "waypoints": "fastep-kinematic",
-              "path_points": "pso-ba"}
+              "path_points": "pso-ba", "candidates": "pso-ba"}
     assert set(writer) == {p for p, s in EXTRAS.items() if isinstance(s, Table)}
     return [(writer[p], p, c) for p, s in EXTRAS.items() if isinstance(s, Table)
             for c in s.columns]
@@ -258,7 +258,8 @@ def test_a_header_only_csv(written, tmp_path, planner, file, rows, message):
 @pytest.mark.parametrize("planner, prefix", [("fastep-kinematic", "steps"),
                                              ("fastep-kinematic", "waypoints"),
                                              ("rfd-pso", "swarm_best"), ("rfd-pso", "planned"),
-                                             ("pso-ba", "path_points"), ("effc", "signals")])
+                                             ("pso-ba", "path_points"), ("pso-ba", "candidates"),
+                                             ("effc", "signals")])
 def test_a_header_only_table_the_writer_writes_too_plots(written, tmp_path, planner, prefix):
     """Tables of no rows are written (no step planned, no path found): they read and plot."""
     folder = copy_of(written, planner, tmp_path)

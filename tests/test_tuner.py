@@ -420,6 +420,11 @@ def test_tune_cli_quick_writes_every_output(tmp_path, capsys):
 
     o = tmp_path / "o"
     assert main(["tune", str(job_file), "--out", str(o)]) == 0
+    # every phase after the GA is named, with its time, as plain lines (not a terminal)
+    phases = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("  ")]
+    assert phases[0] == "  judging start and tuned on the validation and test data ..."
+    assert phases[1].startswith("  judging start and tuned on the validation and test data: ")
+    assert phases[1].endswith(" s") and len(phases) >= 4 and len(phases) % 2 == 0
     # a second run into the same folder neither overwrites it nor starts silently
     capsys.readouterr()
     assert main(["tune", str(job_file), "--out", str(o)]) == 2

@@ -276,7 +276,7 @@ class Model(ABC):
         raise :class:`HybridnavError`)."""
 
     #: old name of :attr:`values`; warns, removed in 0.4.0
-    params = RenamedAttribute("values")
+    params = RenamedAttribute.writable("values")
 
     # ---- symbolic views ------------------------------------------------------------------------
 
@@ -603,6 +603,22 @@ class Model(ABC):
         """
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
         return X[:, None, :2].copy(), np.array([self.radius])
+
+    def outline(self, X) -> list[np.ndarray] | None:
+        """The robot's body as polygons, for drawing (collision checks use :meth:`footprint`).
+
+        Parameters
+        ----------
+        X : array_like, shape (N, nx)
+            States.
+
+        Returns
+        -------
+        list of ndarray, shape (N, k, 2), or None
+            One array of ``k`` corners per body (e.g. a tractor and its trailer); None for a
+            robot whose body is its footprint's disks (a disk robot).
+        """
+        return None
 
     @property
     def footprint_extent(self) -> float | None:

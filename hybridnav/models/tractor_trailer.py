@@ -177,6 +177,38 @@ class TractorTrailer(Model):
             centers[:, nt + i, 1] = hy - s * s1
         return centers, radii.copy()
 
+    def outline(self, X) -> list[np.ndarray]:
+        """The tractor body (``L`` x ``b`` centred on ``(x, y)`` along ``theta0``) and the trailer
+        body (``Lt`` x ``b`` from the hitch back along ``theta1``) as rectangles.
+
+        Parameters
+        ----------
+        X : array_like, shape (N, nx)
+            States.
+
+        Returns
+        -------
+        list of ndarray, shape (N, 4, 2)
+            Tractor, trailer: their corners counter-clockwise.
+        """
+        X = np.asarray(X, dtype=float).reshape(-1, self.nx)
+        q = self.values
+        half = q["b"] / 2
+        px, py = X[:, 0], X[:, 1]
+        back = q["L"] / 2 + q["c"]
+        hx, hy = px - back * np.cos(X[:, 2]), py - back * np.sin(X[:, 2])
+
+        def box(cx, cy, th, s0, s1):
+            # corners at offsets s0 (rear) .. s1 (front) along the heading, +-half across it
+            u = np.stack([np.cos(th), np.sin(th)], axis=-1)
+            n = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+            c = np.stack([cx, cy], axis=-1)
+            return np.stack([c + s0 * u - half * n, c + s1 * u - half * n,
+                             c + s1 * u + half * n, c + s0 * u + half * n], axis=1)
+
+        return [box(px, py, X[:, 2], -q["L"] / 2, q["L"] / 2),
+                box(hx, hy, X[:, 3], -q["Lt"], 0.0)]
+
     def _disk_layout(self) -> tuple[list[float], list[float], float, np.ndarray]:
         """The footprint's disks, which depend on the parameters only: offsets of the tractor's
         disk centres along its axis from ``(x, y)`` and of the trailer's from the hitch, the

@@ -24,7 +24,11 @@ from hybridnav.errors import HybridnavError
 from hybridnav.params import Param
 from hybridnav.results import Result
 
-__all__ = ["Param", "Planner", "parse_assignments", "searches_table"]
+__all__ = ["MAX_CANDIDATES", "Param", "Planner", "candidates_table", "parse_assignments",
+           "searches_table"]
+
+#: Most candidates :func:`candidates_table` keeps of one search (its best ones)
+MAX_CANDIDATES = 64
 
 
 def parse_assignments(items: Sequence[str]) -> dict[str, str]:
@@ -72,11 +76,14 @@ class Planner(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "params" in cls.__dict__ and not isinstance(cls.__dict__["params"], RenamedAttribute):
-            # a planner written against the old name: declare under the new one, and warn
+        declared = cls.__dict__.get("params")
+        if isinstance(declared, dict):
+            # settings declared under the old name: declare them under the new one, and warn
+            if "parameters" in cls.__dict__:
+                raise HybridnavError(f"planner {cls.__name__}: expected its settings under "
+                                     "parameters only, got params (their old name) as well")
             warn_renamed(f"{cls.__name__}.params", f"{cls.__name__}.parameters")
-            if "parameters" not in cls.__dict__:
-                cls.parameters = cls.__dict__["params"]
+            cls.parameters = declared
             delattr(cls, "params")
         if cls.profiles:
             _declare_profiles(cls)
@@ -190,3 +197,33 @@ def searches_table(searches: list[np.ndarray]) -> dict[str, np.ndarray]:
     return {"plan": np.concatenate([np.full(len(b), k) for k, b in enumerate(searches)]),
             "iteration": np.concatenate([np.arange(len(b)) for b in searches]),
             "best": np.concatenate(searches)}
+
+
+def candidates_table(searches: list[tuple[float, np.ndarray, np.ndarray]]
+                     ) -> dict[str, np.ndarray]:
+    """A robot's swarm searches as the ``candidates_<robot>`` extra: where each search's final
+    candidates were, for an animation to show around each planning step.
+
+    Columns ``plan`` (the search's index, as in ``swarm_best_<robot>``), ``t`` (when the search
+    ran), ``x``, ``y`` and ``cost`` (the search's own cost, lower is better; ``inf`` for an
+    infeasible candidate). Of each search at most :data:`MAX_CANDIDATES` are kept, its best ones
+    (in their order among equals), so the table grows with the steps, not with the swarm's size.
+
+    Parameters
+    ----------
+    searches : list of (float, ndarray, ndarray)
+        Per search in the order they ran: its time, its candidates ``(n, 2)`` and their costs
+        ``(n,)`` (NaN counts as ``inf``).
+    """
+    cols: dict[str, list[np.ndarray]] = {"plan": [], "t": [], "x": [], "y": [], "cost": []}
+    for k, (t, X, cost) in enumerate(searches):
+        X = np.asarray(X, dtype=float).reshape(-1, 2)
+        cost = np.asarray(cost, dtype=float).reshape(len(X))
+        cost = np.where(np.isnan(cost), np.inf, cost)
+        keep = np.sort(np.argsort(cost, kind="stable")[:MAX_CANDIDATES])
+        cols["plan"].append(np.full(len(keep), k))
+        cols["t"].append(np.full(len(keep), float(t)))
+        cols["x"].append(X[keep, 0])
+        cols["y"].append(X[keep, 1])
+        cols["cost"].append(cost[keep])
+    return {c: np.concatenate(v) if v else np.zeros(0) for c, v in cols.items()}

@@ -1,5 +1,6 @@
-"""Figures: scenarios and runs (:mod:`~hybridnav.plotting.scenes`) and the planners' diagnostics
-(:mod:`~hybridnav.plotting.diagnostics`), headless-safe (no pyplot, no backend switching).
+"""Figures: scenarios and runs (:mod:`~hybridnav.plotting.scenes`), the planners' diagnostics
+(:mod:`~hybridnav.plotting.diagnostics`) and animations of runs and tuning jobs
+(:mod:`~hybridnav.plotting.animation`), headless-safe (no pyplot, no backend switching).
 
 Every figure is written by :func:`~hybridnav.plotting.output.save_figure` (formats and
 resolutions in :mod:`~hybridnav.plotting.output`); axis labels carry their units through
@@ -9,6 +10,7 @@ The analysis figures (trajectories in state space, Lyapunov level sets, basins) 
 :mod:`hybridnav.analysis.plots`.
 """
 
+from hybridnav.plotting.animation import Animated, animate, animate_result, animate_runs
 from hybridnav.plotting.diagnostics import (
     plot_gain_search,
     plot_planned,
@@ -30,13 +32,15 @@ from hybridnav.plotting.output import (
 )
 from hybridnav.plotting.scenes import (
     Trace,
+    draw_moving_obstacles,
     draw_scenario,
     plot_result,
     plot_traces,
     save_scenario_png,
 )
 
-__all__ = ["DEFAULT_DPI", "FORMATS", "MAX_DPI", "Trace", "axis_label", "check_dpi", "check_format",
+__all__ = ["DEFAULT_DPI", "FORMATS", "MAX_DPI", "Animated", "Trace", "animate", "animate_result",
+           "animate_runs", "axis_label", "check_dpi", "check_format", "draw_moving_obstacles",
            "draw_scenario", "figure_name", "plot_gain_search", "plot_planned", "plot_potential",
            "plot_pso_ba", "plot_result", "plot_signals", "plot_traces", "plot_steps", "plot_waypoints", "save_figure",
            "save_scenario_png"]

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -23,8 +24,8 @@ from hybridnav.plotting.output import DEFAULT_DPI, save_figure
 from hybridnav.params import short_repr
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
-__all__ = ["Trace", "draw_scenario", "legend_outside", "mark_outcome", "plot_result", "plot_traces",
-           "save_figure", "save_scenario_png"]
+__all__ = ["Trace", "draw_moving_obstacles", "draw_scenario", "legend_outside", "mark_outcome",
+           "plot_result", "plot_traces", "save_figure", "save_scenario_png"]
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +33,8 @@ _OBSTACLE_STYLE = {"facecolor": "0.35", "edgecolor": "black", "linewidth": 0.8}
 _MOVING_STYLE = {"facecolor": "tab:red", "edgecolor": "darkred", "linewidth": 0.8, "alpha": 0.75}
 
 
-def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, show_grid: bool = True) -> Axes:
+def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, show_grid: bool = True,
+                  *, moving: bool = True) -> Axes:
     """Draw a scenario: workspace, obstacles, grid map, robots, starts and goals.
 
     Parameters
@@ -45,6 +47,9 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
         position at ``t = 0`` as a dashed outline when ``t != 0``).
     show_grid : bool
         Draw the scenario's map grid (only for ``[grid] map`` scenarios) with ``imshow``.
+    moving : bool
+        Draw the moving circles (False: leave them to :func:`draw_moving_obstacles`, e.g. for the
+        frames of an animation, which redraw only them).
 
     Returns
     -------
@@ -75,18 +80,8 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
         elif isinstance(o, Segment):
             ax.plot([o.a[0], o.b[0]], [o.a[1], o.b[1]], color="black", linewidth=2.5, zorder=2,
                     solid_capstyle="round")
-        elif isinstance(o, MovingCircle):
-            c = o.center_at(t)
-            if t != 0.0:
-                ax.add_patch(CirclePatch(o.center, o.radius, fill=False, edgecolor="darkred",
-                                         linestyle="--", linewidth=0.8, zorder=2))
-            ax.add_patch(CirclePatch(c, o.radius, zorder=3, **_MOVING_STYLE))
-            if o.velocity > 0:
-                u = np.array([math.cos(o.heading), math.sin(o.heading)])
-                tail = c + u * o.radius
-                head = tail + u * max(0.06 * span, 10.0 * o.velocity * scenario.dt)
-                ax.add_patch(FancyArrowPatch(tuple(tail), tuple(head), arrowstyle="-|>", mutation_scale=12,
-                                             color="darkred", linewidth=1.2, zorder=3))
+    if moving:
+        draw_moving_obstacles(scenario, ax, t)
 
     colors = [f"C{i % 10}" for i in range(len(scenario.robots))]
     starts = {r.name: np.asarray(r.start) for r in scenario.robots}
@@ -122,6 +117,45 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
     title = scenario.name if t == 0.0 else f"{scenario.name} (t = {t:g} s)"
     ax.set_title(title)
     return ax
+
+
+def draw_moving_obstacles(scenario: Scenario, ax: Axes, t: float = 0.0) -> list[Artist]:
+    """Draw the scenario's moving circles where they are at time ``t``, with their velocity as an
+    arrow and their position at ``t = 0`` as a dashed outline when ``t != 0``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    ax : matplotlib.axes.Axes
+    t : float
+        Time, seconds.
+
+    Returns
+    -------
+    list of matplotlib.artist.Artist
+        What was added (an animation removes them before it draws the next frame). They do not
+        change the axes' data limits (the limits :func:`draw_scenario` sets stay).
+    """
+    xmin, xmax, ymin, ymax = scenario.world.workspace
+    span = max(xmax - xmin, ymax - ymin)
+    added: list[Artist] = []
+    for o in scenario.world.obstacles:
+        if not isinstance(o, MovingCircle):
+            continue
+        c = o.center_at(t)
+        if t != 0.0:
+            added.append(ax.add_artist(CirclePatch(o.center, o.radius, fill=False,
+                                                  edgecolor="darkred", linestyle="--",
+                                                  linewidth=0.8, zorder=2)))
+        added.append(ax.add_artist(CirclePatch(c, o.radius, zorder=3, **_MOVING_STYLE)))
+        if o.velocity > 0:
+            u = np.array([math.cos(o.heading), math.sin(o.heading)])
+            tail = c + u * o.radius
+            head = tail + u * max(0.06 * span, 10.0 * o.velocity * scenario.dt)
+            added.append(ax.add_artist(FancyArrowPatch(tuple(tail), tuple(head), arrowstyle="-|>",
+                                                      mutation_scale=12, color="darkred",
+                                                      linewidth=1.2, zorder=3)))
+    return added
 
 
 def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float = 0.0,

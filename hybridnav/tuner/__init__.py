@@ -11,6 +11,7 @@ Tuning jobs (TOML files, ``hybridnav tune``) are a thin front over the same obje
 ``run_job(job, out)`` tunes and writes every output.
 """
 
+from hybridnav.tuner.animation import animate_tuning
 from hybridnav.tuner.core import KFold, learn, select_member, tune
 from hybridnav.tuner.costs import (
     Candidates,
@@ -24,10 +25,11 @@ from hybridnav.tuner.costs import (
 from hybridnav.tuner.job import DEFAULT_JOB, Job, load_job, quick
 from hybridnav.tuner.optimizers import CMAES, GA, NSGA2, PSO, SBX, Blend, Gaussian, Polynomial
 from hybridnav.tuner.result import Member, TuningResult
-from hybridnav.tuner.run import run_job, write_outputs
+from hybridnav.tuner.run import run_job, write_generations, write_outputs
 from hybridnav.tuner.settings import TunableSettings
 
-__all__ = ["CMAES", "DEFAULT_JOB", "GA", "NSGA2", "PSO", "SBX", "Blend", "Candidates",
+__all__ = ["CMAES", "DEFAULT_JOB", "animate_tuning", "GA", "NSGA2", "PSO", "SBX", "Blend", "Candidates",
            "Context", "Cost", "DataCost", "Evaluation", "FunctionCost", "Gaussian", "Job",
            "KFold", "Member", "learn", "NavigationCost", "Polynomial", "TunableSettings", "TuningResult",
-           "load_job", "quick", "run_job", "select_member", "tune", "write_outputs"]
+           "load_job", "quick", "run_job", "select_member", "tune", "write_generations",
+           "write_outputs"]

@@ -140,6 +140,9 @@ class _Run:
         self.stopped: int | None = None
         self.folds_done: list[dict[str, Any]] = []
         self.best_train: dict[str, Any] | None = None
+        #: per generation, the best of the carried population (the logbook's min): stage,
+        #: generation, score, x (what an animation of the run drives)
+        self.generation_best: list[dict[str, Any]] = []
         self.max_evals = 0
         self.finished = False
         self._writer: ThreadPoolExecutor | None = None
@@ -278,6 +281,11 @@ class _Run:
                 self.best_train = {"x": x.tolist(), "score": float(f[0]), "feasible": bool(ok),
                                    "stage": self.stage, "generation": gen}
         PX, PF = self.opt.population()
+        if len(PF):
+            b = int(np.argmin(PF[:, 0]))
+            self.generation_best.append({"stage": self.stage, "generation": gen,
+                                         "score": float(PF[b, 0]),
+                                         "x": np.asarray(PX[b], dtype=float).tolist()})
         self.after_generation(gen, PX, PF, X, ev)
         self.elapsed += time.perf_counter() - tic
         row = self._logrow(gen, len(X), PF)
@@ -358,7 +366,7 @@ class _Run:
                 "elapsed": self.elapsed, "evaluations": self.evaluations,
                 "validation": self.val.dump(), "fold": self.fold.dump(),
                 "stopped": self.stopped, "folds_done": self.folds_done,
-                "best_train": self.best_train}
+                "best_train": self.best_train, "generation_best": self.generation_best}
 
     def save(self, rows: list[dict[str, Any]], finished: bool = False) -> None:
         """Append a generation's rows to ``evaluations.jsonl`` and write the checkpoint.
@@ -423,6 +431,8 @@ class _Run:
         self.val, self.fold = _Track.load(state["validation"]), _Track.load(state["fold"])
         self.stopped, self.folds_done = state["stopped"], state["folds_done"]
         self.best_train = state["best_train"]
+        # (checkpoints of hybridnav before 0.3.0 have none: the generations before go unseen)
+        self.generation_best = list(state.get("generation_best", []))
         self.finished = bool(state["finished"])
         pos = (self.stage, self.opt.generation)
         self.records = [r for r in _read_jsonl(self.dir / "evaluations.jsonl")
@@ -508,7 +518,8 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
          resume: bool = False, chunk: int = 50, top: int = 3, patience: int | None = None,
          tolerance: float = 0.0, select: Callable[[pd.DataFrame], int] | None = None,
          name: str | None = None, judge: bool = True, max_evals: int = 0,
-         stop_after: int | None = None) -> TuningResult:
+         stop_after: int | None = None, phase: Callable[[str], None] | None = None
+         ) -> TuningResult:
     """Tune ``system`` to minimize ``cost``.
 
     Parameters
@@ -537,6 +548,9 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         Folder for ``checkpoint.json`` and ``evaluations.jsonl`` (created).
     progress : callable, optional
         ``progress(row)`` after every generation with its logbook row.
+    phase : callable, optional
+        ``phase(message)`` when a phase after the optimizer starts (judging start and tuned on
+        the validation and test sets), for a progress display.
     resume : bool
         Continue from ``checkpoint``.
     chunk : int
@@ -635,6 +649,8 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
                              f"got {backend!r}")
     if progress is not None and not callable(progress):
         raise HybridnavError(f"progress: expected a callable, got {progress!r}")
+    if phase is not None and not callable(phase):
+        raise HybridnavError(f"phase: expected a callable, got {phase!r}")
     if select is not None and not callable(select):
         raise HybridnavError(f"select: expected a callable, got {select!r}")
     if checkpoint is not None and not isinstance(checkpoint, (str, Path)):
@@ -670,11 +686,11 @@ def tune(system, cost: Cost, *, settings: TunableSettings | None = None,
         run.run(stop_after)
     finally:
         run.flush()
-    return _result(run, system, settings, select, name, judge, test, backend)
+    return _result(run, system, settings, select, name, judge, test, backend, phase)
 
 
 def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bool,
-            test: Cost | None, backend) -> TuningResult:
+            test: Cost | None, backend, phase=None) -> TuningResult:
     opt = run.opt
     cost = run.cost
     X, F = opt.population()
@@ -737,6 +753,15 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
     vdetails = pd.DataFrame([dict(d, generation=c["generation"], score=c["score"])
                              for c in run.val.cache.values() for d in c["details"]])
     start_val = run.val.cache.get(_key(run.x0))
+    made: dict[bytes, Any] = {}            # one system per distinct vector
+    generations = []
+    for g in run.generation_best:
+        k = _key(g["x"])
+        if k not in made:
+            made[k] = settings.to_system(np.asarray(g["x"], dtype=float),
+                                         name=f"{tuned_name}-generation-{g['generation']}")
+        generations.append({"stage": g["stage"], "generation": g["generation"],
+                            "score": g["score"], "system": made[k]})
     result = TuningResult(
         system=system, start=start, settings=settings, x=chosen_x, x_start=run.x0,
         objectives=np.asarray(chosen_F, dtype=float),
@@ -750,12 +775,12 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
         start_validation_score=start_val["score"] if start_val else None,
         optimizer=opt.config(), cost=cost.describe(), seed=run.seed,
         wall_time=run.elapsed, evaluations=run.evaluations, config_hash=run.config_hash,
-        finished=run.finished, patience=run.patience)
+        finished=run.finished, patience=run.patience, generations=generations)
     result.validation_cost = run.validation
     if settings.to_system(run.x0) != start:   # the repair changed it (e.g. min_overlap)
         score_start(result, start, run.stages[0][0], run.validation, run.seed, run)
     if judge:
-        _judge(result, start, run.validation, test, backend)
+        _judge(result, start, run.validation, test, backend, phase)
     return result
 
 
@@ -775,11 +800,14 @@ def score_start(result: TuningResult, start, cost: Cost, validation: Cost | None
 
 
 def _judge(result: TuningResult, start, validation: Cost | None, test: Cost | None,
-           backend) -> None:
+           backend, phase: Callable[[str], None] | None = None) -> None:
     """Start and tuned on the validation and test costs: ``result.heldout`` and verdicts."""
     systems = {"start": start, "tuned": result.system}
     roles = [(role, c) for role, c in (("validation", validation), ("test", test))
              if c is not None]
+    if roles and phase is not None:
+        phase("judging start and tuned on the " + " and ".join(role for role, _ in roles)
+              + " data")
     if len(roles) > 1 and backend is not None and not isinstance(backend, SerialBackend):
         # the held-out sets are independent: one worker each (a worker judges its set alone)
         judged = backend.map(_judge_one, [(c, systems, role) for role, c in roles])
@@ -870,6 +898,6 @@ def learn(system, cost: Cost, *, max_rules: int = 10, keep_rules: bool = True,
                 else first_train_cost(cost, kw["validation"], kw.get("seed", 0)),
                 second.validation_cost, kw.get("seed", 0))
     if judge:
-        _judge(second, system, second.validation_cost, test, backend)
+        _judge(second, system, second.validation_cost, test, backend, kw.get("phase"))
     return second
 

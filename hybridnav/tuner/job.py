@@ -28,7 +28,7 @@ from hybridnav.fileio import parse_toml, read_text_file
 from hybridnav.params import Param, check_value, short_repr
 from hybridnav.tuner.costs.navigation import COVERAGE, PLANNER, REWARD
 
-__all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "quick"]
+__all__ = ["DEFAULT_JOB", "SCHEMA", "Job", "load_job", "load_scenario_set", "quick"]
 
 _POS = {"lo": 0.0}                  # a non-negative number
 _UNIT = {"lo": 0.0, "hi": 1.0}       # a fraction
@@ -567,7 +567,7 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
     if "heldout" in given:
         from hybridnav.deprecation import warn_renamed
 
-        warn_renamed(f"{where}scenarios.heldout", "scenarios.test", stacklevel=2)
+        warn_renamed(f"{where}scenarios.heldout", "scenarios.test")
         if "test" in given:
             raise fail("scenarios.heldout", "expected either test or its old name heldout, "
                                             "not both")
@@ -620,6 +620,37 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
                 raise fail(f"scenarios.{which}", "expected one robot model for the whole set "
                            "(the same dt, robot radius and parameters), so that one batched "
                            f"step serves them all; got {len(keys)} different ones")
+
+
+def load_scenario_set(items: list, base: str | os.PathLike, where: str) -> list:
+    """The scenarios of a set as a job lists them: built-in names, scenario files (relative to
+    ``base``) and generated sets ``{generate = N, seed = S, ...}``.
+
+    Parameters
+    ----------
+    items : list
+        The set's items, as ``scenarios.train`` (``validation``, ``test``) of a job holds them.
+    base : str or path-like
+        The folder relative file names are in (the job file's).
+    where : str
+        What the messages start with (e.g. ``"job.toml: scenarios.test"``).
+
+    Returns
+    -------
+    list of Scenario
+
+    Raises
+    ------
+    HybridnavError
+        An item that is not a scenario, a file, or a generated set, or scenarios of one name.
+    """
+    if not isinstance(items, list):
+        raise HybridnavError(f"{where}: expected a list of scenario names, files and generated "
+                             f"sets, got {type(items).__name__}")
+    try:
+        return list(_load_set(json.dumps(items, sort_keys=True), str(base)))
+    except HybridnavError as exc:
+        raise HybridnavError(f"{where}{exc}") from None
 
 
 @functools.lru_cache(maxsize=16)

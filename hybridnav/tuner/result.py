@@ -75,6 +75,10 @@ class TuningResult:
     start_is_candidate : bool
         False when the search could not return the start as it is (its vector is a repaired or
         learned form of it: ``min_overlap``, rule learning); its scores are then its own.
+    generations : list of dict
+        Per generation, the best system of the carried population (``stage``, ``generation``,
+        ``score``: the logbook's ``min``, ``system``); a navigation job writes them to
+        ``generations.json`` for :func:`hybridnav.plotting.animate`.
     """
 
     system: Any
@@ -114,6 +118,7 @@ class TuningResult:
     finished: bool = True
     patience: int = 0
     start_is_candidate: bool = True
+    generations: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def verdict(self) -> dict[str, Any] | None:

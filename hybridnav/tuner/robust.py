@@ -37,6 +37,8 @@ def robust_rounds(job, result, backend, out: Path, kw: dict[str, Any],
     table = job.data.get("settings") or job["free"]
     for r in range(1, cfg["rounds"] + 1):
         seed = int(np.random.SeedSequence(job.seed, spawn_key=(17, r)).generate_state(1)[0])
+        if kw.get("phase") is not None:
+            kw["phase"](f"robust round {r}: falsification search, {cfg['budget']} worlds")
         found = falsify(train, result.system, budget=cfg["budget"],
                         population=min(fz["population"], cfg["budget"]),
                         obstacles=fz["obstacles"], keep=cfg["budget"],
@@ -53,10 +55,15 @@ def robust_rounds(job, result, backend, out: Path, kw: dict[str, Any],
         train = train.with_scenarios(list(train.scenarios) + worlds, "train")
         folder = out / f"robust-{r}"
         again = resume and (folder / "checkpoint.json").exists()
+        before = result.generations
         result = tune(result.system, train, **{
             **kw, "settings": TunableSettings.from_table(result.system, table)},
             backend=backend, checkpoint=folder, progress=progress, resume=again,
             stop_after=stop_after, judge=False)
+        # the round's generations follow the earlier ones, as later stages
+        shift = 1 + max((g["stage"] for g in before), default=-1)
+        result.generations = before + [dict(g, stage=g["stage"] + shift)
+                                       for g in result.generations]
         if not result.finished:
             result.robust = rows
             return result
@@ -67,6 +74,6 @@ def robust_rounds(job, result, backend, out: Path, kw: dict[str, Any],
         result.verdicts, result.heldout = {}, None
         val = kw.get("validation") if not isinstance(kw.get("validation"), (int, float)) else None
         score_start(result, start, train, val, kw["seed"])
-        _judge(result, start, val, kw.get("test"), backend)
+        _judge(result, start, val, kw.get("test"), backend, kw.get("phase"))
     result.robust = rows
     return result

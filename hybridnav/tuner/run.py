@@ -5,7 +5,8 @@ system it started from), ``logbook.csv`` (gen, evals, min, mean, max, std, val_g
 wall_time), ``evaluations.csv`` (every individual's outcome, length, time and clearance per
 training environment), ``validation.csv`` (every validated candidate per validation world),
 ``heldout.csv`` (start, tuned and ``apf`` on every validation and test world) and
-``heldout_summary.csv``, ``convergence.png`` (training and validation curves), ``mfs.png``
+``heldout_summary.csv``, ``generations.json`` (the best system of each generation, what
+``hybridnav animate DIR`` drives), ``convergence.png`` (training and validation curves), ``mfs.png``
 (start and tuned), ``surface.png``, ``coverage.png`` (where no rule fires), ``paths.png`` (the
 figures in PDF or SVG instead with ``fmt``),
 ``report.md`` with the verdict, and the deployment exports: ``fis.fll`` (fuzzylite),
@@ -44,7 +45,8 @@ from hybridnav.tuner.result import TuningResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FIGURES", "OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job", "write_outputs"]
+__all__ = ["FIGURES", "OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job",
+           "write_generations", "write_outputs"]
 
 #: File name stem of the C export a tuning job writes (effc.h, effc.c; functions effc_*)
 C_BASENAME = "effc"
@@ -59,7 +61,8 @@ FIGURES = ("convergence", "coverage", "front", "mfs", "paths", "surface")
 OUTPUT_FILES = ("checkpoint.json", "evaluations.jsonl", "evaluations.csv", "logbook.csv",
                 "result.json", "start.json", "report.md", "fis.json", "fis.fll", "fis.fis",
                 "fis.fcl", f"{C_BASENAME}.c", f"{C_BASENAME}.h", f"{C_BASENAME}_safety.c",
-                f"{C_BASENAME}_safety.h", "deployment.json", "pareto.csv", "validation.csv",
+                f"{C_BASENAME}_safety.h", "deployment.json", "generations.json", "pareto.csv",
+                "validation.csv",
                 "heldout.csv", "heldout_summary.csv", "falsified.csv", "falsification.csv",
                 *(f"{stem}.{fmt}" for stem in FIGURES for fmt in FIGURE_FORMATS))
 OUTPUT_FOLDERS = ("falsified", "front", "learning", "robust-*")
@@ -188,17 +191,17 @@ def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
                            optimizer=job.optimizer(),
                            settings=lambda learned: TunableSettings.from_table(learned, table),
                            backend=backend, checkpoint=out, progress=progress, resume=resume,
-                           stop_after=stop_after, **kw)
+                           stop_after=stop_after, phase=phase, **kw)
         else:
             robust = job["robust"]["rounds"] > 0
             result = tune(job.start_system(), job.cost("train"), backend=backend,
                           checkpoint=out, progress=progress, resume=resume,
-                          stop_after=stop_after, **kw)
+                          stop_after=stop_after, phase=phase, **kw)
             if robust and result.finished:     # falsification in the training loop
                 from hybridnav.tuner.robust import robust_rounds
 
-                result = robust_rounds(job, result, backend, out, kw, progress, resume,
-                                       stop_after)
+                result = robust_rounds(job, result, backend, out, {**kw, "phase": phase},
+                                       progress, resume, stop_after)
         if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
         result.files = write_outputs(job, result, out, backend=backend, phase=phase,
@@ -287,6 +290,7 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
                               "coverage"))
         say("path figure: start, tuned and apf on the paper's and some test worlds")
         files += _paths(job, result, out, backend, save)
+        files += write_generations(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     say("exports (FLL, FIS, FCL, C)")
     files += _exports(result.system, out, C_BASENAME if effc else "fis")
@@ -305,6 +309,49 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
                                                  sil, fmt))
     files.append("report.md")
     return files
+
+
+def write_generations(job: Job, result: TuningResult, out: str | Path) -> list[str]:
+    """Write ``generations.json`` into ``out``: the best system of each generation of a
+    navigation job (each distinct system once), its planner and settings and the job's world
+    sets, what :func:`hybridnav.plotting.animate` drives generation by generation.
+
+    Parameters
+    ----------
+    job : Job
+    result : TuningResult
+        Its ``generations``.
+    out : str or Path
+        The job's output folder.
+
+    Returns
+    -------
+    list of str
+        ``["generations.json"]``, or ``[]`` for a job that is not a navigation job (no world to
+        drive on) or a result without generations.
+    """
+    out = Path(out)
+    if job["cost"]["kind"] != "navigation":
+        return []
+    if not result.generations:
+        return []
+    systems: list[dict[str, Any]] = []
+    index: dict[int, int] = {}
+    rows = []
+    for g in result.generations:
+        k = index.setdefault(id(g["system"]), len(systems))
+        if k == len(systems):
+            systems.append(g["system"].to_dict())
+        rows.append({"stage": int(g["stage"]), "generation": int(g["generation"]),
+                     "score": float(g["score"]) if math.isfinite(g["score"]) else None,
+                     "system": k})
+    data = {"format": "hybridnav-generations/1", "job": job.name,
+            "objective": result.objective_names[0], "planner": job["cost"]["planner"],
+            "planner_params": dict(job["planner"]),
+            "worlds": {k: job["scenarios"][k] for k in ("train", "validation", "test")},
+            "base": str(Path(job.base).resolve()), "generations": rows, "systems": systems}
+    atomic_write_text(out / "generations.json", json.dumps(data, indent=1))
+    return ["generations.json"]
 
 
 def _path_run(planner: str, params: dict[str, Any], scenario):

@@ -592,15 +592,30 @@ def connected(grid: OccupancyGrid, a: ArrayLike, b: ArrayLike) -> bool:
     Returns
     -------
     bool
+
+    Raises
+    ------
+    HybridnavError
+        A point that is not a finite ``(x, y)`` pair.
     """
     from scipy import ndimage
 
-    cells = grid.to_cell(np.vstack([np.asarray(a, dtype=float).reshape(2),
-                                    np.asarray(b, dtype=float).reshape(2)]))
-    (ca, ra), (cb, rb) = (tuple(int(v) for v in c) for c in cells)
+    points = []
+    for name, P in (("a", a), ("b", b)):
+        try:
+            p = np.asarray(P, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise HybridnavError(f"{name}: expected a world point (x, y), got {short_repr(P)}") \
+                from None
+        if p.shape != (2,) or not np.all(np.isfinite(p)):
+            raise HybridnavError(f"{name}: expected a finite world point (x, y), got "
+                                 f"{short_repr(P)}")
+        points.append(p)
+    cells = np.floor((np.vstack(points) - np.asarray(grid.origin)) / grid.resolution)
     h, w = grid.shape
-    if not (0 <= ca < w and 0 <= ra < h and 0 <= cb < w and 0 <= rb < h):
-        return False
+    if not ((cells >= 0).all() and (cells[:, 0] < w).all() and (cells[:, 1] < h).all()):
+        return False                         # (before the cast: a far point fits no int)
+    (ca, ra), (cb, rb) = (tuple(int(v) for v in c) for c in cells)
     if grid.occ[ra, ca] or grid.occ[rb, cb]:
         return False
     labels, _ = ndimage.label(~grid.occ)          # the default structure: 4-connected

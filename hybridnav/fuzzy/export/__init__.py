@@ -314,8 +314,19 @@ def _from_python(spec: str) -> FuzzySystem:
     if not hasattr(module, attr):
         raise HybridnavError(f"{spec}: {where!r} has no {attr!r}")
     obj = getattr(module, attr)
-    if isinstance(obj, FuzzySystem):           # a system built with hybridnav's own API
-        return obj
+    if isinstance(obj, type):
+        raise HybridnavError(f"{spec}: got the class {obj.__name__}; expected an instance (a "
+                             "hybridnav FuzzySystem or a skfuzzy.control.ControlSystem)")
+    if isinstance(obj, FuzzySystem):
+        # a system built with hybridnav's own API, as its data: a subclass's own behaviour
+        # would be neither what the exports describe nor run inside this error handling
+        try:
+            return loads(obj.to_json(), source=spec)
+        except HybridnavError:
+            raise
+        except Exception as exc:             # the user's subclass failed to describe itself
+            raise HybridnavError(f"{spec}: cannot read the system ({type(exc).__name__}: "
+                                 f"{exc})") from None
     from skfuzzy.control import ControlSystem
 
     if not isinstance(obj, ControlSystem):

@@ -112,7 +112,9 @@ Per robot: ``path_points`` (planned points), ``pso_ba_runs`` (searches), ``ls_re
 refused by the memory), ``planning_time`` (seconds, part of the loop's wall time that
 ``compute_time`` shares equally among the robots active each cycle).
 :meth:`PSOBAPlanner.diagnostics` gives ``pso_ba.png`` (the run with the path points by mode, and
-the fitness and tuned ``(alpha, gamma)`` of every search) and ``path_points_<robot>.csv``.
+the fitness and tuned ``(alpha, gamma)`` of every search) and ``path_points_<robot>.csv``;
+``candidates_<robot>.csv`` holds the best bat of each bat run of every search (its cost: minus
+its fitness), what :func:`hybridnav.plotting.animate` draws around each planning step.
 """
 
 from __future__ import annotations
@@ -128,7 +130,7 @@ from numpy.typing import NDArray
 
 from hybridnav.errors import HybridnavError
 from hybridnav.params import check_seed
-from hybridnav.planners.base import Param, Planner, searches_table
+from hybridnav.planners.base import Param, Planner, candidates_table, searches_table
 from hybridnav.planners.path.geometry import obstacle_world
 from hybridnav.planners.psoba.fitness import disk_candidates, psoba_fitness
 from hybridnav.planners.psoba.sensors import (
@@ -185,6 +187,8 @@ class _Robot:
     planning_time: float = 0.0
     #: the PSO's best cost per iteration, one array per PSO-BA run (``swarm_best_<robot>``)
     searches: list = field(default_factory=list)
+    #: each PSO-BA run's candidates: the best bat of every bat run (``candidates_<robot>``)
+    candidates: list = field(default_factory=list)
 
 
 class PSOBAPlanner(Planner):
@@ -359,6 +363,8 @@ class PSOBAPlanner(Planner):
                   for r, st in zip(robots, states)}
         extras.update({f"swarm_best_{r.name}": searches_table(st.searches)
                        for r, st in zip(robots, states)})
+        extras.update({f"candidates_{r.name}": candidates_table(st.candidates)
+                       for r, st in zip(robots, states)})
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
                       seed=seed, robots=results, extras=extras)
 
@@ -437,6 +443,7 @@ class PSOBAPlanner(Planner):
                      pso_w=v["pso_w"], pso_c1=v["pso_c1"], pso_c2=v["pso_c2"])
         st.counts["pso_ba_runs"] += 1
         st.searches.append(np.asarray(res.pso.history.best, dtype=float))
+        st.candidates.append((sim.t, disk_candidates(res.run_best, p, step), -res.run_fitness))
         c = disk_candidates(res.x, p, step)[0]
         point, repaired = local_search(scene, p, c, v["ds"] * R, r_safe)
         if repaired:

@@ -47,7 +47,8 @@ which its steering law orbits a target instead of converging (see
 Outputs beyond the result contract (:meth:`StepPlanner.diagnostics`, written by ``hybridnav run``):
 ``steps_<robot>.csv`` (per control cycle: target, step cost -- 0 while driving straight to the goal,
 as in the papers' cost-function graphs --, mode and the controller's ``xdot``, ``ydot``),
-``waypoints_<robot>.csv`` (every planned step), ``signals.png`` (cost, ``xdot``, ``ydot`` over
+``waypoints_<robot>.csv`` (every planned step), ``candidates_<robot>.csv`` (each search's final
+candidates, what :func:`hybridnav.plotting.animate` draws around each step), ``signals.png`` (cost, ``xdot``, ``ydot`` over
 time: the papers' "convergence of the controllers") and ``waypoints.png`` (when a robot planned a
 step; a run that drove straight to its goal has none, and ``path.png`` shows it).
 """
@@ -64,7 +65,7 @@ import numpy as np
 
 from hybridnav import models as model_registry
 from hybridnav.params import check_seed
-from hybridnav.planners.base import Param, Planner, searches_table
+from hybridnav.planners.base import Param, Planner, candidates_table, searches_table
 from hybridnav.planners.simulate import Simulation, simulate
 from hybridnav.planners.step.stepfit import (
     GoalDistance,
@@ -196,6 +197,8 @@ class StepPlanner(Planner):
         memories: list[dict] = [{} for _ in range(n)]
         # per robot, each plan call's best cost per iteration (their number: planning_calls)
         searches: list[list[np.ndarray]] = [[] for _ in range(n)]
+        # and its final candidates (the swarm's population, or the goal alone)
+        candidates: list[list[tuple]] = [[] for _ in range(n)]
 
         def discs(sim: Simulation, others: list[int]):
             cs_, rs_ = [], []
@@ -299,12 +302,15 @@ class StepPlanner(Planner):
                 if np.isfinite(at_goal[0]):
                     plan_time[i] += time.perf_counter() - tic
                     searches[i].append(np.asarray(at_goal, dtype=float))   # no search: 1 value
+                    candidates[i].append((sim.t, np.asarray(goal, dtype=float)[None], at_goal))
                     accept(sim, i, np.asarray(goal, dtype=float), float(at_goal[0]))
                     return
             init = np.clip(goal, lower, upper)[None] if v["goal_candidate"] else None
             res = self.optimize(f, lower, upper, rng, init, memories[i])
             plan_time[i] += time.perf_counter() - tic
             searches[i].append(np.asarray(res.history.best, dtype=float))
+            candidates[i].append((sim.t, np.array(res.population, dtype=float),
+                                  np.array(res.values, dtype=float)))
             if np.isfinite(res.fun):
                 accept(sim, i, res.x, res.fun)
                 return
@@ -378,6 +384,7 @@ class StepPlanner(Planner):
             W = np.array(waypoints[r.name], dtype=float).reshape(-1, 4)
             extras[f"waypoints_{r.name}"] = dict(zip(("t", "x", "y", "cost"), W.T))
             extras[f"swarm_best_{r.name}"] = searches_table(searches[i])
+            extras[f"candidates_{r.name}"] = candidates_table(candidates[i])
         return Result(scenario=scenario.name, planner=self.name, params=self.describe(),
                       seed=seed, robots=robot_results, extras=extras)
 

@@ -35,6 +35,11 @@ class PSOBAResult:
         Bat searches run (one per PSO particle evaluation).
     pso : OptResult
         The PSO over ``(alpha, gamma)`` (its values are minus the best fitness of each run).
+    run_best : ndarray, shape (bat_runs, d)
+        The best bat of each bat run, in the order the runs ran: the candidates the search
+        compared (what an animation of the planner shows).
+    run_fitness : ndarray, shape (bat_runs,)
+        Their fitness.
     """
 
     x: NDArray[np.float64]
@@ -43,6 +48,8 @@ class PSOBAResult:
     gamma: float
     bat_runs: int
     pso: OptResult = field(repr=False)
+    run_best: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
+    run_fitness: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
 
 
 def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles: int = 5,
@@ -95,6 +102,8 @@ def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles:
     hi = np.asarray(upper, dtype=float)
     best: dict[str, Any] = {"f": -np.inf, "x": None, "alpha": math.nan, "gamma": math.nan,
                             "runs": 0}
+    run_best: list[NDArray[np.float64]] = []
+    run_fitness: list[float] = []
 
     def neg_fitness(X: NDArray[np.float64]) -> NDArray[np.float64]:
         return -np.asarray(fitness(X), dtype=float)
@@ -107,6 +116,8 @@ def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles:
                       init=init, alpha=a, gamma=float(g))
             best["runs"] += 1
             out[k] = res.fun
+            run_best.append(res.x.copy())
+            run_fitness.append(-float(res.fun))
             if -res.fun > best["f"]:
                 best.update(f=-res.fun, x=res.x.copy(), alpha=a, gamma=float(g))
         return out
@@ -114,4 +125,6 @@ def pso_ba(fitness, lower: ArrayLike, upper: ArrayLike, *, seed=None, particles:
     opt = pso(run_bats, ([a_lo, g_lo], [a_hi, g_hi]), n=particles, iterations=pso_iterations,
               seed=rng, w=pso_w, c1=pso_c1, c2=pso_c2)
     return PSOBAResult(x=best["x"], fitness=float(best["f"]), alpha=best["alpha"],
-                       gamma=best["gamma"], bat_runs=best["runs"], pso=opt)
+                       gamma=best["gamma"], bat_runs=best["runs"], pso=opt,
+                       run_best=np.array(run_best, dtype=float).reshape(len(run_best), len(lo)),
+                       run_fitness=np.array(run_fitness, dtype=float))
