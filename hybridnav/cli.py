@@ -17,7 +17,16 @@ from typing import Any
 
 from hybridnav import HybridnavError, __version__
 from hybridnav.fileio import locked_folder
-from hybridnav.params import check_seed, describe_params, short_repr
+from hybridnav.params import (
+    DEFAULT_DPI,
+    FIGURE_FORMATS,
+    MAX_DPI,
+    check_dpi,
+    check_figure_format,
+    check_seed,
+    describe_params,
+    short_repr,
+)
 from hybridnav.reproduce.layouts import LAYOUTS, MAX_LAYOUTS
 
 __all__ = ["main"]
@@ -40,7 +49,7 @@ def _cmd_show(args: argparse.Namespace) -> int:
     from hybridnav.world import load_scenario
 
     scenario = load_scenario(args.scenario)
-    path = save_scenario_png(scenario, args.output, t=args.time)
+    path = save_scenario_png(scenario, args.output, t=args.time, dpi=args.dpi)
     robots = ", ".join(r.name for r in scenario.robots)
     print(f"{scenario.name}: {len(scenario.world.obstacles)} obstacles, robots {robots} -> {path}")
     return 0
@@ -71,7 +80,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 
     with PhaseLog() as say:
         result = analyze(args.model, scenario=args.scenario, out=args.out, seed=args.seed,
-                         progress=say)
+                         progress=say, fmt=args.format, dpi=args.dpi)
     width = max(len(c["name"]) for c in result["checks"])
     print(f"{result['model']} on {result['scenario']}, target {result['target']}:")
     for c in result["checks"]:
@@ -111,7 +120,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hybridnav import planners
-    from hybridnav.plotting import plot_result, save_figure
+    from hybridnav.plotting import figure_name, plot_result, save_figure
     from hybridnav.world import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -128,10 +137,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     with locked_folder(out, f"run {args.scenario} --planner {args.planner}"):
         result = planner.run(scenario, seed=args.seed)
         result.write(out)
-        save_figure(plot_result(scenario, result), out / "path.png")
-        extra = planner.diagnostics(scenario, result)     # figures drawn from the result alone
-        for name, fig in extra.items():
-            save_figure(fig, out / name)
+        path_name = figure_name("path", args.format)
+        save_figure(plot_result(scenario, result), out / path_name, dpi=args.dpi)
+        # figures drawn from the result alone, named in the chosen format
+        extra = _save_all(planner.diagnostics(scenario, result), out, args)
     print(f"{scenario.name} with {planner.name} (seed {args.seed}):")
     print(f"  {'robot':<10} {'outcome':<14} {'length':>10} {'time':>9} {'clearance':>10} "
           f"{'compute':>9}")
@@ -142,7 +151,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"  {r.name:<10} {r.outcome:<14} {r.path_length:>10.4g} {t:>9} {c:>10} "
               f"{r.compute_time:>8.2f}s")
     files = ["result.json", *(f"trajectory_{r.name}.csv" for r in result.robots),
-             *result.extra_files().values(), "path.png", *extra]
+             *result.extra_files().values(), path_name, *extra]
     print(f"wrote {out}/: {', '.join(files)}")
     return 0
 
@@ -152,7 +161,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
     from hybridnav import planners
     from hybridnav.params import short_repr
-    from hybridnav.plotting import plot_result, save_figure
+    from hybridnav.plotting import figure_name, plot_result, save_figure
     from hybridnav.results import read_run
 
     result, scenario = read_run(args.result, args.scenario)
@@ -163,14 +172,26 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                              f"{short_repr(result.planner)}")
     out = Path(args.out or args.result)
     out.mkdir(parents=True, exist_ok=True)
-    save_figure(plot_result(scenario, result), out / "path.png")
+    path_name = figure_name("path", args.format)
+    save_figure(plot_result(scenario, result), out / path_name, dpi=args.dpi)
     # any instance draws from the result alone (its extras), not from a run of its own
-    figures = planners.get(result.planner).diagnostics(scenario, result)
-    for name, fig in figures.items():
-        save_figure(fig, out / name)
+    figures = _save_all(planners.get(result.planner).diagnostics(scenario, result), out, args)
     note = "" if figures else f" (the result has no extras {result.planner} draws from)"
-    print(f"wrote {out}/: {', '.join(['path.png', *figures])}{note}")
+    print(f"wrote {out}/: {', '.join([path_name, *figures])}{note}")
     return 0
+
+
+def _save_all(figures, out, args: argparse.Namespace) -> list[str]:
+    """Write ``{name: figure}`` (a planner's diagnostics, named ``<stem>.png``) into ``out`` in
+    the format and resolution of ``--format`` and ``--dpi``; returns the names written."""
+    from hybridnav.plotting import figure_name, save_figure
+
+    names = []
+    for name, fig in figures.items():
+        name = figure_name(name, args.format)
+        save_figure(fig, out / name, dpi=args.dpi)
+        names.append(name)
+    return names
 
 
 def _cmd_animate(args: argparse.Namespace) -> int:
@@ -277,7 +298,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             bar.close()
         files = write_comparison(args.out, table, summary, settings={
             "planners": plans, "scenarios": scens, "runs": args.runs, "seed": args.seed,
-            "set": params, "workers": args.workers, "dask": args.dask or ""})
+            "set": params, "workers": args.workers, "dask": args.dask or ""},
+            fmt=args.format, dpi=args.dpi)
     cols = ["planner", "scenario", "success_rate", "path_length_mean", "path_length_std",
             "time_to_goal_mean", "time_to_goal_std"]
     print(summary[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
@@ -338,7 +360,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
             result = reproduce(args.name, args.out, runs=args.runs, seed=args.seed,
                                workers=args.workers, dask=args.dask, progress=progress,
                                scenarios=scens, layouts=args.layouts,
-                               phase=lambda msg: (bar.close(), phases(msg)))
+                               phase=lambda msg: (bar.close(), phases(msg)),
+                               fmt=args.format, dpi=args.dpi)
         finally:
             bar.close()
     words = {True: "holds", False: "does not hold", None: "not shown"}
@@ -366,10 +389,13 @@ def _cmd_fis(args: argparse.Namespace) -> int:
     for i, r in enumerate(system.rules, 1):
         print(f"  rule {i}: {r.sentence(system.output.name)}")
     if args.out:
+        from hybridnav.plotting import figure_name
+
         out = Path(args.out)
-        plots.save_memberships_png(system, out / "mfs.png")
-        plots.save_surface_png(system, out / "surface.png")
-        print(f"wrote {out}/: mfs.png, surface.png")
+        names = [figure_name("mfs", args.format), figure_name("surface", args.format)]
+        plots.save_memberships_png(system, out / names[0], dpi=args.dpi)
+        plots.save_surface_png(system, out / names[1], dpi=args.dpi)
+        print(f"wrote {out}/: {', '.join(names)}")
     return 0
 
 
@@ -399,7 +425,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     with PhaseLog() as phases:               # a phase an error leaves ends "(failed)"
         try:
             result = run_job(job, args.out, resume=args.resume, force=args.force,
-                             progress=progress, phase=lambda msg: (bar.close(), phases(msg)))
+                             progress=progress, phase=lambda msg: (bar.close(), phases(msg)),
+                             fmt=args.format, dpi=args.dpi)
         finally:
             bar.close()
     print(f"{job.name}: training objective ({result.objective_names[0]}) start "
@@ -536,6 +563,22 @@ _TIME = _typed("a finite time >= 0 (seconds)", float, _between(0.0))
 _TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
 
+#: ``--format`` and ``--dpi`` of the commands that draw (hybridnav.plotting.output writes them)
+_FIGURE_FORMAT = _typed(f"one of {', '.join(FIGURE_FORMATS)}", str, check_figure_format)
+_DPI = _typed(f"an integer in [1, {MAX_DPI}] (dots per inch)", int, check_dpi)
+
+
+def _figure_options() -> argparse.ArgumentParser:
+    """``--format`` and ``--dpi``: one parent parser for every command that draws."""
+    parent = _Parser(add_help=False)
+    parent.add_argument("--format", dest="format", default=FIGURE_FORMATS[0], type=_FIGURE_FORMAT,
+                        metavar="{" + ",".join(FIGURE_FORMATS) + "}",
+                        help="format of the figures (default png; pdf and svg are vector)")
+    parent.add_argument("--dpi", type=_DPI, default=DEFAULT_DPI, metavar="N",
+                        help=f"resolution of the figures in dots per inch (default {DEFAULT_DPI})")
+    return parent
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``hybridnav`` command."""
     from hybridnav.cli_help import epilog
@@ -556,9 +599,12 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
                         help="log more (repeat for debug output)")
 
-    def add_command(name: str, **kwargs: Any) -> argparse.ArgumentParser:
+    figures = _figure_options()
+
+    def add_command(name: str, draws: bool = False, **kwargs: Any) -> argparse.ArgumentParser:
         kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
-        return sub.add_parser(name, parents=[common], epilog=epilog(name), **kwargs)
+        return sub.add_parser(name, parents=[common, figures] if draws else [common],
+                              epilog=epilog(name), **kwargs)
 
     p = add_command("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
@@ -569,9 +615,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="picture to write")
     p.add_argument("--time", type=_TIME, default=0.0, metavar="T",
                    help="draw moving obstacles at time T (seconds, default 0)")
+    p.add_argument("--dpi", type=_DPI, default=DEFAULT_DPI, metavar="N",
+                   help=f"resolution in dots per inch (default {DEFAULT_DPI}; the format is "
+                        "FILE's suffix)")
     p.set_defaults(func=_cmd_show)
 
-    p = add_command("analyze", help="stability analysis of a model: Lyapunov, linearization, "
+    p = add_command("analyze", draws=True, help="stability analysis of a model: Lyapunov, linearization, "
                                        "region of attraction, sweeps")
     from hybridnav import models
     from hybridnav.fuzzy.export import FORMATS
@@ -588,7 +637,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = add_command("planners", help="list the planners and their parameters with defaults")
     p.set_defaults(func=_cmd_planners)
 
-    p = add_command("run", help="run a planner on a scenario and write the result files")
+    p = add_command("run", draws=True, help="run a planner on a scenario and write the result files")
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml file")
     p.add_argument("--planner", required=True, help="planner name (see 'hybridnav planners')")
     p.add_argument("--seed", type=_SEED, default=0, help="seed of the planner's randomness")
@@ -624,7 +673,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="time limit of each call into the compiled C (default 10)")
     p.set_defaults(func=_cmd_verify)
 
-    p = add_command("plot", help="redraw path.png and the planner's diagnostics from a result "
+    p = add_command("plot", draws=True, help="redraw path.png and the planner's diagnostics from a result "
                                     "folder written by 'run'")
     p.add_argument("result", metavar="DIR", help="a folder with result.json")
     p.add_argument("--scenario", help="the scenario the result is of, when it is not built in "
@@ -663,7 +712,7 @@ def build_parser() -> argparse.ArgumentParser:
                    default=150, metavar="N", help="most frames (default 150)")
     p.set_defaults(func=_cmd_animate)
 
-    p = add_command("compare", help="run planners x scenarios x runs; runs.csv, summary.csv, "
+    p = add_command("compare", draws=True, help="run planners x scenarios x runs; runs.csv, summary.csv, "
                                        "plots")
     p.add_argument("--planners", required=True,
                    help="comma-separated planners: NAME, NAME@LABEL or NAME@LABEL:key=value"
@@ -681,7 +730,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder for the tables and plots")
     p.set_defaults(func=_cmd_compare)
 
-    p = add_command("reproduce", help="run a paper's protocol in both profiles; report.md with "
+    p = add_command("reproduce", draws=True, help="run a paper's protocol in both profiles; report.md with "
                                       "the paper's numbers and claims beside ours")
     p.add_argument("name", nargs="?", help="protocol (see --list)")
     p.add_argument("--list", action="store_true", help="list the protocols")
@@ -703,15 +752,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --update-readme: the stored runs (default docs/reproductions)")
     p.set_defaults(func=_cmd_reproduce)
 
-    p = add_command("fis", help="describe a fuzzy system; plot its membership functions and "
+    p = add_command("fis", draws=True, help="describe a fuzzy system; plot its membership functions and "
                                    "control surface")
     p.add_argument("fis", help="built-in name (effc-2rule, effc-5rule, effc-tuned, ...), a "
                                   ".json, .fll or .fis file, or file.py:NAME / module:NAME "
                                   "naming a FuzzySystem or a scikit-fuzzy ControlSystem")
-    p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png")
+    p.add_argument("-o", "--out", metavar="DIR", help="folder for mfs.png and surface.png (or "
+                                                      ".pdf, .svg: --format)")
     p.set_defaults(func=_cmd_fis)
 
-    p = add_command("tune", help="tune a fuzzy system: a navigation controller, a system fitted to "
+    p = add_command("tune", draws=True, help="tune a fuzzy system: a navigation controller, a system fitted to "
                                     "data or to your own cost; GA, CMA-ES, PSO or NSGA-II "
                                     "(default: the built-in EFFC job)")
     p.add_argument("job", nargs="?", help="job file (TOML); omitted: the built-in EFFC job")

@@ -43,7 +43,8 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     "verify": (
         ("hybridnav verify out/tune/fis.json out/tune/effc.c", "the exported C in closed loop"),
     ),
-    "plot": (("hybridnav plot out/run", "redraw a run's figures"),),
+    "plot": (("hybridnav plot out/run", "redraw a run's figures"),
+             ("hybridnav plot out/run -o out/svg --format svg", "the same as SVG files"),),
     "compare": (
         ("hybridnav compare --planners apf,effc --scenarios effc-env-a,effc-env-b --runs 5 "
          "-o out/cmp --workers 2", "two planners, two scenarios, five runs each"),
@@ -58,6 +59,7 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     "fis": (
         ("hybridnav fis effc-5rule -o out/fis", "describe a system, draw its terms and surface"),
         ("hybridnav fis my_system.fll", "a fuzzylite file"),
+        ("hybridnav fis effc-5rule -o out/fis --format pdf", "the figures as PDF, for a paper"),
     ),
     "tune": (
         ("hybridnav tune -o out/tune --workers 2", "the built-in EFFC job"),

@@ -29,8 +29,18 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["Param", "check_int", "check_range", "check_real", "check_seed", "check_value",
+__all__ = ["DEFAULT_DPI", "FIGURE_FORMATS", "MAX_DPI", "Param", "check_dpi", "check_figure_format",
+           "check_int", "check_range", "check_real", "check_seed", "check_value",
            "describe_params", "short_repr"]
+
+#: the figure formats the commands write (``--format``; PNG for screens and reports, PDF and SVG
+#: for papers); :mod:`hybridnav.plotting.output` writes them
+FIGURE_FORMATS = ("png", "pdf", "svg")
+#: the resolution of raster figures unless chosen (``--dpi``; PDF and SVG are vector, dpi only
+#: sizes their embedded images)
+DEFAULT_DPI = 120
+#: the largest resolution accepted: a page-wide figure at 1200 dpi is already ~10^8 pixels
+MAX_DPI = 1200
 
 _KIND_WORDS = {str: "a string", list: "a list", dict: "a table", tuple: "a sequence"}
 
@@ -361,3 +371,36 @@ def describe_params(params: Mapping[str, Param], indent: str = "  ") -> list[str
         default = f"{p.default:g}" if isinstance(p.default, float) else repr(p.default)
         lines.append(f"{indent}{key} = {default}    {p.doc} ({p.describe()})".rstrip())
     return lines
+
+
+def check_figure_format(fmt: Any, name: str = "format") -> str:
+    """``fmt`` as one of :data:`FIGURE_FORMATS` (lower case; a leading dot is allowed), else a
+    HybridnavError ``<name>: expected one of png, pdf, svg, got ...``.
+
+    Parameters
+    ----------
+    fmt : str
+    name : str
+        The option or parameter the value came from (``"--format"``, ``"fmt"``).
+    """
+    text = fmt.lower().lstrip(".") if isinstance(fmt, str) else None
+    if text not in FIGURE_FORMATS:
+        raise HybridnavError(f"{name}: expected one of {', '.join(FIGURE_FORMATS)}, got "
+                             f"{short_repr(fmt)}")
+    return text
+
+
+def check_dpi(dpi: Any, name: str = "dpi") -> int:
+    """``dpi`` as an integer in ``[1, MAX_DPI]``, else a HybridnavError
+    ``<name>: expected an integer in [1, 1200] (dots per inch), got ...``.
+
+    Parameters
+    ----------
+    dpi : int
+    name : str
+        The option or parameter the value came from (``"--dpi"``, ``"dpi"``).
+    """
+    if isinstance(dpi, bool) or not isinstance(dpi, numbers.Integral) or not 1 <= dpi <= MAX_DPI:
+        raise HybridnavError(f"{name}: expected an integer in [1, {MAX_DPI}] (dots per inch), "
+                             f"got {short_repr(dpi)}")
+    return int(dpi)

@@ -130,7 +130,7 @@ def test_open_loop_linearization_matches_python_control(name, x0, u0):
 
 def test_tractor_trailer_straight_driving_by_hand():
     m = models.get("tractor_trailer")
-    L, Lt, c = m.params["L"], m.params["Lt"], m.params["c"]
+    L, Lt, c = m.values["L"], m.values["Lt"], m.values["c"]
     v = 1.0
     sys = linearize(m, [0, 0, 0, 0], [v, 0.0])
     A = np.zeros((4, 4))
@@ -154,7 +154,7 @@ def test_closed_loop_linearizations_at_the_target():
         linearize(uni, [1.0, 1.0, 0.0], target=[1.0, 1.0])
     z, zdot, names = uni.polar_error_dynamics()
     polar = linearize_expression(z, zdot, [0, 0], names, symbols=uni.sym.p, values=uni.p_value())
-    k_rho, k_alpha = uni.params["k_rho"], uni.params["k_alpha"]
+    k_rho, k_alpha = uni.values["k_rho"], uni.values["k_alpha"]
     np.testing.assert_allclose(polar.A, np.diag([-k_rho, k_rho - k_alpha]), atol=1e-14)
     assert is_stable(polar)
 

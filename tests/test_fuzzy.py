@@ -470,7 +470,9 @@ def test_plots_write_pngs(tmp_path):
     assert sorted(q.name for q in tmp_path.iterdir()) == ["m.png", "s.png"]
     surf = plots.plot_surface(fs, resolution=9)
     ax, bar = surf.axes
-    assert ax.get_xlabel() == "dtheta" and ax.get_ylabel() == "alpha" and bar.get_ylabel() == "w"
+    # the units EFFC, which feeds this system, declares
+    assert ax.get_xlabel() == "dtheta (rad)" and ax.get_ylabel() == "alpha (dimensionless)"
+    assert bar.get_ylabel() == "w (dimensionless)"
     mesh = ax.collections[0]                    # the heatmap: the output on the grid
     gx, gy = np.meshgrid(np.linspace(*fs.inputs[0].range, 9), np.linspace(*fs.inputs[1].range, 9))
     np.testing.assert_allclose(np.asarray(mesh.get_array()).reshape(9, 9),

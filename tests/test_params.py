@@ -10,6 +10,7 @@ import pytest
 
 from hybridnav import models, planners
 from hybridnav.errors import HybridnavError
+from hybridnav.deprecation import HybridnavDeprecationWarning
 from hybridnav.params import Param, check_int, check_real, check_value, describe_params
 from hybridnav.planners.swarm import OPTIMIZERS
 
@@ -176,7 +177,9 @@ def test_a_model_declares_its_settings_once():
     assert cls.option_choices == {"controller": ("go_to_point", "heading")}
     assert cls.infinite_ok == frozenset({"wheel_max", "v_max", "omega_max"})
     m = models.get("unicycle", k_rho=0.7)
-    assert m.values["k_rho"] == 0.7 and m.params is m.values   # old name, one version
+    assert m.values["k_rho"] == 0.7
+    with pytest.warns(HybridnavDeprecationWarning, match=r"Unicycle\.params .* 0\.4\.0"):
+        assert m.params is m.values                             # the old name, until 0.4.0
     assert list(m.param_names) == list(cls.defaults)
 
 
@@ -211,14 +214,16 @@ def test_a_model_written_with_the_old_five_dicts_still_works():
 def test_a_planner_written_with_the_old_name_still_works():
     from hybridnav.planners.base import Planner
 
-    class Old(Planner):
-        name = "old"
-        params = {"k": Param(1.0, "a gain", lo=0.0, lo_open=True)}
+    with pytest.warns(HybridnavDeprecationWarning, match=r"Old\.params .* Old\.parameters"):
+        class Old(Planner):
+            name = "old"
+            params = {"k": Param(1.0, "a gain", lo=0.0, lo_open=True)}
 
-        def run(self, scenario, seed=None):
-            raise NotImplementedError
+            def run(self, scenario, seed=None):
+                raise NotImplementedError
 
-    assert Old.parameters is Old.params
+    with pytest.warns(HybridnavDeprecationWarning):
+        assert Old.parameters is Old.params
     assert Old(k="2").values == {"k": 2.0}
     with pytest.raises(HybridnavError, match=r"^planner old: k: expected a positive number"):
         Old(k=0)
@@ -311,7 +316,8 @@ def test_model_copies_and_the_old_name():
     u = Unicycle()
     v = u.with_params(dt=0.05, k_rho=0.3, radius=0.2)
     assert (v.dt, v.values["k_rho"], v.radius) == (0.05, 0.3, 0.2)
-    u.params = {**u.values, "k_rho": 0.4}                       # the alias can be assigned
+    with pytest.warns(HybridnavDeprecationWarning, match=r"Unicycle\.params .* Unicycle\.values"):
+        u.params = {**u.values, "k_rho": 0.4}                   # the old name can be assigned
     assert u.values["k_rho"] == 0.4
     lb = LbCS(obstacles=[(1.0, 1.0, 1.0)]).with_params(rp=0.7)
     assert lb.values["rp"] == 0.7 and lb.radius == 0.7

@@ -283,7 +283,7 @@ def test_tractor_trailers_keep_their_half_diagonal_and_reach():
     assert [r.outcome for r in res.robots] == ["reached"] * 3
     assert min(r.min_clearance for r in res.robots) > 0
     m = s.model(s.robots[0])
-    half_diag = math.hypot(m.params["L"], m.params["b"]) / 2
+    half_diag = math.hypot(m.values["L"], m.values["b"]) / 2
     assert m.radius == pytest.approx(half_diag)
     for r in res.robots:
         pts = res.extras[f"waypoints_{r.name}"]

@@ -914,7 +914,8 @@ def test_the_convergence_figure_ticks_whole_generations():
 
 
 def test_path_legends_give_the_length_unit():
-    """``plot_traces`` / ``plot_result`` legends carry the scenario's length unit."""
+    """``plot_traces`` / ``plot_result`` legends carry the scenario's length unit, and the
+    outcome marker at the path's end."""
     from hybridnav.plotting import Trace, plot_traces
     from hybridnav.world import load_scenario
 
@@ -922,4 +923,4 @@ def test_path_legends_give_the_length_unit():
     fig = plot_traces(s, [Trace("robot", np.array([[0.0, 0.0], [1.0, 1.0]]), "reached", 1.414,
                                 None, 14.1)])
     texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert texts == [f"robot: reached, length 1.41 {s.units}"]
+    assert texts == [f"robot: reached, length 1.41 {s.units}", "end: reached"]

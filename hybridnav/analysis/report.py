@@ -44,19 +44,24 @@ ANALYZABLE = models.analyzable()
 
 
 def analyze(model_name: str, scenario: str | None = None, out: str | Path = "analysis",
-            seed: int = 0, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+            seed: int = 0, progress: Callable[[str], None] | None = None, fmt: str = "png",
+            dpi: int = 120) -> dict[str, Any]:
     """Run every check for ``model_name`` and write ``analysis.json``, ``report.md`` and plots.
 
     The scenario supplies the target (its first robot's goal), the region (its workspace) and, for
-    ``lbcs``, the circular obstacles; a robot of the same model contributes its parameters.
+    ``lbcs``, the circular obstacles; a robot of the same model contributes its parameters. The
+    plots are written as ``fmt`` (``png``, ``pdf``, ``svg``) at ``dpi`` dots per inch; their
+    names (``analysis.json``'s ``plots``, the report's links) carry that suffix.
 
     Returns
     -------
     dict
         The content of ``analysis.json``.
     """
+    from hybridnav.plotting.output import check_dpi, check_format, figure_name
     from hybridnav.world import load_scenario
 
+    fmt, dpi = check_format(fmt, "fmt"), check_dpi(dpi)
     if model_name not in ANALYZABLE:
         raise HybridnavError(
             f"model: expected one of {', '.join(sorted(ANALYZABLE))}, got {model_name!r}"
@@ -81,8 +86,11 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     checks: list[dict[str, Any]] = []
     plots: list[str] = []
 
+    length = scen.units
+
     def plot(fig, name):
-        save_figure(fig, out / name)
+        name = figure_name(name, fmt)
+        save_figure(fig, out / name, dpi=dpi)
         plots.append(name)
 
     say("Lyapunov check")
@@ -90,8 +98,8 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     checks.append({**rep.to_dict(), "name": "lyapunov", "status": rep.status})
     fixed = dict(model.analysis_slice) or None
     gradient_flow = hasattr(model, "gradient_flow_gains")
-    plot(plot_vdot_map(model, target=target, region=region, report=rep, fixed=fixed),
-         "vdot_map.png")
+    plot(plot_vdot_map(model, target=target, region=region, report=rep, fixed=fixed,
+                       length=length), "vdot_map.png")
 
     if hasattr(model, "polar_error_dynamics"):
         say("LaSalle, polar error coordinates")
@@ -147,8 +155,8 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
                                  f"{100 * share:.1f} % converge under the closed-loop ODE "
                                  f"(CVODES), {100 * share_rk4:.1f} % under the simulated RK4 "
                                  f"step at dt = {model.dt:g}"})
-        plot(plot_basin(model, target=target, region=region, levels=levels, basin_grid=grid),
-             "basin.png")
+        plot(plot_basin(model, target=target, region=region, levels=levels, basin_grid=grid,
+                        length=length), "basin.png")
     if gradient_flow:
         say("stationary points")
         eqs = find_equilibria(model, target=target, region=region, seed=seed)
@@ -163,10 +171,10 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
                        "status": "stalled" if stalled else "reached",
                        "start": list(robot.start), "final_state": final.tolist()})
         plot(plot_lbcs_field(model, target=target, region=region, equilibria=eqs,
-                             trajectories=tr), "lbcs_field.png")
+                             trajectories=tr, length=length), "lbcs_field.png")
     else:
-        plot(plot_phase_portrait(model, target=target, region=region, fixed=fixed),
-             "phase_portrait.png")
+        plot(plot_phase_portrait(model, target=target, region=region, fixed=fixed,
+                                 length=length), "phase_portrait.png")
 
     say("closed-loop sweep")
     table, traj, Vt = _sweep(model, target, region, scen)
@@ -183,18 +191,27 @@ def analyze(model_name: str, scenario: str | None = None, out: str | Path = "ana
     checks.append({"name": f"closed-loop sweep (V = {model.candidate_name})",
                    "status": "all_monotone" if summary["V_monotone"] == summary["runs"]
                    else "not_all_monotone", **summary})
-    plot(plot_sweep(table, traj, target=target, title=f"{model_name}: closed-loop sweep"),
-         "sweep.png")
+    plot(plot_sweep(table, traj, target=target, title=f"{model_name}: closed-loop sweep",
+                    length=length), "sweep.png")
     t = np.arange(Vt.shape[1]) * model.dt
     pick = np.linspace(0, len(Vt) - 1, min(12, len(Vt))).astype(int)
-    plot(plot_V_time(t, Vt[pick]), "V_time.png")
+    # a family of runs: coloured by how far from the target each started
+    start_distance = np.hypot(*(traj[pick, 0, :2] - target).T)
+    from hybridnav.plotting.labels import axis_label
+
+    plot(plot_V_time(t, Vt[pick], title=f"V along {len(pick)} of the sweep's {len(Vt)} runs",
+                     color_by=start_distance,
+                     color_label=axis_label("start's distance to the target", "length", length),
+                     v_label=axis_label(f"V = {model.candidate_name}",
+                                        getattr(model, "candidate_unit", None), length)),
+         "V_time.png")
 
     result = {"model": model_name, "params": model.values, "scenario": scen.name,
               "target": target.tolist(), "region": {k: list(v) for k, v in region.items()},
               "seed": seed, "version": __version__, "checks": checks, "plots": plots}
     result = json_ready(result)
     atomic_write_text(out / "analysis.json", dumps_json(result))
-    atomic_write_text(out / "report.md", _markdown(result, table))
+    atomic_write_text(out / "report.md", _markdown(result, table, fmt))
     return result
 
 
@@ -281,7 +298,9 @@ def _sweep(model, target, region, scen):
     return starts.join(table), traj, Vt
 
 
-def _markdown(result: dict[str, Any], table) -> str:
+def _markdown(result: dict[str, Any], table, fmt: str = "png") -> str:
+    from hybridnav.plotting.output import figure_name
+
     lines = [f"# Stability analysis: {result['model']}", "",
              f"Scenario `{result['scenario']}`, target {result['target']}, region "
              f"{result['region']}, seed {result['seed']}, hybridnav {result['version']}.", "",
@@ -338,7 +357,7 @@ def _markdown(result: dict[str, Any], table) -> str:
               "A region of attraction's **proved** is the same kind of argument on the level "
               "set it names (the certificate route); its simulated starts only confirm it. The "
               "basin row simulates a grid of starts: the true region of attraction, against "
-              "which the certified level sets are drawn in basin.png.", ""]
+              f"which the certified level sets are drawn in {figure_name('basin', fmt)}.", ""]
     lines += ["", "Plots: " + ", ".join(f"[{p}]({p})" for p in result["plots"]), ""]
     if "max_gap" in table:
         worst = table.sort_values("max_gap", ascending=False).head(10)

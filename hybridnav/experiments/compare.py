@@ -532,7 +532,8 @@ def summarize_runs(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFrame,
-                     settings: Mapping[str, Any] | None = None) -> list[str]:
+                     settings: Mapping[str, Any] | None = None, fmt: str = "png",
+                     dpi: int = 120) -> list[str]:
     """Write ``runs.csv``, ``summary.csv``, the comparison plots and, given ``settings`` (what was
     compared: planners, scenarios, runs, seed, ``--set`` values), ``comparison.json`` with them
     and the package version; returns the file names.
@@ -544,10 +545,16 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
         From :func:`compare`.
     settings : dict, optional
         What the comparison was run with (written as given, plus ``version``).
+    fmt : str
+        The plots' format: ``png``, ``pdf`` or ``svg`` (their names carry it).
+    dpi : int
+        The plots' resolution in dots per inch.
     """
     from hybridnav import __version__
     from hybridnav.fileio import dumps_json
-    from hybridnav.plotting import save_figure
+    from hybridnav.plotting import check_dpi, check_format, figure_name, save_figure
+
+    fmt, dpi = check_format(fmt, "fmt"), check_dpi(dpi)
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -558,21 +565,25 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
         atomic_write_text(folder / "comparison.json",
                           dumps_json({"version": __version__, **dict(settings)}))
         names.append("comparison.json")
-    for metric, label in (("path_length", "path length [{units}] (reached)"),
-                          ("time_to_goal", "time to goal [s] (reached)"),
-                          ("compute_time", "compute time [s]"),
-                          ("success_rate", "success rate"),
-                          ("min_clearance", "smallest clearance per run [{units}]"),
-                          ("control_effort", "control effort (reached)")):
+    for metric, label in (("path_length", "path length, reached runs ({units})"),
+                          ("time_to_goal", "time to goal, reached runs (s)"),
+                          ("compute_time", "compute time (s)"),
+                          ("success_rate", "success rate (share of runs)"),
+                          ("min_clearance", "smallest clearance per run ({units})"),
+                          ("control_effort", "control effort, reached runs")):
         if metric == "control_effort" and not np.isfinite(
                 summary.get("control_effort_mean", pd.Series(dtype=float)).astype(float)).any():
             continue                       # no robot model with body rates: no effort
-        save_figure(_bars(summary, metric, label), folder / f"compare_{metric}.png")
-        names.append(f"compare_{metric}.png")
+        name = figure_name(f"compare_{metric}", fmt)
+        save_figure(_bars(summary, metric, label), folder / name, dpi=dpi)
+        names.append(name)
+    first = table[table["run"] == 0]
     for scenario, paths in _paths_by_scenario(table).items():
-        fig = _overlay(table.attrs["scenarios"][scenario], paths)
-        name = f"paths_{_file_stem(scenario)}.png"
-        save_figure(fig, folder / name)
+        rows = first[first["scenario"] == scenario]
+        outcomes = {(p, r): o for p, r, o in zip(rows["planner"], rows["robot"], rows["outcome"])}
+        fig = _overlay(table.attrs["scenarios"][scenario], paths, outcomes)
+        name = figure_name(f"paths_{_file_stem(scenario)}", fmt)
+        save_figure(fig, folder / name, dpi=dpi)
         names.append(name)
     convergence = table.attrs.get("convergence", {}).get("table")
     if convergence is not None and not convergence.empty:
@@ -582,8 +593,8 @@ def write_comparison(folder: str | Path, table: pd.DataFrame, summary: pd.DataFr
         for scenario, rows in convergence.groupby("scenario", sort=False):
             fig = plot_convergence(scenario, rows, labels)
             if fig is not None:
-                name = f"convergence_{_file_stem(scenario)}.png"
-                save_figure(fig, folder / name)
+                name = figure_name(f"convergence_{_file_stem(scenario)}", fmt)
+                save_figure(fig, folder / name, dpi=dpi)
                 names.append(name)
     return names
 
@@ -603,21 +614,28 @@ def _paths_by_scenario(table: pd.DataFrame) -> dict[str, dict[str, dict[str, np.
     return out
 
 
-def _overlay(spec: str, paths: Mapping[str, Mapping[str, np.ndarray]]) -> Figure:
-    """Every planner's run-0 path on the scenario's map, one colour per planner."""
-    from hybridnav.plotting import draw_scenario
+def _overlay(spec: str, paths: Mapping[str, Mapping[str, np.ndarray]],
+             outcomes: Mapping[tuple[str, str], str] | None = None) -> Figure:
+    """Every planner's run-0 path on the scenario's map, one colour per planner, each ending
+    in its outcome's marker (``outcomes``: ``(planner label, robot) -> outcome``); the legend,
+    below the map, lists the planners and the outcome markers drawn."""
+    from hybridnav.plotting.scenes import draw_scenario, legend_outside, mark_outcome
     from hybridnav.world import load_scenario
 
     scenario = load_scenario(spec)
-    fig = Figure(figsize=(6.4, 6.4), layout="constrained")
+    fig = Figure(figsize=(6.4, 7.0), layout="constrained")
     ax = fig.add_subplot()
     draw_scenario(scenario, ax)
     colours = [f"C{k}" for k in range(10)]
+    labelled: set[str] = set()
     for k, (label, robots) in enumerate(paths.items()):
-        for j, xy in enumerate(robots.values()):
+        for j, (robot, xy) in enumerate(robots.items()):
             ax.plot(xy[:, 0], xy[:, 1], color=colours[k % 10], linewidth=1.4,
                     label=label if j == 0 else None, zorder=5)
-    ax.legend(fontsize=8, loc="best")
+            outcome = (outcomes or {}).get((label, robot))
+            if outcome is not None and len(xy):
+                mark_outcome(ax, xy[-1], outcome, labelled, markersize=9)
+    legend_outside(ax, ncols=3)
     ax.set_title(f"{scenario.name}: run 0 of every planner")
     return fig
 
@@ -676,6 +694,7 @@ def _bars(summary: pd.DataFrame, metric: str, label: str) -> Figure:
                                 color=bars.patches[0].get_facecolor() if bars.patches
                                 else "black")
         ax.set_xticks(np.arange(len(scen)), scen, rotation=20)
+        ax.set_xlabel("scenario")
         text = label.replace("{units}", unit or "scenario units")
         ax.set_ylabel(text)
         if metric == "success_rate":

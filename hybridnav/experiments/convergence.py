@@ -60,7 +60,7 @@ def _curves(rows: pd.DataFrame) -> tuple[str, pd.DataFrame]:
                                 aggfunc="first", dropna=False)
         return "iteration", wide
     last = rows.sort_values("iteration").groupby(["run", "robot", "plan"]).last()["best"]
-    return "step (one search each; its final best)", last.unstack("plan")
+    return "step: one search each, its final best", last.unstack("plan")
 
 
 def plot_convergence(scenario: str, rows: pd.DataFrame,
@@ -106,7 +106,7 @@ def plot_convergence(scenario: str, rows: pd.DataFrame,
                         label="10-90 % of runs")
         ax.plot(x, finite(med), color="C0", label=f"median of {len(values)} run(s)")
         ax.set_xlabel(xlabel)
-        ax.set_ylabel("best cost (the search's objective)")
+        ax.set_ylabel("best cost: the search's objective")
         ax.set_title(label, fontsize=9)
         ax.legend(fontsize=7)
     for ax in axes[len(order):]:

@@ -3,7 +3,12 @@
 - :func:`plot_memberships`: the terms of every variable, as sampled on its universe.
 - :func:`plot_surface`: the control surface, the output over two inputs (the first two unless
   chosen; other inputs held at mid-range). A one-input system gets the output curve.
-- :func:`save_memberships_png`, :func:`save_surface_png`: the same, written atomically.
+- :func:`save_memberships_png`, :func:`save_surface_png`: the same, written atomically (PNG, or
+  PDF or SVG by the path's suffix; :func:`hybridnav.plotting.save_figure`).
+
+Axes carry the variables' units where the planner that feeds the system declares them
+(:func:`hybridnav.planners.fuzzy_units`: EFFC's ``dtheta`` in rad, ``alpha`` and ``w``
+dimensionless); a system no planner takes is labelled by its variable names alone.
 """
 
 from __future__ import annotations
@@ -14,11 +19,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_path
 from hybridnav.fuzzy.engine import universe
 from hybridnav.fuzzy.mf import sample
 from hybridnav.fuzzy.system import FuzzySystem
@@ -28,7 +31,14 @@ __all__ = ["plot_memberships", "plot_surface", "save_memberships_png", "save_sur
 log = logging.getLogger(__name__)
 
 
-def plot_memberships(system: FuzzySystem, fig: Figure | None = None) -> Figure:
+def _units(system: FuzzySystem, units: Mapping[str, str] | None) -> dict[str, str]:
+    from hybridnav.planners import fuzzy_units
+
+    return dict(fuzzy_units(system) if units is None else units)
+
+
+def plot_memberships(system: FuzzySystem, fig: Figure | None = None,
+                     units: Mapping[str, str] | None = None) -> Figure:
     """Draw the membership functions of every input and of the output, one panel each.
 
     Parameters
@@ -36,6 +46,9 @@ def plot_memberships(system: FuzzySystem, fig: Figure | None = None) -> Figure:
     system : FuzzySystem
     fig : matplotlib.figure.Figure, optional
         Figure to draw into (it is cleared); a new one is made otherwise.
+    units : mapping, optional
+        Variable name -> unit (``""``: dimensionless); default what the planner that feeds
+        the system declares (:func:`hybridnav.planners.fuzzy_units`).
 
     Returns
     -------
@@ -44,6 +57,9 @@ def plot_memberships(system: FuzzySystem, fig: Figure | None = None) -> Figure:
         straight lines, which is exactly the membership the evaluator interpolates; the output
         panel marks ``default`` with a dotted line.
     """
+    from hybridnav.plotting.labels import axis_label
+
+    units = _units(system, units)
     variables = [*system.inputs, system.output]
     if fig is None:
         fig = Figure(figsize=(6.4, 2.2 * len(variables)), layout="constrained")
@@ -62,15 +78,16 @@ def plot_memberships(system: FuzzySystem, fig: Figure | None = None) -> Figure:
             ax.set_title(f"input {v.name}")
         ax.set_xlim(*v.range)
         ax.set_ylim(-0.03, 1.05)
-        ax.set_ylabel("membership")
-        ax.legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel("universe")
+        ax.set_xlabel(axis_label(v.name, units.get(v.name)), labelpad=1)
+        ax.set_ylabel(axis_label("membership", ""))
+        ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
     fig.suptitle(system.name)
     return fig
 
 
 def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[str, str] | None = None,
-                 fixed: Mapping[str, float] | None = None, resolution: int = 161) -> Figure:
+                 fixed: Mapping[str, float] | None = None, resolution: int = 161,
+                 units: Mapping[str, str] | None = None) -> Figure:
     """Draw the control surface: the output over two inputs, as a heatmap with contour lines
     and a colour bar (the output's range).
 
@@ -86,6 +103,8 @@ def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[s
         Values for the other inputs; default the middle of their ranges.
     resolution : int
         Grid points per axis.
+    units : mapping, optional
+        Variable name -> unit, as for :func:`plot_memberships`.
 
     Returns
     -------
@@ -96,8 +115,15 @@ def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[s
     HybridnavError
         Unknown input names, the same input twice, or ``resolution < 2``.
     """
+    from hybridnav.plotting.labels import axis_label
+
     if resolution < 2:
         raise HybridnavError(f"resolution: expected an integer >= 2, got {resolution}")
+    units = _units(system, units)
+
+    def label(name: str) -> str:
+        return axis_label(name, units.get(name))
+
     names = system.input_names
     by_name = {v.name: v for v in system.inputs}
     fixed = dict(fixed or {})
@@ -114,8 +140,8 @@ def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[s
         x = np.linspace(*v.range, max(resolution, 201))
         ax = fig.add_subplot()
         ax.plot(x, system.evaluate(**{v.name: x}))
-        ax.set_xlabel(v.name)
-        ax.set_ylabel(out.name)
+        ax.set_xlabel(label(v.name))
+        ax.set_ylabel(label(out.name))
         ax.set_ylim(*out.range)
         ax.set_title(f"{system.name}: {out.name}({v.name})")
         return fig
@@ -136,29 +162,47 @@ def plot_surface(system: FuzzySystem, fig: Figure | None = None, inputs: tuple[s
     if np.nanmax(z) > np.nanmin(z):
         cs = ax.contour(gx, gy, z, levels=8, colors="white", linewidths=0.6)
         ax.clabel(cs, fontsize=7, fmt="%.2g")
-    fig.colorbar(mesh, ax=ax, label=out.name)
-    ax.set_xlabel(vx.name)
-    ax.set_ylabel(vy.name)
-    held = ", ".join(f"{k} = {v:g}" for k, v in args.items())
+    fig.colorbar(mesh, ax=ax, label=label(out.name))
+    ax.set_xlabel(label(vx.name))
+    ax.set_ylabel(label(vy.name))
+    held = ", ".join(f"{k} = {v:g}" + (f" {units[k]}" if units.get(k) else "")
+                     for k, v in args.items())
     ax.set_title(f"{system.name}: control surface" + (f" ({held})" if held else ""))
     return fig
 
 
 def _save(fig: Figure, path: str | os.PathLike[str], dpi: int) -> Path:
-    path = Path(path)
-    FigureCanvasAgg(fig)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format="png")
-    log.debug("wrote %s", path)
-    return path
+    from hybridnav.plotting.output import save_figure
+
+    return save_figure(fig, path, dpi=dpi, bbox_inches=None)   # constrained layout fits it
 
 
 def save_memberships_png(system: FuzzySystem, path: str | os.PathLike[str], dpi: int = 120) -> Path:
-    """Write :func:`plot_memberships` to a PNG file atomically and return the path."""
+    """Write :func:`plot_memberships` to a picture file atomically and return the path (PNG;
+    ``.pdf`` or ``.svg`` in ``path`` write those).
+
+    Parameters
+    ----------
+    system : FuzzySystem
+    path : str or path-like
+    dpi : int
+        Dots per inch, in ``[1, 1200]``.
+    """
     return _save(plot_memberships(system), path, dpi)
 
 
 def save_surface_png(system: FuzzySystem, path: str | os.PathLike[str], dpi: int = 120,
                      **kwargs: object) -> Path:
-    """Write :func:`plot_surface` (``kwargs`` passed on) to a PNG file atomically."""
+    """Write :func:`plot_surface` (``kwargs`` passed on) to a picture file atomically (PNG;
+    ``.pdf`` or ``.svg`` in ``path`` write those).
+
+    Parameters
+    ----------
+    system : FuzzySystem
+    path : str or path-like
+    dpi : int
+        Dots per inch, in ``[1, 1200]``.
+    **kwargs
+        Passed to :func:`plot_surface`.
+    """
     return _save(plot_surface(system, **kwargs), path, dpi)  # type: ignore[arg-type]

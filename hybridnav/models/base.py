@@ -130,10 +130,16 @@ class Model(ABC):
     smooth_at_target: ClassVar[bool] = False
     straight_driving: ClassVar[tuple[float, ...] | None] = None
     candidate_name: ClassVar[str] = "1/2 distance^2"
+    #: the unit of that candidate (figures: ``V``, ``dV/dt``); ``"length²"`` for half a squared
+    #: distance, None where it has no one unit
+    candidate_unit: ClassVar[str | None] = "length²"
     #: states that are angles the dynamics see only modulo 2 pi (the analysis identifies the faces
     #: -pi and pi of a region spanning a whole turn)
     angle_state_names: ClassVar[tuple[str, ...]] = ()
     input_names: ClassVar[tuple[str, ...]] = ()
+    #: the unit of each state (the figures' axis labels): ``"length"`` is the scenario's length
+    #: unit, ``"rad"`` an angle; see :mod:`hybridnav.plotting.labels`
+    state_units: ClassVar[dict[str, str]] = {"x": "length", "y": "length"}
     #: the model's settings, declared once: real-valued :class:`~hybridnav.params.Param` entries
     #: are its numeric parameters (the vector ``p`` in declaration order), the others (strings
     #: with choices, tuples) its options

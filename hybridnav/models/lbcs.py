@@ -58,6 +58,7 @@ class LbCS(Model):
     capabilities = frozenset()
     smooth_at_target = True
     candidate_name = "L"
+    candidate_unit = None          # L multiplies and divides distances: no one unit
     input_names = ("vx", "vy")
     parameters = {
         "beta": Param(2.0, "obstacle avoidance gain beta_l (the same for every obstacle)", lo=0.0, lo_open=True),

@@ -68,6 +68,8 @@ class TractorTrailer(Model):
     straight_driving = (1.0, 0.0)      # v = 1, phi = 0
     plant_state_names = ("x", "y", "theta0", "theta1")
     controller_state_names = ("xi",)
+    #: headings, and xi the steering state (an angle: it follows the heading error)
+    state_units = {"x": "length", "y": "length", "theta0": "rad", "theta1": "rad", "xi": "rad"}
     input_names = ("v", "phi")
     parameters = {
         "L": Param(1.6, "tractor length between axles (the tractor body is L long)", lo=0.0, lo_open=True),

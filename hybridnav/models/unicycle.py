@@ -55,6 +55,7 @@ class Unicycle(Model):
     straight_driving = (0.1, 0.1)      # vl = vr
     plant_state_names = ("x", "y", "theta")
     angle_state_names = ("theta",)
+    state_units = {"x": "length", "y": "length", "theta": "rad"}
     input_names = ("vl", "vr")
     parameters = {
         "L": Param(0.16, "distance between the driving wheels (TurtleBot3 Burger: 0.16 m)",

@@ -37,7 +37,7 @@ PLANNERS: dict[str, type[Planner]] = {
                               RFDPlanner, RFDPSOPlanner)
 }
 
-__all__ = ["PLANNERS", "Param", "Planner", "get", "parse_assignments"]
+__all__ = ["PLANNERS", "Param", "Planner", "fuzzy_units", "get", "parse_assignments"]
 
 def get(name: str, **params: Any) -> Planner:
     """The planner ``name`` with parameter overrides (strings are parsed as on the CLI).
@@ -56,6 +56,28 @@ def get(name: str, **params: Any) -> Planner:
             f"planner: unknown planner {name!r}; expected one of: {', '.join(sorted(PLANNERS))}"
         ) from None
     return cls(**params)
+
+
+def fuzzy_units(system) -> dict[str, str]:
+    """The units of a fuzzy system's variables (figures' axes), as declared by the planner that
+    feeds it (``fuzzy_units`` of ``effc``, ``fuzzy-steer``; ``""``: dimensionless): that
+    planner provides its inputs, and reads its output when the output has the name the planner
+    declares. Empty for a system no planner takes (its units are unknown).
+
+    Parameters
+    ----------
+    system : FuzzySystem
+    """
+    from hybridnav.planners.base import accepts_inputs
+
+    names = [*system.input_names, system.output.name]
+    for cls in PLANNERS.values():
+        units = getattr(cls, "fuzzy_units", {})
+        if units and getattr(cls, "fuzzy_inputs", None) \
+                and accepts_inputs(cls, system.input_names) \
+                and all(n in units for n in system.input_names):
+            return {n: units[n] for n in names if n in units}
+    return {}
 
 
 def __getattr__(name: str) -> Any:

@@ -31,7 +31,8 @@ from collections.abc import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from hybridnav.plotting.scenes import plot_result
+from hybridnav.plotting.labels import LENGTH, axis_label
+from hybridnav.plotting.scenes import legend_outside, plot_result
 from hybridnav.results import Result, path_length
 from hybridnav.resultspec import EXTRAS, Table, declared
 
@@ -60,8 +61,20 @@ def extras_of(result: Result, prefix: str) -> dict[str, Mapping[str, np.ndarray]
     return out
 
 
-def plot_signals(result: Result) -> Figure | None:
-    """Every robot's traced signals over time, one panel per signal (None: nothing traced)."""
+def plot_signals(result: Result, units: Mapping[str, str] | None = None,
+                 length: str | None = None) -> Figure | None:
+    """Every robot's traced signals over time, one panel per signal (None: nothing traced).
+
+    Parameters
+    ----------
+    result : Result
+    units : mapping, optional
+        The signals' declared units (the planner's ``signal_units``; see
+        :mod:`hybridnav.plotting.labels`).
+    length : str, optional
+        The scenario's length unit.
+    """
+    units = dict(units or {})
     traces = extras_of(result, "signals")
     keys = sorted({k for rec in traces.values() for k in rec if k != "t"})
     if not keys:
@@ -72,9 +85,9 @@ def plot_signals(result: Result) -> Figure | None:
         for ax, key in zip(axes, keys):
             if key in rec:
                 ax.plot(rec["t"], rec[key], label=name, linewidth=1.0)
-                ax.set_ylabel(key)
+                ax.set_ylabel(axis_label(key, units.get(key), length))
     axes[0].legend(fontsize=8)
-    axes[-1].set_xlabel("t [s]")
+    axes[-1].set_xlabel(axis_label("t", "s"))
     axes[0].set_title(f"{result.planner}: signals along the run")
     return fig
 
@@ -99,15 +112,22 @@ def plot_potential(scenario, result: Result) -> Figure | None:
         extent = tuple(float(grid[k][0]) for k in ("x0", "x1", "y0", "y1"))
         im = ax.imshow(np.log10(np.maximum(1.0 - phi, 1e-16)), origin="lower", extent=extent,
                        cmap="magma", zorder=0)
-        fig.colorbar(im, ax=ax, label="log10(1 - phi)")
+        fig.colorbar(im, ax=ax, label=axis_label("log10(1 - phi)", ""))
         plot_result(scenario, result, ax=ax)
         ax.set_title(f"{scenario.name}: harmonic potential of {r.name}")
         return fig
     return None
 
 
-def plot_gain_search(result: Result) -> Figure | None:
-    """Best fitness per generation of an offline gain search, per robot."""
+def plot_gain_search(result: Result, length: str | None = None) -> Figure | None:
+    """Best fitness per generation of an offline gain search, per robot.
+
+    Parameters
+    ----------
+    result : Result
+    length : str, optional
+        The scenario's length unit (the fitness is a penalized path length).
+    """
     logs = extras_of(result, "swarm_best")
     if not logs:
         return None
@@ -116,7 +136,7 @@ def plot_gain_search(result: Result) -> Figure | None:
     for name, log in logs.items():
         ax.plot(log["iteration"], log["best"], marker="o", label=name)
     ax.set_xlabel("generation")
-    ax.set_ylabel("best fitness (path length, penalized)")
+    ax.set_ylabel(axis_label("best fitness: path length + penalties", LENGTH, length))
     ax.set_title("pseudo-bacterial gain search")
     ax.legend(fontsize=8)
     return fig
@@ -146,18 +166,18 @@ def plot_planned(scenario, result: Result) -> Figure | None:
         if r.name in seeds:
             pts = np.column_stack([seeds[r.name]["x"], seeds[r.name]["y"]])
             ax.plot(*pts.T, ":", color="0.3", linewidth=1.0, zorder=6,
-                    label=f"{r.name}: RFD seed, length {path_length(pts):.4g}")
+                    label=f"{r.name}: RFD seed, length {path_length(pts):.4g} {scenario.units}")
         if r.name in rfd:
             pts = np.column_stack([rfd[r.name]["x"], rfd[r.name]["y"]])
             ax.plot(*pts.T, "-", color="tab:cyan", linewidth=0.9, zorder=6, alpha=0.8,
-                    label=f"{r.name}: RFD path, length {path_length(pts):.4g}")
+                    label=f"{r.name}: RFD path, length {path_length(pts):.4g} {scenario.units}")
         plan = plans.get(r.name)
         if plan is not None and len(plan["x"]):
             pts = np.column_stack([plan["x"], plan["y"]])
             ax.plot(*pts.T, "--", color=col, marker=".", markersize=5, linewidth=1.2, zorder=9,
-                    label=f"{r.name}: planned, length {path_length(pts):.4g} "
+                    label=f"{r.name}: planned, length {path_length(pts):.4g} {scenario.units} "
                           f"({r.metrics.get('planning_time', 0.0):.2g} s)")
-    ax.legend(loc="upper left", fontsize=7)
+    legend_outside(ax, fontsize=7)
     ax.set_title(f"{scenario.name}: {result.planner}, planned (dashed) and travelled paths")
     if opts:
         bx = axes[1]
@@ -166,7 +186,7 @@ def plot_planned(scenario, result: Result) -> Figure | None:
                 bx.plot(opts[r.name]["iteration"], opts[r.name]["best"], color=f"C{i % 10}",
                         label=r.name)
         bx.set_xlabel("iteration")
-        bx.set_ylabel("best cost (length + penalties)")
+        bx.set_ylabel(axis_label("best cost: length + penalties", LENGTH, scenario.units))
         best = np.concatenate([o["best"] for o in opts.values()])
         if best.size and best.max() > 10 * best.min() > 0:     # penalties dominate the start
             bx.set_yscale("log")
@@ -175,8 +195,15 @@ def plot_planned(scenario, result: Result) -> Figure | None:
     return fig
 
 
-def plot_steps(result: Result) -> Figure | None:
-    """The cost of the current step and the controller's velocity, per control cycle."""
+def plot_steps(result: Result, length: str | None = None) -> Figure | None:
+    """The cost of the current step and the controller's velocity, per control cycle.
+
+    Parameters
+    ----------
+    result : Result
+    length : str, optional
+        The scenario's length unit (of the velocity).
+    """
     tables = extras_of(result, "steps")
     if not tables:
         return None
@@ -186,17 +213,18 @@ def plot_steps(result: Result) -> Figure | None:
         axes[0].plot(tab["t"], tab["cost"], linewidth=1.0, label=name)
         axes[1].plot(tab["t"], tab["xdot"], linewidth=1.0, label=name)
         axes[2].plot(tab["t"], tab["ydot"], linewidth=1.0, label=name)
-    axes[0].set_ylabel("step cost f")
-    axes[1].set_ylabel("xdot")
-    axes[2].set_ylabel("ydot")
-    axes[2].set_xlabel("t [s]")
+    axes[0].set_ylabel("step cost f: the planner's objective")
+    axes[1].set_ylabel(axis_label("xdot", "length/s", length))
+    axes[2].set_ylabel(axis_label("ydot", "length/s", length))
+    axes[2].set_xlabel(axis_label("t", "s"))
     axes[0].legend(fontsize=8)
     axes[0].set_title(f"{result.planner}: cost of the current step and controller signals")
     return fig
 
 
-def plot_waypoints(scenario, result: Result) -> Figure:
-    """The run with every step's waypoint marked.
+def plot_waypoints(scenario, result: Result) -> Figure | None:
+    """The run with every step's waypoint marked (None when no robot planned a step: the
+    figure would be ``path.png`` again).
 
     Parameters
     ----------
@@ -205,12 +233,14 @@ def plot_waypoints(scenario, result: Result) -> Figure:
     result : Result
         The run, with the extras the figure reads (see the module docstring).
     """
+    steps = {name: pts for name, pts in extras_of(result, "waypoints").items() if len(pts["x"])}
+    if not steps:
+        return None
     fig = plot_result(scenario, result)
     ax = fig.axes[0]
-    for name, pts in extras_of(result, "waypoints").items():
-        if len(pts["x"]):
-            ax.plot(pts["x"], pts["y"], "x", markersize=6, label=f"{name} steps")
-    ax.legend(fontsize=7, loc="best")
+    for name, pts in steps.items():
+        ax.plot(pts["x"], pts["y"], "x", markersize=6, label=f"{name}: waypoints ({len(pts['x'])})")
+    legend_outside(ax, fontsize=7)
     return fig
 
 
@@ -243,7 +273,7 @@ def plot_pso_ba(scenario, result: Result) -> Figure | None:
             if sel.any():
                 ax.plot(tr["x"][sel], tr["y"][sel], mk, color=col, markersize=4, zorder=9,
                         markerfacecolor="none", label=f"{name}: {label} ({int(sel.sum())})")
-    ax.legend(loc="upper left", fontsize=7)
+    legend_outside(ax, fontsize=7)
     axes = right.subplots(2, 1, sharex=True)
     for i, (name, tr) in enumerate(traces.items()):
         sel = np.isin(tr["mode"], ("goal", "repaired"))
@@ -257,8 +287,8 @@ def plot_pso_ba(scenario, result: Result) -> Figure | None:
                      label=f"{name}: gamma")
     axes[0].set_ylabel("fitness of the path point (eq. 6)")
     axes[0].legend(fontsize=7)
-    axes[1].set_ylabel("PSO-tuned bat parameters")
-    axes[1].set_xlabel("t [s]")
+    axes[1].set_ylabel(axis_label("PSO-tuned bat parameters", ""))
+    axes[1].set_xlabel(axis_label("t", "s"))
     axes[1].legend(fontsize=7)
     axes[0].set_title("PSO-BA searches")
     return fig

@@ -19,12 +19,13 @@ from matplotlib.patches import Polygon as PolygonPatch
 from matplotlib.patches import Rectangle as RectanglePatch
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_path
+from hybridnav.plotting.labels import LENGTH, axis_label
+from hybridnav.plotting.output import DEFAULT_DPI, save_figure
 from hybridnav.params import short_repr
 from hybridnav.world import Circle, MovingCircle, Polygon, Rectangle, Scenario, Segment
 
-__all__ = ["Trace", "draw_moving_obstacles", "draw_scenario", "plot_result", "plot_traces",
-           "save_figure", "save_scenario_png"]
+__all__ = ["Trace", "draw_moving_obstacles", "draw_scenario", "legend_outside", "mark_outcome",
+           "plot_result", "plot_traces", "save_figure", "save_scenario_png"]
 
 log = logging.getLogger(__name__)
 
@@ -111,8 +112,8 @@ def draw_scenario(scenario: Scenario, ax: Axes | None = None, t: float = 0.0, sh
     ax.set_xlim(xmin - pad, xmax + pad)
     ax.set_ylim(ymin - pad, ymax + pad)
     ax.set_aspect("equal")
-    ax.set_xlabel(f"x [{scenario.units}]")
-    ax.set_ylabel(f"y [{scenario.units}]")
+    ax.set_xlabel(axis_label("x", LENGTH, scenario.units))
+    ax.set_ylabel(axis_label("y", LENGTH, scenario.units))
     title = scenario.name if t == 0.0 else f"{scenario.name} (t = {t:g} s)"
     ax.set_title(title)
     return ax
@@ -157,32 +158,10 @@ def draw_moving_obstacles(scenario: Scenario, ax: Axes, t: float = 0.0) -> list[
     return added
 
 
-def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 120,
-                bbox_inches: str | None = "tight") -> Path:
-    """Write a figure to ``path`` atomically (format from the suffix); returns the path.
-
-    Parameters
-    ----------
-    fig : matplotlib.figure.Figure
-    path : str or path-like
-    dpi : int
-    bbox_inches : str or None
-        As for :meth:`matplotlib.figure.Figure.savefig`.
-    """
-    path = Path(path)
-    formats = FigureCanvasAgg.get_supported_filetypes()
-    suffix = path.suffix.lower().lstrip(".")
-    if suffix not in formats:
-        raise HybridnavError(f"{path}: expected a picture file name ending in one of "
-                             f"{', '.join('.' + f for f in sorted(formats))}, got "
-                             f"{'.' + suffix if suffix else 'no suffix'}")
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches=bbox_inches)
-    return path
-
-
-def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float = 0.0, dpi: int = 120) -> Path:
-    """Draw a scenario and write it to a PNG file atomically.
+def save_scenario_png(scenario: Scenario, path: str | os.PathLike[str], t: float = 0.0,
+                      dpi: int = DEFAULT_DPI) -> Path:
+    """Draw a scenario and write it to a picture file atomically (PNG, or the format of the
+    suffix: see :func:`~hybridnav.plotting.output.save_figure`).
 
     Parameters
     ----------
@@ -218,6 +197,63 @@ _OUTCOME_MARK = {"reached": ("*", "green"), "collided": ("X", "red"),
                  "timeout": ("D", "gray")}
 
 
+def mark_outcome(ax: Axes, point, outcome: str, labelled: set[str] | None = None,
+                 markersize: float = 11) -> None:
+    """Mark where a run ended with its outcome's marker (reached: green star, collided: red X,
+    out of bounds: purple X, stuck: orange square, timeout: grey diamond).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    point : (float, float)
+        The end of the run.
+    outcome : str
+    labelled : set of str, optional
+        Outcomes that already have a legend entry; the first marker of each outcome gets one
+        (``"end: <outcome>"``) and is added. None: no legend entry.
+    markersize : float
+    """
+    mark, mcol = _OUTCOME_MARK.get(outcome, ("o", "black"))
+    label = None
+    if labelled is not None and outcome not in labelled:
+        labelled.add(outcome)
+        label = f"end: {outcome}"
+    ax.plot(*point, linestyle="none", marker=mark, color=mcol, markersize=markersize,
+            markeredgecolor="black", zorder=8, label=label)
+
+
+def legend_outside(ax: Axes, fontsize: float = 8, ncols: int = 2, handles=None):
+    """The axes' legend below it (it covers no data; constrained layout makes room); None when
+    nothing is labelled.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    fontsize : float
+    ncols : int
+    handles : list of artists, optional
+        Stand-ins for drawn artists, each with the label of the artist it stands for (default:
+        the axes' labelled artists).
+    """
+    from matplotlib.transforms import offset_copy
+
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    else:
+        labels = [h.get_label() for h in handles]
+    # the outcome markers (mark_outcome) after what they end
+    order = sorted(range(len(labels)), key=lambda i: labels[i].startswith("end: "))
+    handles, labels = [handles[i] for i in order], [labels[i] for i in order]
+    if not handles:
+        return None
+    # anchored a fixed distance below the axes: under the tick labels and the x label
+    below = offset_copy(ax.transAxes, fig=ax.figure, y=-3.4 * ax.xaxis.label.get_size(),
+                        units="points")
+    return ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                     bbox_transform=below, fontsize=fontsize, ncols=min(ncols, len(handles)),
+                     frameon=False)
+
+
 @dataclass(frozen=True)
 class Trace:
     """One robot's run as :func:`plot_traces` draws it: its ``xy`` path ``(n, 2)``, outcome,
@@ -232,7 +268,8 @@ class Trace:
 
 
 def plot_traces(scenario: Scenario, traces, ax: Axes | None = None) -> Figure:
-    """The scenario with every robot's path, its final footprint and outcome marker.
+    """The scenario with every robot's path, its final footprint and outcome marker, and a
+    legend below the map (paths with their lengths, the outcome markers drawn).
 
     Moving obstacles are drawn where they are at the end of the longest run.
 
@@ -252,6 +289,7 @@ def plot_traces(scenario: Scenario, traces, ax: Axes | None = None) -> Figure:
         fig = ax.figure
     draw_scenario(scenario, ax=ax, t=t_end)
     models = {r.name: scenario.model(r, jit=False) for r in scenario.robots}
+    labelled: set[str] = set()
     for i, rr in enumerate(traces):
         col = f"C{i % 10}"
         xy = rr.xy
@@ -263,10 +301,8 @@ def plot_traces(scenario: Scenario, traces, ax: Axes | None = None) -> Figure:
             for c, rad in zip(centers[0], radii):
                 ax.add_patch(CirclePatch(c, rad, fill=False, edgecolor=col, linewidth=1.0,
                                          zorder=7))
-        mark, mcol = _OUTCOME_MARK.get(rr.outcome, ("o", "black"))
-        ax.plot(*xy[-1], marker=mark, color=mcol, markersize=11, markeredgecolor="black",
-                zorder=8)
-    ax.legend(loc="upper left", fontsize=8)
+        mark_outcome(ax, xy[-1], rr.outcome, labelled)
+    legend_outside(ax)
     return fig
 
 

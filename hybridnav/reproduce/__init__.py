@@ -33,8 +33,8 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
               workers: int = 1, dask: str | Any | None = None,
               progress: Callable[[int, int], None] | None = None,
               scenarios: Sequence[str] | None = None, layouts: int | None = None,
-              phase: Callable[[str], None] | None = None
-              ) -> dict[str, Any]:
+              phase: Callable[[str], None] | None = None, fmt: str = "png",
+              dpi: int = 120) -> dict[str, Any]:
     """Run protocol ``name`` and write its report into ``out``.
 
     Parameters
@@ -66,6 +66,11 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     phase : callable, optional
         ``phase(message)`` as each phase after the runs starts (tables and figures, the
         report; for ``effc-ga``, as its experiment names them).
+    fmt : str
+        The figures' format: ``png``, ``pdf`` or ``svg`` (their names, and the report's links,
+        carry it).
+    dpi : int
+        The figures' resolution in dots per inch.
 
     Returns
     -------
@@ -83,9 +88,12 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
 
     from hybridnav.reproduce.tuning import EXPERIMENTS, run_experiment
 
+    from hybridnav.params import check_dpi, check_figure_format
+
     if name not in PROTOCOLS and name not in EXPERIMENTS:
         raise HybridnavError(f"reproduce: unknown protocol {name!r}; expected one of: "
                              + ", ".join(sorted([*PROTOCOLS, *EXPERIMENTS])))
+    figures = {"fmt": check_figure_format(fmt, "fmt"), "dpi": check_dpi(dpi)}
     if name in EXPERIMENTS:
         if scenarios:
             raise HybridnavError(f"reproduce {name}: --scenarios: this target tunes before it "
@@ -97,7 +105,7 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
             check_count("--runs", runs, 1)
         with locked_folder(out, f"reproduce {name}"):
             return run_experiment(name, out, runs=runs, seed=seed, workers=workers, dask=dask,
-                                  progress=progress, phase=phase)
+                                  progress=progress, phase=phase, **figures)
     protocol = PROTOCOLS[name]
     if scenarios:
         known = [row.scenario for row in protocol.rows]
@@ -113,13 +121,13 @@ def reproduce(name: str, out: str | Path, *, runs: int | None = None, seed: int 
     scenarios = [row.scenario for row in protocol.rows]
     with locked_folder(out, f"reproduce {name}"):       # one job writes a folder at a time
         return _reproduce(name, protocol, specs, scenarios, int(n), Path(out), seed, workers,
-                          dask, progress, int(layouts), phase or (lambda msg: None))
+                          dask, progress, int(layouts), phase or (lambda msg: None), figures)
 
 
 
 
 def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, progress, layouts,
-               say):
+               say, figures=None):
     from hybridnav.experiments.compare import compare, write_comparison
     from hybridnav.fileio import atomic_write_text
     from hybridnav.reproduce.layouts import layout_sensitivity
@@ -148,7 +156,7 @@ def _reproduce(name, protocol, specs, scenarios, n, out, seed, workers, dask, pr
                 "elapsed_s": round(elapsed, 1), "load": load_average(), "layouts": layouts,
                 "layout_runs": layout_runs}
     say("tables and figures")
-    files = write_comparison(out, table, summary, settings=settings)
+    files = write_comparison(out, table, summary, settings=settings, **(figures or {}))
     if not verdicts.empty:
         atomic_write_text(out / "layouts.csv", verdicts.to_csv(index=False))
         atomic_write_text(out / "layouts_summary.csv", lsummary.to_csv(index=False))

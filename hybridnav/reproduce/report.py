@@ -38,6 +38,7 @@ import pandas as pd
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text
+from hybridnav.params import FIGURE_FORMATS
 from hybridnav.reproduce.protocols import JITTER, Claim, Protocol, Row, Value
 from hybridnav.reproduce.variants import label_for, levels
 
@@ -904,7 +905,8 @@ def write_report(path: Path, protocol: Protocol, summary: pd.DataFrame,
                                  profiles=has_profiles(protocol))
     lines += variants_section(protocol, summary)
     lines += literature_line(protocol)
-    figures = sorted(f for f in files if f.endswith(".png"))   # the same order however found
+    # the same order however found; in the format they were written in (--format)
+    figures = sorted(f for f in files if f.rpartition(".")[2] in FIGURE_FORMATS)
     if figures:
         lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
     atomic_write_text(path, "\n".join(lines))

@@ -147,7 +147,8 @@ def _worlds(experiment: Experiment, seed: int) -> dict[str, list]:
 def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed: int = 0,
                    workers: int = 1, dask: Any = None,
                    progress: Callable[[int, int], None] | None = None,
-                   phase: Callable[[str], None] | None = None) -> dict[str, Any]:
+                   phase: Callable[[str], None] | None = None, fmt: str = "png",
+                   dpi: int = 120) -> dict[str, Any]:
     """Tune in every profile with ``runs`` seeds, judge every system, write ``report.md``.
 
     Parameters
@@ -165,6 +166,8 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
     phase : callable, optional
         ``phase(message)`` as each phase after the GA runs starts (judging every system on
         each world set, the report).
+    fmt, dpi
+        The GA runs' figures: format (``png``, ``pdf``, ``svg``) and dots per inch.
 
     Returns
     -------
@@ -193,7 +196,7 @@ def run_experiment(name: str, out: str | Path, *, runs: int | None = None, seed:
         for k in range(int(n)):
             job = _job(experiment, profile, seed + k, workers, dask)
             folder = out / "tuning" / f"{profile}-seed{seed + k}"
-            run_job(job, folder, force=True)
+            run_job(job, folder, force=True, fmt=fmt, dpi=dpi)
             tuned[f"{profile}/seed{seed + k}"] = load_any(str(folder / "fis.json"))
             done += 1
             if progress is not None:

@@ -7,7 +7,8 @@ training environment), ``validation.csv`` (every validated candidate per validat
 ``heldout.csv`` (start, tuned and ``apf`` on every validation and test world) and
 ``heldout_summary.csv``, ``generations.json`` (the best system of each generation, what
 ``hybridnav animate DIR`` drives), ``convergence.png`` (training and validation curves), ``mfs.png``
-(start and tuned), ``surface.png``, ``coverage.png`` (where no rule fires), ``paths.png``,
+(start and tuned), ``surface.png``, ``coverage.png`` (where no rule fires), ``paths.png`` (the
+figures in PDF or SVG instead with ``fmt``),
 ``report.md`` with the verdict, and the deployment exports: ``fis.fll`` (fuzzylite),
 ``fis.fis`` (MATLAB), ``fis.fcl`` (IEC 61131-7) and ``effc.h``/``effc.c`` (standalone C, the names
 the README's ``main.c`` includes and calls: ``effc_evaluate``, ``EFFC_IN_DTHETA``, ...).
@@ -32,7 +33,10 @@ from matplotlib.ticker import MaxNLocator
 from hybridnav.backends import Backend, SerialBackend, make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, clean_temporaries, locked_folder
-from hybridnav.plotting import Trace, plot_traces, save_figure
+from hybridnav.params import DEFAULT_DPI, FIGURE_FORMATS
+from hybridnav.plotting import Trace, check_dpi, check_format, figure_name, plot_traces, save_figure
+from hybridnav.plotting.labels import axis_label
+from hybridnav.plotting.scenes import legend_outside
 from hybridnav.tuner.core import tune
 from hybridnav.tuner.costs import NavigationCost
 from hybridnav.tuner.heldout import summarize
@@ -41,8 +45,8 @@ from hybridnav.tuner.result import TuningResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job", "write_generations",
-           "write_outputs"]
+__all__ = ["FIGURES", "OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job",
+           "write_generations", "write_outputs"]
 
 #: File name stem of the C export a tuning job writes (effc.h, effc.c; functions effc_*)
 C_BASENAME = "effc"
@@ -52,14 +56,15 @@ C_BASENAME = "effc"
 #: (``front/`` of a multi-objective run, ``learning/`` of a two-stage run, ``falsified/``, the
 #: robust rounds' ``robust-<r>/``). ``--force`` removes exactly these; a test checks that a run
 #: writes nothing else.
+#: the figures of a run, each in the format chosen (``--format``: png, pdf or svg)
+FIGURES = ("convergence", "coverage", "front", "mfs", "paths", "surface")
 OUTPUT_FILES = ("checkpoint.json", "evaluations.jsonl", "evaluations.csv", "logbook.csv",
                 "result.json", "start.json", "report.md", "fis.json", "fis.fll", "fis.fis",
                 "fis.fcl", f"{C_BASENAME}.c", f"{C_BASENAME}.h", f"{C_BASENAME}_safety.c",
                 f"{C_BASENAME}_safety.h", "deployment.json", "generations.json", "pareto.csv",
                 "validation.csv",
                 "heldout.csv", "heldout_summary.csv", "falsified.csv", "falsification.csv",
-                "convergence.png", "coverage.png", "front.png", "mfs.png", "paths.png",
-                "surface.png")
+                *(f"{stem}.{fmt}" for stem in FIGURES for fmt in FIGURE_FORMATS))
 OUTPUT_FOLDERS = ("falsified", "front", "learning", "robust-*")
 #: what a run writes inside those folders (a file of another name is the user's and stays)
 _FOLDER_FILES = re.compile(r"^(falsified-\d+\.toml|member_\d+\.json)$")
@@ -109,7 +114,8 @@ def clear_outputs(out: str | Path) -> list[Path]:
 def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = False,
             progress: Callable[[dict[str, Any]], None] | None = None,
             dask_client: Any = None, stop_after: int | None = None,
-            phase: Callable[[str], None] | None = None) -> TuningResult:
+            phase: Callable[[str], None] | None = None, fmt: str = "png",
+            dpi: int = DEFAULT_DPI) -> TuningResult:
     """Run ``job`` on its backend and write every output into ``out``.
 
     The job's objects (:meth:`Job.tunable`, :meth:`Job.cost`, :meth:`Job.optimizer`) go to
@@ -137,6 +143,10 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = Fa
     phase : callable, optional
         ``phase(message)`` as each phase after the optimizer starts (falsification, figures,
         exports, the C check, the report).
+    fmt : str
+        The figures' format: ``png``, ``pdf`` or ``svg`` (their names carry it).
+    dpi : int
+        The figures' resolution in dots per inch.
 
     Raises
     ------
@@ -147,6 +157,7 @@ locked_folder`); ``out`` cannot be written.
     """
     if resume and force:
         raise HybridnavError(f"{out}: expected --resume or --force, not both")
+    figures = {"fmt": check_format(fmt, "fmt"), "dpi": check_dpi(dpi)}
     with locked_folder(out, f"tune {job.name}"):
         out = Path(out)
         if resume:
@@ -159,11 +170,11 @@ locked_folder`); ``out`` cannot be written.
                     "over and removes its outputs, or choose another --out")
         if force:
             clear_outputs(out)
-        return _run_job(job, out, resume, progress, dask_client, stop_after, phase)
+        return _run_job(job, out, resume, progress, dask_client, stop_after, phase, figures)
 
 
 def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
-             stop_after: int | None, phase=None) -> TuningResult:
+             stop_after: int | None, phase=None, figures=None) -> TuningResult:
     be = job["backend"]
     with make_backend(be["workers"], dask_client or be["dask"]) as backend:
         kw = job.tune_kwargs()
@@ -193,13 +204,15 @@ def _run_job(job: Job, out: Path, resume: bool, progress, dask_client,
                                        progress, resume, stop_after)
         if not result.finished or (job["learning"]["max_rules"] and result.learning is None):
             return result
-        result.files = write_outputs(job, result, out, backend=backend, phase=phase)
+        result.files = write_outputs(job, result, out, backend=backend, phase=phase,
+                                     **(figures or {}))
     return result
 
 
 def write_outputs(job: Job, result: TuningResult, out: Path,
                   backend: Backend | None = None,
-                  phase: Callable[[str], None] | None = None) -> list[str]:
+                  phase: Callable[[str], None] | None = None, fmt: str = "png",
+                  dpi: int = DEFAULT_DPI) -> list[str]:
     """Write the result (:meth:`TuningResult.save`), its plots, the deployment exports and
     ``report.md``; for a navigation job also the held-out summary, the falsification search,
     the coverage and path figures and the software-in-the-loop check of the C export.
@@ -216,9 +229,20 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         (default: this process).
     phase : callable, optional
         ``phase(message)`` as each phase starts.
+    fmt : str
+        The figures' format: ``png``, ``pdf`` or ``svg``.
+    dpi : int
+        The figures' resolution in dots per inch.
     """
     say = phase or (lambda msg: None)
     from hybridnav.fuzzy import plots
+
+    fmt, dpi = check_format(fmt, "fmt"), check_dpi(dpi)
+
+    def save(fig, stem: str, **kw) -> str:
+        name = figure_name(stem, fmt)
+        save_figure(fig, out / name, dpi=dpi, **kw)
+        return name
 
     backend = backend or SerialBackend()
     out = Path(out)
@@ -236,21 +260,18 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     say("writing the tuned system, tables and figures")
     files = result.save(out)
     start = result.start
-    save_figure(_convergence(result), out / "convergence.png")
+    files.append(save(_convergence(result), "convergence"))
     fig = Figure(figsize=(11, 7), layout="constrained")
     left, right = fig.subfigures(1, 2)
     plots.plot_memberships(start, fig=left)
     left.suptitle(f"start: {start.name}")
     plots.plot_memberships(result.system, fig=right)
     right.suptitle(f"tuned: {result.system.name}")
-    save_figure(fig, out / "mfs.png")
-    files += ["convergence.png", "mfs.png"]
+    files.append(save(fig, "mfs"))
     if len(start.inputs) == 2:
-        plots.save_surface_png(result.system, out / "surface.png")
-        files.append("surface.png")
+        files.append(save(plots.plot_surface(result.system), "surface", bbox_inches=None))
     if len(result.objective_names) > 1:
-        save_figure(_front(result), out / "front.png")
-        files.append("front.png")
+        files.append(save(_front(result), "front"))
     summary, unc = None, None
     if nav:
         cost = job.cost("train")
@@ -265,11 +286,10 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         if falsified is not None:
             files += falsified["files"]
         if len(start.inputs) == 2:          # a map over the two inputs
-            save_figure(_coverage(job, {"start": start, "tuned": result.system}, unc),
-                        out / "coverage.png")
-            files.append("coverage.png")
+            files.append(save(_coverage(job, {"start": start, "tuned": result.system}, unc),
+                              "coverage"))
         say("path figure: start, tuned and apf on the paper's and some test worlds")
-        files += _paths(job, result, out, backend)
+        files += _paths(job, result, out, backend, save)
         files += write_generations(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     say("exports (FLL, FIS, FCL, C)")
@@ -286,7 +306,7 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         say("software-in-the-loop check: the exported C compiled and run against evaluate")
         sil = _sil_lines(job, result.system, out)
     atomic_write_text(out / "report.md", _report(job, result, summary, unc, files, falsified,
-                                                 sil))
+                                                 sil, fmt))
     files.append("report.md")
     return files
 
@@ -341,8 +361,8 @@ def _path_run(planner: str, params: dict[str, Any], scenario):
     return planners.get(planner, **params).run(scenario)
 
 
-def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = None
-           ) -> list[str]:
+def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = None,
+           save: Callable[..., str] | None = None) -> list[str]:
     """Start, tuned and ``apf`` on the paper's worlds, on every test world where the tuned
     system fails, and on a few more generated test worlds: lockstep batches, the simulation
     the held-out tables come from (worlds it cannot batch: planner runs on ``backend``)."""
@@ -362,8 +382,16 @@ def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = 
               if generated(s) and s.name not in failed][:max(0, 4 - len(failed))]
     if not shown:
         return []
-    fig = Figure(figsize=(12.5, 4.0 * len(shown)), layout="constrained")
-    axes = fig.subplots(len(shown), 3, squeeze=False)
+    # one world per row of three panels (start, tuned, apf); two worlds per row past four, so
+    # that the figure stays near a page's proportions (not a strip many times taller than wide)
+    per_row = 1 if len(shown) <= 4 else 2
+    rows = -(-len(shown) // per_row)
+    fig = Figure(figsize=(3.3 * 3 * per_row, 3.9 * rows), layout="constrained")
+    grid = fig.subplots(rows, 3 * per_row, squeeze=False)
+    axes = np.array([grid[k // per_row, 3 * (k % per_row):3 * (k % per_row) + 3]
+                     for k in range(len(shown))]).reshape(len(shown), 3)
+    for ax in grid.ravel()[len(shown) * 3:] if len(shown) % per_row else ():
+        ax.set_visible(False)
     from hybridnav.tuner.heldout import baseline
 
     settings = dict(job["planner"])
@@ -381,10 +409,13 @@ def _paths(job: Job, result: TuningResult, out: Path, backend: Backend | None = 
         for col, (label, planner, params) in enumerate(runs):
             tr = traces[row * len(runs) + col]
             plot_traces(s, tr, ax=axes[row, col])
+            legend_outside(axes[row, col], fontsize=7, ncols=1)
             outcome = tr[0].outcome if tr else "-"
-            axes[row, col].set_title(f"{s.name} ({kind}): {label}, {outcome}", fontsize=9)
-    save_figure(fig, out / "paths.png", bbox_inches=None)     # constrained layout fits it
-    return ["paths.png"]
+            axes[row, col].set_title(f"{s.name} ({kind}):\n{label}, {outcome}", fontsize=8)
+    if save is None:
+        save_figure(fig, out / "paths.png", bbox_inches=None)     # constrained layout fits it
+        return ["paths.png"]
+    return [save(fig, "paths", bbox_inches=None)]
 
 
 def _lockstep_traces(scen: list, runs) -> list | None:
@@ -511,25 +542,33 @@ def _exports(system, out: Path, c_name: str = C_BASENAME) -> list[str]:
 
 
 def _convergence(result: TuningResult) -> Figure:
+    """Training and validation curves; the legend (below the plot) says what each score is
+    and why the validation curves sit above the training ones."""
     df = result.logbook
-    fig = Figure(figsize=(6.8, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.8, 5.2), layout="constrained")
     ax = fig.add_subplot()
     x = np.arange(len(df)) if "stage" in df else df["gen"]
-    ax.plot(x, df["min"], marker="o", markersize=3, label="training: best")
-    ax.plot(x, df["mean"], linewidth=0.8, label="training: mean")
+    ax.plot(x, df["min"], marker="o", markersize=3,
+            label="training: the generation's best, on the training worlds")
+    ax.plot(x, df["mean"], linewidth=0.8, label="training: the generation's mean")
     if "val_gen" in df:
         ax.plot(x, df["val_gen"], marker="s", markersize=3,
-                label="validation: best of generation")
-        ax.plot(x, df["val_best"], linestyle="--", label="validation: best so far")
+                label="validation: the generation's best candidates re-scored on the "
+                      "validation worlds")
+        ax.plot(x, df["val_best"], linestyle="--",
+                label="validation: best so far on the validation worlds (not trained on, "
+                      "hence above the training scores)")
         if "stage" not in df:
-            ax.axvline(result.best_generation, color="0.5", linewidth=0.8)
+            ax.axvline(result.best_generation, color="0.5", linewidth=0.8,
+                       label=f"generation {result.best_generation}: the returned system "
+                             "(best on validation)")
     if (df["min"] > 0).all():
         ax.set_yscale("log")
     ax.set_xlabel("generation" + (" (all k-fold stages)" if "stage" in df else ""))
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))      # generations are whole
-    ax.set_ylabel(f"{result.objective_names[0]} (minimized)")
+    ax.set_ylabel(f"{result.objective_names[0]}, minimized")
     ax.set_title(f"{result.system.name}: training and validation")
-    ax.legend(fontsize=8)
+    legend_outside(ax, fontsize=7, ncols=1)
     return fig
 
 
@@ -556,8 +595,8 @@ def _front(result: TuningResult) -> Figure:
                    edgecolors="red", linestyles="--", linewidths=1.2,
                    label="returned, on validation")
     inf = int((~np.isfinite(f[["objective_0", "objective_1"]].to_numpy())).any(axis=1).sum())
-    ax.set_xlabel(f"{names[0]} (minimized)")
-    ax.set_ylabel(f"{names[1]} (minimized)")
+    ax.set_xlabel(f"{names[0]}, minimized")
+    ax.set_ylabel(f"{names[1]}, minimized")
     ax.set_title(f"Pareto front: {len(f)} members"
                  + (f" ({inf} with an infinite objective not drawn)" if inf else ""))
     ax.legend(fontsize=8)
@@ -581,8 +620,11 @@ def _coverage(job: Job, systems: dict[str, Any], unc: np.ndarray) -> Figure:
                           {a.name: A.ravel(), b.name: B.ravel()}).reshape(A.shape)
         ax.pcolormesh(xa, xb, (~fired).T.astype(float), cmap="Reds", vmin=0, vmax=1.5,
                       shading="nearest")
-        ax.set_xlabel(a.name)
-        ax.set_ylabel(b.name)
+        from hybridnav.planners import fuzzy_units
+
+        units = fuzzy_units(system)
+        ax.set_xlabel(axis_label(a.name, units.get(a.name)))
+        ax.set_ylabel(axis_label(b.name, units.get(b.name)))
         ax.set_title(f"{label}: no rule fires on {100 * u:.1f} %", fontsize=9)
     fig.suptitle("coverage (red: the output is the default)")
     return fig
@@ -631,7 +673,7 @@ def _sil_lines(job: Job, system, out: Path) -> list[str]:
 
 def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
             unc: np.ndarray | None, files: list[str], falsified: dict[str, Any] | None = None,
-            sil: list[str] | None = None) -> str:
+            sil: list[str] | None = None, fmt: str = "png") -> str:
     nav = job["cost"]["kind"] == "navigation"
     opt = result.optimizer
     size = opt.get("population", opt.get("n", opt.get("lambda_")))
@@ -676,7 +718,8 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
     if len(result.objective_names) > 1:
         f = result.front
         lines += [f"Several objectives ({', '.join(result.objective_names)}): the Pareto front "
-                  f"has {len(f)} members (`pareto.csv`, `front.png`, `front/member_<i>.json`); "
+                  f"has {len(f)} members (`pareto.csv`, `{figure_name('front', fmt)}`, "
+                  "`front/member_<i>.json`); "
                   "`fis.json` is the member select_member picked: "
                   + ("the fewest of the first objective on **validation** among the members "
                      "validation calls feasible, then the second objective."
@@ -769,7 +812,8 @@ def _report(job: Job, result: TuningResult, summary: pd.DataFrame | None,
         lines += [f"Coverage (grid {job['coverage']['grid']} per axis over the input ranges): no "
                   f"rule fires on {100 * unc[0]:.1f} % for the start, {100 * unc[1]:.1f} % for "
                   f"the tuned system (allowed: {100 * job['coverage']['max_uncovered']:.1f} %"
-                  + ("; see coverage.png)." if "coverage.png" in files else ")."), ""]
+                  + (f"; see {figure_name('coverage', fmt)})." if figure_name("coverage", fmt)
+                     in files else ")."), ""]
     if nav and summary is not None and len(summary):
         lines += ["## Start vs tuned vs apf on held-out worlds", "",
                   "Nominal runs (no noise). Length and clearance: means over the worlds every "

@@ -111,6 +111,8 @@ class APF(FieldPlanner):
     # F_att ~ xi sigma0 (a length), F_rep ~ eta / rho^3: eta scales as length^4 so that the
     # field's directions are the same at any scale
     scaled: ClassVar[dict[str, int]] = {**FieldPlanner.scaled, "sigma0": 1, "rho0": 1, "eta": 4}
+    #: |F|: the attraction xi * distance (xi a pure number) plus the repulsion, a length
+    signal_units: ClassVar[dict[str, str]] = {"force": "length"}
 
     def gains(self, state: Any, idx: np.ndarray) -> dict[str, Any]:
         """The APF gains of the robots ``idx`` (PBPF tunes them per robot)."""

@@ -55,6 +55,10 @@ class FieldPlanner(Planner):
     #: parameters whose defaults are lengths (exponent 1: speed, distances) or carry other
     #: powers of length (APF's repulsive gain: 4), scaled by ``scale ** exponent`` unless set
     scaled: ClassVar[dict[str, int]] = {"speed": 1, "safety_margin": 1}
+    #: the units of the signals the planner traces (``signals.png``'s axes): ``"rad"``, ``""``
+    #: (dimensionless), ``"length"`` (the scenario's length unit); see
+    #: :mod:`hybridnav.plotting.labels`
+    signal_units: ClassVar[dict[str, str]] = {}
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -146,7 +150,7 @@ class FieldPlanner(Planner):
         """``signals.png``: the traced signals of every robot over time."""
         from hybridnav.plotting import plot_signals
 
-        fig = plot_signals(result)
+        fig = plot_signals(result, units=self.signal_units, length=scenario.units)
         return {} if fig is None else {"signals.png": fig}
 
     def model_overrides(self, robot) -> dict[str, Any]:

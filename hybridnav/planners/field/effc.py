@@ -190,6 +190,12 @@ class EFFC(FieldPlanner):
     fuzzy_inputs: ClassVar[tuple[str, ...]] = ("dtheta", "alpha")
     #: inputs it also provides to a system that takes them (the footprint's clearance)
     optional_fuzzy_inputs: ClassVar[tuple[str, ...]] = ("clearance",)
+    #: the units of the fuzzy variables (the EFFC worlds are in metres; alpha is a ratio of two
+    #: distances, w a blend weight)
+    fuzzy_units: ClassVar[dict[str, str]] = {"dtheta": "rad", "alpha": "", "clearance": "m",
+                                             "w": ""}
+    #: the traced signals: the fuzzy inputs and w, the clearance in the scenario's unit
+    signal_units: ClassVar[dict[str, str]] = {**fuzzy_units, "clearance": "length"}
     #: many controllers on many worlds in one batch (what the tuner simulates)
     lockstep = staticmethod(effc_lockstep)
 

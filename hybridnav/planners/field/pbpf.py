@@ -85,7 +85,7 @@ class PBPF(APF):
         from hybridnav.plotting import plot_gain_search
 
         out = dict(super().diagnostics(scenario, result))
-        fig = plot_gain_search(result)
+        fig = plot_gain_search(result, length=scenario.units)
         if fig is not None:
             out["pbpf_search.png"] = fig
         return out

@@ -123,6 +123,11 @@ class FuzzySteer(FieldPlanner):
     drives: ClassVar[tuple[frozenset[str], ...]] = (frozenset({"robot", "heading_control"}),)
     #: the fuzzy inputs this planner provides (what a tuned system must take)
     fuzzy_inputs: ClassVar[tuple[str, ...]] = INPUTS
+    #: the units of the fuzzy variables (ranges capped at the sensor range in metres, angles)
+    fuzzy_units: ClassVar[dict[str, str]] = {"left": "m", "front": "m", "right": "m",
+                                             "bearing": "rad", "turn": "rad"}
+    #: the traced signals (the range in the scenario's unit)
+    signal_units: ClassVar[dict[str, str]] = {"turn": "rad", "front": "length", "bearing": "rad"}
     #: many controllers on many worlds in one batch (what the tuner simulates)
     lockstep = staticmethod(steer_lockstep)
 

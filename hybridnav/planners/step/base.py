@@ -49,7 +49,8 @@ Outputs beyond the result contract (:meth:`StepPlanner.diagnostics`, written by 
 as in the papers' cost-function graphs --, mode and the controller's ``xdot``, ``ydot``),
 ``waypoints_<robot>.csv`` (every planned step), ``candidates_<robot>.csv`` (each search's final
 candidates, what :func:`hybridnav.plotting.animate` draws around each step), ``signals.png`` (cost, ``xdot``, ``ydot`` over
-time: the papers' "convergence of the controllers") and ``waypoints.png``.
+time: the papers' "convergence of the controllers") and ``waypoints.png`` (when a robot planned a
+step; a run that drove straight to its goal has none, and ``path.png`` shows it).
 """
 
 from __future__ import annotations
@@ -412,14 +413,19 @@ class StepPlanner(Planner):
 
 
     def diagnostics(self, scenario, result: Result) -> dict[str, Any]:
-        """``signals.png`` (step cost, controller velocity) and ``waypoints.png``; the per-robot
+        """``signals.png`` (step cost, controller velocity) and ``waypoints.png`` (only when a
+        robot planned a step: else it would repeat ``path.png``); the per-robot
         ``steps_<robot>`` and ``waypoints_<robot>`` tables are the result's extras."""
         from hybridnav.plotting import plot_steps, plot_waypoints
 
-        fig = plot_steps(result)
+        fig = plot_steps(result, length=scenario.units)
         if fig is None:
             return {}
-        return {"signals.png": fig, "waypoints.png": plot_waypoints(scenario, result)}
+        out = {"signals.png": fig}
+        steps = plot_waypoints(scenario, result)
+        if steps is not None:
+            out["waypoints.png"] = steps
+        return out
 
 
 def _step_tables(sim_models, robot_results, trace) -> dict[str, dict[str, np.ndarray]]:
