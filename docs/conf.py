@@ -66,6 +66,8 @@ sphinx_gallery_conf = {
     "abort_on_example_error": True,
     "image_scrapers": ("matplotlib",),
     "reset_modules": (),
+    # no docs/sg_execution_times.rst: a build must not rewrite a file of the source tree
+    "write_computation_times": False,
 }
 
 html_theme = "pydata_sphinx_theme"

@@ -95,3 +95,22 @@ def test_bad_c_files_are_refused_with_the_file(tmp_path, monkeypatch):
     monkeypatch.setenv("CC", "/no/such/compiler")
     with pytest.raises(HybridnavError, match=r"no C compiler"):
         CompiledFIS(tmp_path / "e.c", trust=True)
+
+
+def test_an_export_with_a_huge_input_index_is_refused_by_name(tmp_path):
+    """A header edited to declare an input index past Python's int-string limit (4300 digits)
+    is not a hybridnav export: a HybridnavError naming the header, not a ValueError (found by
+    test_verify_untrusted's property test)."""
+    from hybridnav.fuzzy import builtin
+    from hybridnav.fuzzy.export.c import to_c
+    from hybridnav.fuzzy.export.sil import CompiledFIS
+
+    code = to_c(builtin("effc-5rule"), "effc")
+    header = code.header
+    (tmp_path / "effc.c").write_text(code.source)
+    for line, big in (("#define EFFC_IN_ALPHA 1", "#define EFFC_IN_ALPHA " + "9" * 4301),
+                      ("#define EFFC_N_INPUTS 2", "#define EFFC_N_INPUTS " + "9" * 4301)):
+        (tmp_path / "effc.h").write_text(header.replace(line, big))
+        with pytest.raises(HybridnavError, match=r"effc\.h: not a hybridnav C export \(inputs "
+                                                 r"not declared\)"):
+            CompiledFIS(tmp_path / "effc.c")

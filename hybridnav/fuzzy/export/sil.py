@@ -191,8 +191,8 @@ class CompiledFIS:
         p = m.group(1)
         P = p.upper()
         ins = sorted((int(k), name.lower()) for name, k in
-                     re.findall(rf"^#define {P}_IN_(\w+) (\d+)", text, re.M))
-        n = re.search(rf"^#define {P}_N_INPUTS (\d+)", text, re.M)
+                     re.findall(rf"^#define {P}_IN_(\w+) (\d{{1,6}})\b", text, re.M))
+        n = re.search(rf"^#define {P}_N_INPUTS (\d{{1,6}})\b", text, re.M)
         real = re.search(rf"^#define {P}_REAL (double|float)$", text, re.M)
         if n is None or real is None or not ins or [k for k, _ in ins] != list(
                 range(int(n.group(1)))):
