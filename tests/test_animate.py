@@ -264,6 +264,15 @@ def test_a_real_mp4(run_dir, tmp_path):
     rc, _, err = cli(run_dir, "--out", tmp_path / "run.mp4", "--max-frames", 4, "--dpi", 41)
     assert rc == 0, err
     assert (tmp_path / "run.mp4").read_bytes()[4:8] == b"ftyp"
+    if shutil.which("ffprobe"):                     # an independent reader: every frame is there
+        import subprocess
+
+        out = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0",
+                              "-show_entries", "stream=nb_read_frames,width,height", "-of",
+                              "csv=p=0", str(tmp_path / "run.mp4")], capture_output=True,
+                             text=True, timeout=60)
+        width, height, frames = (int(v) for v in out.stdout.strip().split(","))
+        assert frames == 4 and width > 100 and height > 100, out.stdout
 
 
 def test_bad_input_is_one_line_naming_the_file(run_dir, tmp_path):
