@@ -30,7 +30,7 @@ import warnings
 from typing import Any
 
 __all__ = ["MOVED_MODULES", "REMOVAL", "SINCE", "HybridnavDeprecationWarning", "RenamedAttribute",
-           "deprecated_modules", "install", "warn_renamed"]
+           "install", "warn_renamed"]
 
 #: the version that deprecated the names below, and the one that removes them
 SINCE = "0.3.0"
@@ -225,13 +225,3 @@ def install() -> None:
     """Serve the old module names (done once when :mod:`hybridnav` is imported)."""
     if _FINDER not in sys.meta_path:
         sys.meta_path.append(_FINDER)
-
-
-def deprecated_modules() -> list[str]:
-    """The old module names still served, sorted (for tools that walk the package).
-
-    Returns
-    -------
-    list of str
-    """
-    return sorted(MOVED_MODULES)

@@ -47,6 +47,7 @@ from hybridnav.world.world import World
 __all__ = [
     "OccupancyGrid",
     "connected",
+    "world_point",
     "MovingAIQuery",
     "PASSABLE",
     "BLOCKED",
@@ -575,6 +576,29 @@ def build_grid(scenario: Scenario, resolution: float | None = None, inflate: flo
     return rasterize(scenario.world, float(res), inflate=inflate)
 
 
+def world_point(name: str, P: Any) -> NDArray[np.float64]:
+    """``P`` as a finite world point ``(x, y)``, else a HybridnavError naming ``name``.
+
+    Parameters
+    ----------
+    name : str
+        What the point is (``"start"``, ``"goal"``), for the message.
+    P : array_like, shape (2,)
+
+    Returns
+    -------
+    ndarray, shape (2,)
+    """
+    try:
+        p = np.asarray(P, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise HybridnavError(f"{name}: expected a world point (x, y), got {short_repr(P)}") \
+            from None
+    if p.shape != (2,) or not np.all(np.isfinite(p)):
+        raise HybridnavError(f"{name}: expected a finite world point (x, y), got {short_repr(P)}")
+    return p
+
+
 def connected(grid: OccupancyGrid, a: ArrayLike, b: ArrayLike) -> bool:
     """Whether a grid path joins the cells of the world points ``a`` and ``b``.
 
@@ -600,18 +624,8 @@ def connected(grid: OccupancyGrid, a: ArrayLike, b: ArrayLike) -> bool:
     """
     from scipy import ndimage
 
-    points = []
-    for name, P in (("a", a), ("b", b)):
-        try:
-            p = np.asarray(P, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise HybridnavError(f"{name}: expected a world point (x, y), got {short_repr(P)}") \
-                from None
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
-            raise HybridnavError(f"{name}: expected a finite world point (x, y), got "
-                                 f"{short_repr(P)}")
-        points.append(p)
-    cells = np.floor((np.vstack(points) - np.asarray(grid.origin)) / grid.resolution)
+    points = np.vstack([world_point("a", a), world_point("b", b)])
+    cells = np.floor((points - np.asarray(grid.origin)) / grid.resolution)
     h, w = grid.shape
     if not ((cells >= 0).all() and (cells[:, 0] < w).all() and (cells[:, 1] < h).all()):
         return False                         # (before the cast: a far point fits no int)

@@ -60,7 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
-from hybridnav.world.grid import OccupancyGrid
+from hybridnav.world.grid import OccupancyGrid, world_point
 
 __all__ = ["HEURISTICS", "GridPath", "astar", "dijkstra", "path_cost", "search_world"]
 
@@ -737,12 +737,7 @@ def search_world(
     grid = _check_grid(grid)
     cells = []
     for name, P in (("start", start), ("goal", goal)):
-        try:
-            p = np.asarray(P, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise HybridnavError(f"{name}: expected a world point (x, y), got {P!r}") from None
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
-            raise HybridnavError(f"{name}: expected a finite world point (x, y), got {P!r}")
+        p = world_point(name, P)
         c = tuple(int(v) for v in grid.to_cell(p)[0])
         _check_endpoint(grid, c, name, f" (world point ({p[0]:g}, {p[1]:g}))")
         cells.append(c)
