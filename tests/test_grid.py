@@ -190,3 +190,31 @@ def test_build_grid_for_scenarios():
     assert build_grid(rfd, resolution=20.0).shape == (35, 35)
     fastep = load_scenario("fastep-s1")  # no [grid]: default resolution is 1/100 of the workspace
     assert build_grid(fastep).shape == (100, 100)
+
+
+def test_rasterize_equals_every_cell_against_every_obstacle():
+    """rasterize prunes each obstacle to the cells near its box; the grid is the one that tests
+    every cell centre against every obstacle (generated worlds with cups, corridors and gaps,
+    moving circles at a time, inflation and the border)."""
+    from hybridnav.world.generator import WorldGenerator
+    from hybridnav.world.obstacles import MovingCircle, Segment
+
+    gen = WorldGenerator(cups=(1, 1), corridors=(1, 1), gaps=(1, 1))
+    worlds = [s.world for s in gen.generate(4, seed=5)]
+    worlds.append(World((-1.0, 3.0, 0.0, 2.0), (
+        MovingCircle((0.5, 0.5), 0.3, 1.1, 0.5), Segment((2.9, -5.0), (2.9, 5.0)),
+        Circle((10.0, 10.0), 0.5))))
+    for w in worlds:
+        for res, inflate, border, t in ((0.05, 0.0, False, None), (0.13, 0.21, True, None),
+                                        (0.07, 0.1, False, 1.5)):
+            g = rasterize(w, res, inflate, t=t, border=border)
+            H, W = g.occ.shape
+            cols, rows = np.meshgrid(np.arange(W), np.arange(H))
+            P = g.to_world(np.column_stack([cols.ravel(), rows.ravel()]))
+            obs = [o for o in w.obstacles if t is not None or not isinstance(o, MovingCircle)]
+            solids = World(w.workspace, tuple(o for o in obs if not isinstance(o, Segment)))
+            walls = World(w.workspace, tuple(o for o in obs if isinstance(o, Segment)))
+            want = solids.clearance(P, t=t or 0.0) < inflate
+            want |= walls.clearance(P) < max(inflate, res / 2.0)
+            want |= w.border_clearance(P) < (inflate if border else 0.0)
+            assert np.array_equal(g.occ, want.reshape(H, W))

@@ -384,7 +384,6 @@ def _outline(shape, n: int = 96) -> np.ndarray:
 def _no_narrow_gap(shape, placed: list, size: float, gap: float) -> bool:
     """Whether ``shape`` overlaps or keeps ``gap`` from every placed obstacle and the border."""
     from hybridnav.world.obstacles import Circle
-    from hybridnav.world.world import World
 
     pts = _outline(shape)
     border = np.min(np.minimum.reduce([pts[:, 0], size - pts[:, 0], pts[:, 1],
@@ -395,9 +394,8 @@ def _no_narrow_gap(shape, placed: list, size: float, gap: float) -> bool:
         if isinstance(shape, Circle) and isinstance(other, Circle):
             d = math.dist(shape.center, other.center) - shape.radius - other.radius
         else:
-            d = min(float(np.min(World((-1e9, 1e9, -1e9, 1e9), (other,)).clearance(pts))),
-                    float(np.min(World((-1e9, 1e9, -1e9, 1e9), (shape,)).clearance(
-                        _outline(other)))))
+            d = min(float(np.min(other.clearance(pts))),
+                    float(np.min(shape.clearance(_outline(other)))))
         if 0 < d < gap:
             return False
     return True

@@ -308,15 +308,31 @@ def rasterize(
     cols, rows = np.meshgrid(np.arange(W), np.arange(H))
     grid = OccupancyGrid(np.zeros((H, W), dtype=bool), res, (xmin, ymin))
     P = grid.to_world(np.column_stack([cols.ravel(), rows.ravel()]))
-    obs = [o for o in world.obstacles if t is not None or not isinstance(o, MovingCircle)]
-    solids = World(world.workspace, tuple(o for o in obs if not isinstance(o, Segment)))
-    walls = World(world.workspace, tuple(o for o in obs if isinstance(o, Segment)))
+    obs = tuple(o for o in world.obstacles if t is not None or not isinstance(o, MovingCircle))
     tt = 0.0 if t is None else float(t)
-    blocked = solids.clearance(P, t=tt) < inflate
-    blocked |= walls.clearance(P) < max(inflate, res / 2.0)
-    bc = world.border_clearance(P)
-    blocked |= bc < (inflate if border else 0.0)
-    grid.occ = blocked.reshape(H, W)
+    blocked = (world.border_clearance(P) < (inflate if border else 0.0)).reshape(H, W)
+    if obs:
+        # obstacle by obstacle, over the cells near its box only: a cell is blocked when some
+        # obstacle is closer than its threshold, and a cell farther than the threshold from
+        # the box (plus the obstacle's pad, plus a cell of slack for rounding) cannot be
+        obs_world = World(world.workspace, obs)
+        lo, hi, pad = obs_world.boxes(tt)
+        P2 = P.reshape(H, W, 2)
+        for k, o in enumerate(obs):
+            keep = max(inflate, res / 2.0) if isinstance(o, Segment) else inflate
+            reach = keep + pad[k] + res
+            span = (-1.0, float(max(W, H) + 1))
+            c0, r0 = np.clip(np.floor((lo[k] - reach - (xmin, ymin)) / res - 0.5),
+                             *span).astype(int)
+            c1, r1 = np.clip(np.ceil((hi[k] + reach - (xmin, ymin)) / res - 0.5),
+                             *span).astype(int)
+            c0, r0, c1, r1 = max(c0, 0), max(r0, 0), min(c1, W - 1), min(r1, H - 1)
+            if c0 > c1 or r0 > r1:
+                continue
+            Q = P2[r0:r1 + 1, c0:c1 + 1].reshape(-1, 2)
+            d = World(world.workspace, (o,)).clearance(Q, t=tt)
+            blocked[r0:r1 + 1, c0:c1 + 1] |= (d < keep).reshape(r1 - r0 + 1, c1 - c0 + 1)
+    grid.occ = blocked
     log.debug("rasterized %dx%d grid, %d blocked cells", W, H, int(blocked.sum()))
     return grid
 
