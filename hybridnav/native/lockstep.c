@@ -468,7 +468,11 @@ typedef struct {
     int32_t *status;           /* (N) outcome codes */
     double *length, *t_end, *min_clear;
     double *paths;             /* (N, steps + 1, 2) or NULL */
+    int field;                 /* HN_FIELD_EFFC (the family f) or HN_FIELD_APF (f unused) */
+    double xi, sigma0, eta, rho0, force_tol;   /* APF's gains (apf.py) */
 } hn_run;
+
+enum { HN_FIELD_EFFC = 0, HN_FIELD_APF = 1 };
 
 /* CasADi's generated model step (linked from the model's code) */
 int hn_model_step(const double **arg, double **res, long long int *iw, double *w, int mem);
@@ -523,6 +527,67 @@ static double hn_clear_cb(double qx, double qy, void *ctx)
     return hn_clear_at(c->s, c->w, c->e, qx, qy, c->t);
 }
 
+/* APF's force at robot n (apf.py's apf_lockstep field): the attraction, plus the repulsion of
+ * every obstacle of its world whose footprint clearance is within rho0 (summed in the world's
+ * obstacle order, as np.sum over the columns); NaN where the force is below force_tol xi sigma0
+ * (a local minimum) */
+static void hn_apf_field(const hn_stack *s, const hn_run *r, hn_work *w, int64_t n, double t,
+                         double *Fx, double *Fy)
+{
+    const double *x = r->X + (size_t)n * r->nx;
+    double px = x[0], py = x[1];
+    int64_t e = r->env[n];
+    double Dx = px - r->goals[2 * n], Dy = py - r->goals[2 * n + 1];
+    double dist = hypot(Dx, Dy);
+    double scale = dist <= r->sigma0 ? r->xi : r->xi * r->sigma0 / (dist > 0 ? dist : 1.0);
+    double fx = -scale * Dx, fy = -scale * Dy;
+    if (s->Kp) {
+        const int C = s->C, CG = s->C + s->G;
+        double rad = r->radius[e], sx = 0.0, sy = 0.0;
+        for (int k = 0; k < s->Kp; ++k) {
+            int64_t col = s->perm[(size_t)e * s->Kp + k];
+            if (col >= CG) continue;               /* padding: +inf, never within rho0 */
+            double d, qx = 0.0, qy = 0.0;
+            if (col < C) {
+                size_t q = (size_t)e * C + col;
+                double cx = s->c0[2 * q], cy = s->c0[2 * q + 1];
+                if (s->moving) { cx = cx + t * s->cv[2 * q]; cy = cy + t * s->cv[2 * q + 1]; }
+                double dx = px - cx, dy = py - cy;
+                /* sqrt is within two ulps of hypot: far circles are settled without it */
+                double sq = sqrt(dx * dx + dy * dy);
+                if (!(sq - s->cr[q] - rad
+                      <= r->rho0 + 1e-12 * (1.0 + sq + fabs(s->cr[q]) + fabs(rad) + r->rho0)))
+                    continue;                       /* (NaN: never within rho0 either) */
+                double h = hypot(dx, dy), ux = 1.0, uy = 0.0;
+                d = h - s->cr[q];
+                if (h != 0.0) { ux = dx / h; uy = dy / h; }
+                qx = cx + s->cr[q] * ux;
+                qy = cy + s->cr[q] * uy;
+            } else {
+                int g = (int)(col - C);
+                hn_group(s, e, g, px, py, w->D, w->gedge, w->tmp_de, w->tmp_q);
+                d = w->D[col];
+                int j = w->gedge[g];
+                if (j < 0) continue;                /* a group without edges: +inf */
+                qx = w->tmp_q[2 * j];
+                qy = w->tmp_q[2 * j + 1];
+            }
+            double rho = hn_maximum(d - rad, 1e-9);
+            if (!(rho <= r->rho0)) continue;
+            double mag = r->eta * (1.0 / rho - 1.0 / r->rho0) / (rho * rho);
+            double ax = px - qx, ay = py - qy, norm = hypot(ax, ay);
+            double dn = norm > 0 ? norm : 1.0;
+            sx += mag * (ax / dn);
+            sy += mag * (ay / dn);
+        }
+        fx = fx + sx;
+        fy = fy + sy;
+    }
+    if (hypot(fx, fy) <= r->force_tol * r->xi * r->sigma0) { fx = NAN; fy = NAN; }
+    *Fx = fx;
+    *Fy = fy;
+}
+
 int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
 {
     const int64_t N = r->N;
@@ -545,7 +610,7 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
     double *last = calloc(2 * N, sizeof(double));
     double *ring = W ? calloc((size_t)(W + 1) * N * 2, sizeof(double)) : NULL;
     double *xn = malloc(sizeof(double) * nx);
-    double *fwork = malloc(sizeof(double) * 2 * f->M);
+    double *fwork = malloc(sizeof(double) * 2 * (f ? f->M : 1));
     if (!arg || !res || !iw || !mw || !w.D || !w.gedge || !w.tmp_de || !w.tmp_q || !V || !last
         || (W && !ring) || !xn || !fwork || !w.clear || !w.near) {
         free(arg); free(res); free(iw); free(mw); free(w.D); free(w.gedge); free(w.tmp_de);
@@ -555,7 +620,7 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
     for (int64_t n = 0; n < N; ++n) hn_check(s, r, &w, n, 0.0);
     int64_t last_noise = r->noise_steps - 1;
     double fx[HN_MAX_IN];
-    for (int i = 0; i < f->n_in; ++i) fx[i] = 0.0;
+    for (int i = 0; i < HN_MAX_IN; ++i) fx[i] = 0.0;
     int k;
     for (k = 0; k < r->steps; ++k) {
         int64_t running = 0;
@@ -567,6 +632,10 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
             V[2 * n] = 0.0;
             V[2 * n + 1] = 0.0;
             if (r->status[n] != RUNNING) continue;
+            if (r->field == HN_FIELD_APF) {
+                hn_apf_field(s, r, &w, n, t, V + 2 * n, V + 2 * n + 1);
+                continue;
+            }
             const double *x = r->X + (size_t)n * nx;
             double px = x[0], py = x[1];
             int64_t e = r->env[n];

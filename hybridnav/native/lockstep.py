@@ -22,7 +22,7 @@ import numpy as np
 from hybridnav import native
 from hybridnav.fuzzy.spec import And, Not, Or, TermRef
 
-__all__ = ["available", "effc_run", "family_evaluate"]
+__all__ = ["apf_run", "available", "effc_run", "family_evaluate"]
 
 _MAX_IN, _MAX_TERMS, _MAX_STACK, _MAX_T = 16, 64, 64, 64
 #: cells per side of the nearest-obstacle candidate grid (``WorldStack.cells``); 0 searches every
@@ -59,7 +59,11 @@ class _Run(Structure):
                 ("goals", c_void_p), ("goal_r", c_void_p), ("budget", c_void_p),
                 ("radius", c_void_p), ("noise", c_void_p), ("noise_members", c_int64),
                 ("noise_steps", c_int64), ("status", c_void_p), ("length", c_void_p),
-                ("t_end", c_void_p), ("min_clear", c_void_p), ("paths", c_void_p)]
+                ("t_end", c_void_p), ("min_clear", c_void_p), ("paths", c_void_p),
+                ("field", c_int), ("xi", c_double), ("sigma0", c_double), ("eta", c_double),
+                ("rho0", c_double), ("force_tol", c_double)]
+
+_FIELD_EFFC, _FIELD_APF = 0, 1
 
 
 class _Keep:
@@ -303,8 +307,6 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
              radius: np.ndarray, record_paths: bool):
     """The EFFC lockstep run of ``batch`` (:func:`hybridnav.planners.field.lockstep.prepare`)
     compiled: the arrays of :func:`hybridnav.planners.field.lockstep.finish`, or ``None``."""
-    from hybridnav.planners.field.lockstep import finish, stuck_cycles
-
     model = batch.model
     names = [v.name for v in family.inputs]
     if not _single_disk(model) or sorted(names) not in (["alpha", "dtheta"],
@@ -322,6 +324,43 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     if ready is None:
         return None
     lib, keep, f = ready
+    r = _Run()
+    r.field = _FIELD_EFFC
+    r.repeats = repeats
+    r.in_dtheta, r.in_alpha = names.index("dtheta"), names.index("alpha")
+    r.in_clear = names.index("clearance") if "clearance" in names else -1
+    if noise is not None:
+        r.noise = keep.ptr(noise, np.float64)
+        r.noise_members, r.noise_steps = noise.shape[2], noise.shape[3]
+    return _field_run(lib, keep, f, r, batch, planner, radius, record_paths)
+
+
+def apf_run(batch, values: dict[str, Any], *, radius: np.ndarray, record_paths: bool):
+    """The APF lockstep run of ``batch`` compiled (the ``apf`` planner's ``values``): the arrays
+    of :func:`hybridnav.planners.field.lockstep.finish`, or ``None`` where the kernel does not
+    apply."""
+    model = batch.model
+    if not _single_disk(model):
+        return None
+    lib = _library(model)
+    if lib is None:
+        return None
+    keep = _Keep()
+    r = _Run()
+    r.field = _FIELD_APF
+    r.repeats = 1
+    r.in_clear = -1
+    r.xi, r.sigma0, r.eta = float(values["xi"]), float(values["sigma0"]), float(values["eta"])
+    r.rho0, r.force_tol = float(values["rho0"]), float(values["force_tol"])
+    return _field_run(lib, keep, None, r, batch, values, radius, record_paths)
+
+
+def _field_run(lib, keep: _Keep, f, r: _Run, batch, planner: dict[str, Any],
+               radius: np.ndarray, record_paths: bool):
+    """Fill the run's common fields, call the kernel, and finish the batch."""
+    from hybridnav.planners.field.lockstep import finish, stuck_cycles
+
+    model = batch.model
     s = _stack_struct(batch.stack, keep)
     N = batch.N
     X = np.ascontiguousarray(batch.X, dtype=np.float64)
@@ -333,19 +372,14 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     if record_paths:
         paths = np.zeros((N, batch.steps + 1, 2))
         paths[:, 0] = X[:, :2]
-    stuck_window = planner["stuck_window"]
-    r = _Run()
     r.N, r.nx, r.steps = N, model.nx, batch.steps
-    r.window = stuck_cycles(stuck_window, batch.dt, batch.steps)
+    r.window = stuck_cycles(planner["stuck_window"], batch.dt, batch.steps)
     r.dt, r.speed = batch.dt, float(planner["speed"])
     r.stuck_radius = float(planner["stuck_radius"])
     r.foot_radius = float(model.radius)
     r.div_x, r.div_y = (float(d) for d in model.carrot_divisor())
     r.env = keep.ptr(batch.env, np.int64)
     r.member = keep.ptr(batch.member, np.int64)
-    r.repeats = repeats
-    r.in_dtheta, r.in_alpha = names.index("dtheta"), names.index("alpha")
-    r.in_clear = names.index("clearance") if "clearance" in names else -1
     r.safety = float(planner.get("safety_margin", 0.0))
     r.max_turn = float(planner["max_turn"])
     r.X = X.ctypes.data
@@ -353,14 +387,12 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     r.goal_r = keep.ptr(batch.goal_r, np.float64)
     r.budget = keep.ptr(batch.budget, np.int64)
     r.radius = keep.ptr(radius, np.float64)
-    if noise is not None:
-        r.noise = keep.ptr(noise, np.float64)
-        r.noise_members, r.noise_steps = noise.shape[2], noise.shape[3]
     r.status = status.ctypes.data
     r.length, r.t_end = length.ctypes.data, t_end.ctypes.data
     r.min_clear = min_clear.ctypes.data
     r.paths = None if paths is None else paths.ctypes.data
-    code = lib.hn_effc_run(ctypes.byref(f), ctypes.byref(s), ctypes.byref(r))
+    code = lib.hn_effc_run(None if f is None else ctypes.byref(f), ctypes.byref(s),
+                           ctypes.byref(r))
     if code < 0:
         raise MemoryError("the compiled control cycle could not allocate its work memory")
     batch.X[...] = X

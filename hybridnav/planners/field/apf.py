@@ -63,6 +63,14 @@ def apf_lockstep(st, params: dict[str, Any] | None = None, *,
     v = APF(**(params or {})).values
     radius = st.radius
     xi, sigma0, eta, rho0 = v["xi"], v["sigma0"], v["eta"], v["rho0"]
+    overrides = {"controller": "heading", "speed": v["speed"], "max_turn": v["max_turn"]}
+    from hybridnav.native.lockstep import apf_run
+    from hybridnav.planners.field.lockstep import prepare
+
+    res = apf_run(prepare(st.scenarios, 1, overrides, st.stack), v, radius=radius,
+                  record_paths=record_paths)
+    if res is not None:                  # the compiled control cycle
+        return res
 
     def field(env, members, P, goals, t):
         D = P - goals
@@ -83,9 +91,7 @@ def apf_lockstep(st, params: dict[str, Any] | None = None, *,
         F[small] = np.nan                         # a local minimum: stuck, as APF.velocity says
         return F
 
-    return lockstep_field(st.scenarios, 1, field,
-                          model_overrides={"controller": "heading", "speed": v["speed"],
-                                           "max_turn": v["max_turn"]},
+    return lockstep_field(st.scenarios, 1, field, model_overrides=overrides,
                           speed=v["speed"], stuck_window=v["stuck_window"],
                           stuck_radius=v["stuck_radius"], record_paths=record_paths,
                           stack=st.stack,
