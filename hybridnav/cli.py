@@ -21,6 +21,7 @@ from hybridnav.params import (
     DEFAULT_DPI,
     FIGURE_FORMATS,
     MAX_DPI,
+    MIN_DPI,
     check_dpi,
     check_figure_format,
     check_seed,
@@ -565,7 +566,7 @@ _TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
 #: ``--format`` and ``--dpi`` of the commands that draw (hybridnav.plotting.output writes them)
 _FIGURE_FORMAT = _typed(f"one of {', '.join(FIGURE_FORMATS)}", str, check_figure_format)
-_DPI = _typed(f"an integer in [1, {MAX_DPI}] (dots per inch)", int, check_dpi)
+_DPI = _typed(f"an integer in [{MIN_DPI}, {MAX_DPI}] (dots per inch)", int, check_dpi)
 
 
 def _figure_options() -> argparse.ArgumentParser:

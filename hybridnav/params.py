@@ -29,8 +29,8 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["DEFAULT_DPI", "FIGURE_FORMATS", "MAX_DPI", "Param", "check_dpi", "check_figure_format",
-           "check_int", "check_range", "check_real", "check_seed", "check_value",
+__all__ = ["DEFAULT_DPI", "FIGURE_FORMATS", "MAX_DPI", "MIN_DPI", "Param", "check_dpi",
+           "check_figure_format", "check_int", "check_range", "check_real", "check_seed", "check_value",
            "describe_params", "short_repr"]
 
 #: the figure formats the commands write (``--format``; PNG for screens and reports, PDF and SVG
@@ -41,6 +41,9 @@ FIGURE_FORMATS = ("png", "pdf", "svg")
 DEFAULT_DPI = 120
 #: the largest resolution accepted: a page-wide figure at 1200 dpi is already ~10^8 pixels
 MAX_DPI = 1200
+#: the smallest resolution accepted: below about 6 dpi FreeType cannot size the figures' text
+#: (``FT_Set_Char_Size ... invalid ppem value``)
+MIN_DPI = 10
 
 _KIND_WORDS = {str: "a string", list: "a list", dict: "a table", tuple: "a sequence"}
 
@@ -391,8 +394,8 @@ def check_figure_format(fmt: Any, name: str = "format") -> str:
 
 
 def check_dpi(dpi: Any, name: str = "dpi") -> int:
-    """``dpi`` as an integer in ``[1, MAX_DPI]``, else a HybridnavError
-    ``<name>: expected an integer in [1, 1200] (dots per inch), got ...``.
+    """``dpi`` as an integer in ``[MIN_DPI, MAX_DPI]``, else a HybridnavError
+    ``<name>: expected an integer in [10, 1200] (dots per inch), got ...``.
 
     Parameters
     ----------
@@ -400,7 +403,8 @@ def check_dpi(dpi: Any, name: str = "dpi") -> int:
     name : str
         The option or parameter the value came from (``"--dpi"``, ``"dpi"``).
     """
-    if isinstance(dpi, bool) or not isinstance(dpi, numbers.Integral) or not 1 <= dpi <= MAX_DPI:
-        raise HybridnavError(f"{name}: expected an integer in [1, {MAX_DPI}] (dots per inch), "
-                             f"got {short_repr(dpi)}")
+    if isinstance(dpi, bool) or not isinstance(dpi, numbers.Integral) \
+            or not MIN_DPI <= dpi <= MAX_DPI:
+        raise HybridnavError(f"{name}: expected an integer in [{MIN_DPI}, {MAX_DPI}] (dots per "
+                             f"inch), got {short_repr(dpi)}")
     return int(dpi)

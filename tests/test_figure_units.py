@@ -379,11 +379,14 @@ def test_format_and_dpi_on_the_command_line(tmp_path, capsys):
     (["fis", "effc-2rule", "-o", "{tmp}", "--format", "jpg"],
      "argument --format: expected one of png, pdf, svg, got 'jpg'"),
     (["fis", "effc-2rule", "-o", "{tmp}", "--dpi", "0"],
-     "argument --dpi: expected an integer in [1, 1200] (dots per inch), got '0'"),
+     "argument --dpi: expected an integer in [10, 1200] (dots per inch), got '0'"),
+    # below 10 dpi FreeType raised RuntimeError (invalid ppem value) while drawing the text
+    (["fis", "effc-2rule", "-o", "{tmp}", "--dpi", "5"],
+     "argument --dpi: expected an integer in [10, 1200] (dots per inch), got '5'"),
     (["run", "effc-train-1", "--planner", "apf", "-o", "{tmp}", "--dpi", "1201"],
-     "argument --dpi: expected an integer in [1, 1200] (dots per inch), got '1201'"),
+     "argument --dpi: expected an integer in [10, 1200] (dots per inch), got '1201'"),
     (["compare", "--planners", "apf", "--scenarios", "effc-train-1", "-o", "{tmp}",
-      "--dpi", "2.5"], "argument --dpi: expected an integer in [1, 1200] (dots per inch)"),
+      "--dpi", "2.5"], "argument --dpi: expected an integer in [10, 1200] (dots per inch)"),
 ])
 def test_bad_format_or_dpi_is_one_line_and_status_2(argv, message, tmp_path, capsys):
     from hybridnav.cli import main
@@ -402,12 +405,13 @@ def test_the_python_api_checks_format_and_dpi(tmp_path):
 
     with pytest.raises(HybridnavError, match=r"^fmt: expected one of png, pdf, svg, got 'gif'$"):
         analyze("point_mass", out=tmp_path / "a", fmt="gif")
-    with pytest.raises(HybridnavError, match=r"^dpi: expected an integer in \[1, 1200\]"):
+    with pytest.raises(HybridnavError, match=r"^dpi: expected an integer in \[10, 1200\]"):
         analyze("point_mass", out=tmp_path / "a", dpi=0)
     assert not (tmp_path / "a").exists()
-    for bad in (0, -3, 1201, 2.5, True, "120"):
+    for bad in (0, -3, 1, 9, 1201, 2.5, True, "120"):
         with pytest.raises(HybridnavError, match="^dpi: expected an integer"):
             check_dpi(bad)
+    assert check_dpi(10) == 10 and check_dpi(1200) == 1200
     assert check_format(".SVG") == "svg" and figure_name("signals.png", "pdf") == "signals.pdf"
     with pytest.raises(HybridnavError, match="^format: expected one of png, pdf, svg"):
         check_format("eps")
