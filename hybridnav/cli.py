@@ -20,10 +20,12 @@ from hybridnav.fileio import locked_folder
 from hybridnav.params import (
     DEFAULT_DPI,
     FIGURE_FORMATS,
+    FPS_RANGE,
     MAX_DPI,
     MIN_DPI,
     check_dpi,
     check_figure_format,
+    check_fps,
     check_seed,
     describe_params,
     short_repr,
@@ -701,10 +703,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--world", metavar="NAME", help="tuning job: which of the job's worlds "
                                                     "(default: its first test world, else "
                                                     "validation)")
-    p.add_argument("--fps", type=_typed("a number of frames per second in (0, 100]", float,
-                                        _between(0.0, 100.0, lo_open=True)),
-                   default=None, metavar="N", help="frames per second (default 10; 4 for a "
-                                                   "tuning job)")
+    p.add_argument("--fps", type=_typed(FPS_RANGE, float, check_fps),
+                   default=None, metavar="N", help="frames per second, 0.01 to 100 (default 10; "
+                                                   "4 for a tuning job)")
     p.add_argument("--dpi", type=_typed("an integer in [10, 600]", int, _between(10, 600)),
                    default=80, metavar="N", help="resolution: a frame is 6.4 x 6.4 inches "
                                                  "(default 80: 512 x 512 pixels)")

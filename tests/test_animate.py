@@ -311,8 +311,12 @@ def test_bad_input_is_one_line_naming_the_file(run_dir, tmp_path):
     for args, message in cases:
         rc, out, err = cli(*args)
         assert (rc, out, err) == (2, "", f"hybridnav: error: {message}\n"), args
-    for option, value, what in (("--fps", "0", "a number of frames per second in (0, 100]"),
-                                ("--fps", "nan", "a number of frames per second in (0, 100]"),
+    for option, value, what in (("--fps", "0", "a number of frames per second in [0.01, 100]"),
+                                ("--fps", "nan", "a number of frames per second in [0.01, 100]"),
+                                # below ~0.0016 a GIF frame outlasts its 16-bit duration field
+                                # (Pillow raised OverflowError)
+                                ("--fps", "0.001", "a number of frames per second in [0.01, 100]"),
+                                ("--fps", "1e400", "a number of frames per second in [0.01, 100]"),
                                 ("--dpi", "5", "an integer in [10, 600]"),
                                 ("--max-frames", "0", "an integer in [1, 10000]")):
         with pytest.raises(SystemExit) as exit_, contextlib.redirect_stderr(io.StringIO()) as e:
@@ -322,11 +326,16 @@ def test_bad_input_is_one_line_naming_the_file(run_dir, tmp_path):
             f"hybridnav: error: argument {option}: expected {what}, got '{value}' (see "
             "'hybridnav animate --help')")
     assert not list(run_dir.glob("*.gif"))
-    with pytest.raises(HybridnavError, match=r"^fps: expected a number of frames per second in "
-                                             r"\(0, 100\], got True$"):
-        animate(run_dir, tmp_path / "a.gif", fps=True)
+    for fps in (True, 0.001, 10**400, float("inf")):
+        with pytest.raises(HybridnavError, match=r"^fps: expected a number of frames per second in"
+                                                 r" \[0\.01, 100\], got "):
+            animate(run_dir, tmp_path / "a.gif", fps=fps)
     with pytest.raises(HybridnavError, match=r"^animate: scenario: expected the scenario the "):
         animate(read_result(run_dir), tmp_path / "a.gif")
+    # the slowest rate is written: a frame of 100 s
+    slow = animate(run_dir, tmp_path / "slow.gif", fps=0.01, max_frames=2, dpi=10)
+    with Image.open(slow.path) as im:
+        assert (slow.fps, im.n_frames, im.info["duration"]) == (0.01, 2, 100_000)
 
 
 def test_the_help_has_an_example():

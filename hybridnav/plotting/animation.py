@@ -38,7 +38,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_path
-from hybridnav.params import short_repr
+from hybridnav.params import check_fps, short_repr
 from hybridnav.plotting.diagnostics import extras_of
 from hybridnav.plotting.scenes import draw_moving_obstacles, draw_scenario
 from hybridnav.results import Result, read_run
@@ -111,7 +111,8 @@ def animate(source: str | os.PathLike[str] | Result, path: str | os.PathLike[str
         The scenario the result is of: for a folder, a built-in name or a ``.toml`` file
         (default: the built-in scenario the result names); for a result, a Scenario too.
     fps : float
-        Frames per second, in (0, 100].
+        Frames per second, in [0.01, 100] (:func:`hybridnav.params.check_fps`: a GIF cannot
+        show a frame longer than 655.35 s).
     dpi : int
         Resolution, in [10, 600] (a frame is 6.4 x 6.4 inches: 512 x 512 pixels at 80).
     max_frames : int
@@ -532,14 +533,12 @@ def _check_settings(fps: Any, dpi: Any, max_frames: Any) -> tuple[float, int, in
     def number(v: Any) -> bool:
         return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
 
-    if not number(fps) or not 0.0 < float(fps) <= 100.0:
-        raise HybridnavError(f"fps: expected a number of frames per second in (0, 100], got "
-                             f"{short_repr(fps)}")
+    fps = check_fps(fps)
     for key, v, lo, hi in (("dpi", dpi, 10, 600), ("max_frames", max_frames, 1, 10000)):
         if not number(v) or v != int(v) or not lo <= v <= hi:
             raise HybridnavError(f"{key}: expected an integer in [{lo}, {hi}], got "
                                  f"{short_repr(v)}")
-    return float(fps), int(dpi), int(max_frames)
+    return fps, int(dpi), int(max_frames)
 
 
 def _scenario_of(result: Result, scenario: Any) -> Any:
