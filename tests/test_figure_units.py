@@ -335,6 +335,12 @@ def test_tune_figures(tmp_path, captured):
     assert {f.split(".")[0] for f in figures} <= set(FIGURES)
     for f in (tmp_path / "o").iterdir():                # --force knows what it would remove
         assert f.is_dir() or f.name in OUTPUT_FILES, f.name
+    # what 'hybridnav tune' lists is every file the job left, checkpoint.json and
+    # evaluations.jsonl included (they were missing from its "wrote ..." line)
+    left = sorted(p.relative_to(tmp_path / "o").as_posix()
+                  for p in (tmp_path / "o").rglob("*") if p.is_file())
+    assert sorted(result.files) == left and len(set(result.files)) == len(result.files)
+    assert {"checkpoint.json", "evaluations.jsonl"} <= set(result.files)
     assert "coverage.svg" in (tmp_path / "o" / "report.md").read_text()
     for fig, path in captured:
         check_figure(fig, "m", path)
