@@ -219,9 +219,14 @@ def _cmd_animate(args: argparse.Namespace) -> int:
                        fps=10.0 if args.fps is None else args.fps, dpi=args.dpi,
                        max_frames=args.max_frames)
     w, h = done.size
-    what = (f"t = 0 to {done.times[-1]:.1f} s" if not done.labels[0].startswith("generation")
-            else f"{done.labels[0].split(':')[0]} to {done.labels[-1].split(':')[0]}")
-    print(f"wrote {done.path}: {done.frames} frames at {done.fps:g} fps, {w} x {h} pixels "
+    if not done.labels[0].startswith("generation"):
+        what = f"t = {done.times[-1]:.1f} s" if done.frames == 1 else \
+            f"t = 0 to {done.times[-1]:.1f} s"
+    else:                                    # one frame: the last generation's end
+        first, last = (lab.split(":")[0] for lab in (done.labels[0], done.labels[-1]))
+        what = last if done.frames == 1 else f"{first} to {last}"
+    print(f"wrote {done.path}: {done.frames} frame{'s' * (done.frames != 1)} at {done.fps:g} "
+          f"fps, {w} x {h} pixels "
           f"({what})")
     return 0
 
