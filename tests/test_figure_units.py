@@ -371,6 +371,14 @@ def test_format_and_dpi_on_the_command_line(tmp_path, capsys):
     listed = capsys.readouterr().out.splitlines()[-1]
     assert "path.svg" in listed and "signals.svg" in listed and ".png" not in listed
     assert (out / "path.svg").read_bytes()[:5] == b"<?xml" and not list(out.glob("*.png"))
+    # 'plot' on the folder writes the requested format only, in place or elsewhere
+    before = {p.name for p in out.iterdir()}
+    assert main(["plot", str(out), "--format", "pdf"]) == 0
+    assert capsys.readouterr().out == f"wrote {out}/: path.pdf, signals.pdf\n"
+    assert {p.name for p in out.iterdir()} - before == {"path.pdf", "signals.pdf"}
+    assert main(["plot", str(out), "--format", "svg", "-o", str(tmp_path / "again")]) == 0
+    assert sorted(p.name for p in (tmp_path / "again").iterdir()) == ["path.svg", "signals.svg"]
+    capsys.readouterr()
     # --dpi scales the pixels (surface.png: a constrained 6.4 x 5.2 inch figure)
     for dpi in (50, 120):
         assert main(["fis", "effc-2rule", "-o", str(tmp_path / f"d{dpi}"), "--dpi",
