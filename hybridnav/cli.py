@@ -20,9 +20,12 @@ from hybridnav.fileio import locked_folder
 from hybridnav.params import (
     DEFAULT_DPI,
     FIGURE_FORMATS,
+    FPS_RANGE,
     MAX_DPI,
+    MIN_DPI,
     check_dpi,
     check_figure_format,
+    check_fps,
     check_seed,
     describe_params,
     short_repr,
@@ -216,9 +219,14 @@ def _cmd_animate(args: argparse.Namespace) -> int:
                        fps=10.0 if args.fps is None else args.fps, dpi=args.dpi,
                        max_frames=args.max_frames)
     w, h = done.size
-    what = (f"t = 0 to {done.times[-1]:.1f} s" if not done.labels[0].startswith("generation")
-            else f"{done.labels[0].split(':')[0]} to {done.labels[-1].split(':')[0]}")
-    print(f"wrote {done.path}: {done.frames} frames at {done.fps:g} fps, {w} x {h} pixels "
+    if not done.labels[0].startswith("generation"):
+        what = f"t = {done.times[-1]:.1f} s" if done.frames == 1 else \
+            f"t = 0 to {done.times[-1]:.1f} s"
+    else:                                    # one frame: the last generation's end
+        first, last = (lab.split(":")[0] for lab in (done.labels[0], done.labels[-1]))
+        what = last if done.frames == 1 else f"{first} to {last}"
+    print(f"wrote {done.path}: {done.frames} frame{'s' * (done.frames != 1)} at {done.fps:g} "
+          f"fps, {w} x {h} pixels "
           f"({what})")
     return 0
 
@@ -565,7 +573,7 @@ _TOLERANCE = _typed("a finite number >= 0", float, _between(0.0))
 
 #: ``--format`` and ``--dpi`` of the commands that draw (hybridnav.plotting.output writes them)
 _FIGURE_FORMAT = _typed(f"one of {', '.join(FIGURE_FORMATS)}", str, check_figure_format)
-_DPI = _typed(f"an integer in [1, {MAX_DPI}] (dots per inch)", int, check_dpi)
+_DPI = _typed(f"an integer in [{MIN_DPI}, {MAX_DPI}] (dots per inch)", int, check_dpi)
 
 
 def _figure_options() -> argparse.ArgumentParser:
@@ -700,10 +708,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--world", metavar="NAME", help="tuning job: which of the job's worlds "
                                                     "(default: its first test world, else "
                                                     "validation)")
-    p.add_argument("--fps", type=_typed("a number of frames per second in (0, 100]", float,
-                                        _between(0.0, 100.0, lo_open=True)),
-                   default=None, metavar="N", help="frames per second (default 10; 4 for a "
-                                                   "tuning job)")
+    p.add_argument("--fps", type=_typed(FPS_RANGE, float, check_fps),
+                   default=None, metavar="N", help="frames per second, 0.01 to 100 (default 10; "
+                                                   "4 for a tuning job)")
     p.add_argument("--dpi", type=_typed("an integer in [10, 600]", int, _between(10, 600)),
                    default=80, metavar="N", help="resolution: a frame is 6.4 x 6.4 inches "
                                                  "(default 80: 512 x 512 pixels)")

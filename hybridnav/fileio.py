@@ -9,6 +9,7 @@ import math
 import os
 import re
 import socket
+import sys
 import tempfile
 import time
 import tomllib
@@ -19,12 +20,13 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
+from hybridnav.params import short_repr
 
 __all__ = ["LOCK_NAME", "MAX_FILE_BYTES", "MAX_ROBOT_NAME", "SAFE_NAME", "TEMPORARY_NAME",
-           "atomic_path",
+           "atomic_path", "check_writable",
            "atomic_write_bytes", "atomic_write_text", "clean_temporaries", "decode_text",
-           "dumps_json", "json_ready", "locked_folder", "parse_toml", "read_text_file",
-           "short_text", "shown_path"]
+           "dumps_json", "json_ready", "locked_folder", "parse_toml", "read_json", "read_text_file",
+           "short_text", "show_key", "shown_path"]
 
 
 @contextlib.contextmanager
@@ -36,11 +38,13 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     ``path`` is left as it was.
     """
     path = Path(path)
+    made = _missing_folders(path.parent)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
                                    dir=path.parent)
     except OSError as exc:
+        _remove_empty(made)
         raise _cannot_write(path, exc) from None
     os.close(fd)
     os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes 0600 files; give the usual permissions
@@ -50,9 +54,59 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        _remove_empty(made)            # a failed write leaves no folder it made either
         if isinstance(exc, OSError) and not isinstance(exc, HybridnavError):
             raise _cannot_write(path, exc) from None
         raise
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """The folders ``folder.mkdir(parents=True)`` would make, innermost first."""
+    missing = []
+    while not folder.exists() and not folder.is_symlink() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove ``folders`` (innermost first) where empty: what a failed writer made."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            return                     # not empty (another writer's), or gone: stop here
+
+
+def check_writable(path: str | os.PathLike) -> None:
+    """Raise a :class:`HybridnavError` unless a file could be written at ``path`` (its folder
+    made where missing), without writing or making anything: for commands that run for a while
+    before they write (``hybridnav animate``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to be written.
+
+    Raises
+    ------
+    HybridnavError
+        ``path`` is a folder, a part of it is a file, or its nearest existing folder cannot be
+        written.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise HybridnavError(f"{shown_path(path)}: cannot write (it is a folder; expected a "
+                             "file name)")
+    folder = path.parent
+    while not folder.exists() and not folder.is_symlink() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise HybridnavError(f"{shown_path(path)}: cannot write ({shown_path(folder)} is not a "
+                             "folder)")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise HybridnavError(f"{shown_path(path)}: cannot write (no permission to write in "
+                             f"{shown_path(folder)})")
 
 
 def _cannot_write(path: Path, exc: OSError) -> HybridnavError:
@@ -327,3 +381,106 @@ def parse_toml(text: str, source: str, what: str = "file") -> dict[str, Any]:
     except ValueError as exc:             # e.g. Python's 4300-digit limit for int("...")
         raise HybridnavError(f"{source}: {what} has a number that cannot be read: "
                              f"{str(exc).split(';')[0]}") from None
+
+
+def show_key(key: Any) -> str:
+    """A key as messages show it: a plain name as it is, anything else quoted and cut.
+
+    Parameters
+    ----------
+    key : any
+    """
+    return key if isinstance(key, str) and SAFE_NAME.fullmatch(key) else short_repr(key, 40)
+
+
+def read_json(path: str | os.PathLike, what: str) -> Any:
+    """A JSON file as hybridnav writes them (:func:`dumps_json`), read strictly: every number
+    finite and readable, no key given twice, else a :class:`HybridnavError` naming the file and
+    the key.
+
+    Python's ``json`` takes ``NaN`` and ``Infinity``, turns ``1e999`` into ``inf`` and raises
+    ``ValueError`` for an integer past its digit limit (``sys.get_int_max_str_digits()``); here
+    each is refused at its key (``robots[0].compute_time: expected a number as hybridnav writes
+    them ...``). Integers beyond the float range (``10**400``) are read as they are: the caller's
+    check of the key says what it expects (:func:`hybridnav.fuzzy.spec.finite_number`).
+
+    Parameters
+    ----------
+    path : str or path-like
+    what : str
+        What the file is, for the messages (e.g. ``"result file"``).
+
+    Raises
+    ------
+    HybridnavError
+        What :func:`read_text_file` raises; invalid JSON (with line and column), nesting too deep
+        for the parser, a number :func:`dumps_json` never writes, a duplicate key.
+    """
+    path = Path(path)
+    text = read_text_file(path, what)
+    try:
+        data = json.loads(text, parse_int=_json_int, parse_float=_json_float,
+                          parse_constant=_Unreadable, object_pairs_hook=_json_object)
+    except json.JSONDecodeError as exc:
+        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
+    except RecursionError:
+        raise HybridnavError(f"{path}: not valid JSON: nested too deeply (expected a "
+                             f"{what} as hybridnav writes it)") from None
+    stack: list[tuple[str, Any]] = [("", data)]
+    while stack:                       # iterative: as deep as the JSON parser went
+        key, value = stack.pop()
+        if isinstance(value, _Unreadable):
+            raise HybridnavError(f"{path}: {key or '(top level)'}: expected a number as "
+                                 f"hybridnav writes them (finite, at most "
+                                 f"{sys.get_int_max_str_digits() or 'any number of'} digits), got "
+                                 f"{value.what}")
+        if isinstance(value, _Duplicates):
+            raise HybridnavError(f"{path}: {key or '(top level)'}: duplicate key "
+                                 f"{short_repr(value.duplicate, 40)}")
+        if isinstance(value, dict):
+            stack.extend((f"{key}.{show_key(k)}" if key else show_key(k), v)
+                         for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            stack.extend((f"{key}[{i}]", v) for i, v in reversed(list(enumerate(value))))
+    return data
+
+
+class _Unreadable:
+    """A JSON number the writer never writes (NaN, Infinity, 1e999, an integer past Python's
+    digit limit), kept in place so that the message can name its key."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+
+
+class _Duplicates(dict):
+    """A JSON object with a key given twice (the first of them in ``duplicate``)."""
+
+    duplicate: str = ""
+
+
+def _json_int(text: str) -> Any:
+    try:
+        return int(text)
+    except ValueError:                 # Python's 4300-digit limit
+        return _Unreadable(f"an integer of {len(text.lstrip('-'))} digits")
+
+
+def _json_float(text: str) -> Any:
+    value = float(text)
+    return value if math.isfinite(value) else _Unreadable(f"{short_repr(text, 40)} (beyond "
+                                                          "the float range)")
+
+
+def _json_object(pairs: list[tuple[str, Any]]) -> dict:
+    out = dict(pairs)
+    if len(out) == len(pairs):
+        return out
+    dup = _Duplicates(out)
+    seen: set[str] = set()
+    for k, _ in pairs:
+        if k in seen:
+            dup.duplicate = k
+            break
+        seen.add(k)
+    return dup

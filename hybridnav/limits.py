@@ -9,6 +9,11 @@ limit                           value          what it bounds
 ==============================  =============  ====================================================
 :data:`MAX_COORDINATE`          1e6            ``|x|``, ``|y|`` of workspace bounds, obstacles,
                                                starts and goals (and their sizes)
+:data:`MAX_POSITION`            1e9            ``|x|``, ``|y|`` of the positions a result folder
+                                               holds (trajectories, planned and candidate
+                                               points): a run ends when a robot leaves its
+                                               workspace, so none comes near it; far beyond,
+                                               Matplotlib's renderer overflows
 :data:`MAX_STEPS`               2,000,000      control cycles of one run, ``ceil(max_time / dt)``
 :data:`MAX_GRID_CELLS`          20,000,000     cells of an occupancy grid (about 20 MB as booleans,
                                                160 MB as the distances a planner keeps)
@@ -23,12 +28,14 @@ The fuzzy readers bound universe points by :data:`hybridnav.fuzzy.export.MAX_POI
 
 from __future__ import annotations
 
-__all__ = ["MAX_COORDINATE", "MAX_GRID_CELLS", "MAX_OBSTACLES", "MAX_ROBOTS", "MAX_STEPS",
-           "MAX_VERTICES", "grid_cells"]
+__all__ = ["MAX_COORDINATE", "MAX_GRID_CELLS", "MAX_OBSTACLES", "MAX_POSITION", "MAX_ROBOTS",
+           "MAX_STEPS", "MAX_VERTICES", "grid_cells"]
 
 import math
 
 MAX_COORDINATE = 1e6
+#: 1000 x MAX_COORDINATE: room for the step with which a robot leaves the largest workspace
+MAX_POSITION = 1e9
 MAX_STEPS = 2_000_000
 MAX_GRID_CELLS = 20_000_000
 MAX_OBSTACLES = 10_000

@@ -29,9 +29,10 @@ import numpy as np
 
 from hybridnav.errors import HybridnavError
 
-__all__ = ["DEFAULT_DPI", "FIGURE_FORMATS", "MAX_DPI", "Param", "check_dpi", "check_figure_format",
-           "check_int", "check_range", "check_real", "check_seed", "check_value",
-           "describe_params", "short_repr"]
+__all__ = ["DEFAULT_DPI", "FIGURE_FORMATS", "FPS_RANGE", "MAX_DPI", "MAX_FPS", "MIN_DPI",
+           "MIN_FPS", "Param", "check_dpi", "check_figure_format", "check_fps", "check_int",
+           "check_range", "check_real", "check_seed", "check_value", "describe_params",
+           "short_repr"]
 
 #: the figure formats the commands write (``--format``; PNG for screens and reports, PDF and SVG
 #: for papers); :mod:`hybridnav.plotting.output` writes them
@@ -41,6 +42,16 @@ FIGURE_FORMATS = ("png", "pdf", "svg")
 DEFAULT_DPI = 120
 #: the largest resolution accepted: a page-wide figure at 1200 dpi is already ~10^8 pixels
 MAX_DPI = 1200
+#: the smallest resolution accepted: below about 6 dpi FreeType cannot size the figures' text
+#: (``FT_Set_Char_Size ... invalid ppem value``)
+MIN_DPI = 10
+#: the frame rates of an animation (``--fps``): at most 100, at least 0.01 (a frame shown for
+#: 100 s; a GIF keeps a frame's duration as a 16-bit count of centiseconds, at most 655.35 s, so
+#: Pillow cannot write a rate below about 0.0016)
+MIN_FPS = 0.01
+MAX_FPS = 100.0
+#: what :func:`check_fps` accepts, as its message and the command line's help say it
+FPS_RANGE = f"a number of frames per second in [{MIN_FPS:g}, {MAX_FPS:g}]"
 
 _KIND_WORDS = {str: "a string", list: "a list", dict: "a table", tuple: "a sequence"}
 
@@ -391,8 +402,8 @@ def check_figure_format(fmt: Any, name: str = "format") -> str:
 
 
 def check_dpi(dpi: Any, name: str = "dpi") -> int:
-    """``dpi`` as an integer in ``[1, MAX_DPI]``, else a HybridnavError
-    ``<name>: expected an integer in [1, 1200] (dots per inch), got ...``.
+    """``dpi`` as an integer in ``[MIN_DPI, MAX_DPI]``, else a HybridnavError
+    ``<name>: expected an integer in [10, 1200] (dots per inch), got ...``.
 
     Parameters
     ----------
@@ -400,7 +411,24 @@ def check_dpi(dpi: Any, name: str = "dpi") -> int:
     name : str
         The option or parameter the value came from (``"--dpi"``, ``"dpi"``).
     """
-    if isinstance(dpi, bool) or not isinstance(dpi, numbers.Integral) or not 1 <= dpi <= MAX_DPI:
-        raise HybridnavError(f"{name}: expected an integer in [1, {MAX_DPI}] (dots per inch), "
-                             f"got {short_repr(dpi)}")
+    if isinstance(dpi, bool) or not isinstance(dpi, numbers.Integral) \
+            or not MIN_DPI <= dpi <= MAX_DPI:
+        raise HybridnavError(f"{name}: expected an integer in [{MIN_DPI}, {MAX_DPI}] (dots per "
+                             f"inch), got {short_repr(dpi)}")
     return int(dpi)
+
+
+def check_fps(fps: Any, name: str = "fps") -> float:
+    """``fps`` as a float in ``[MIN_FPS, MAX_FPS]``, else a HybridnavError
+    ``<name>: expected a number of frames per second in [0.01, 100], got ...``.
+
+    Parameters
+    ----------
+    fps : float
+    name : str
+        The option or parameter the value came from (``"--fps"``, ``"fps"``).
+    """
+    if isinstance(fps, bool) or not isinstance(fps, numbers.Real) \
+            or not MIN_FPS <= fps <= MAX_FPS:       # NaN compares false; no float() of 10**400
+        raise HybridnavError(f"{name}: expected {FPS_RANGE}, got {short_repr(fps)}")
+    return float(fps)

@@ -26,9 +26,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
-import math
-import sys
 import tokenize
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -43,16 +40,17 @@ from hybridnav.fileio import (
     atomic_write_text,
     dumps_json,
     json_ready,
+    read_json,
     read_text_file,
 )
 from hybridnav.limits import MAX_GRID_CELLS
 from hybridnav.params import short_repr
 from hybridnav.resultspec import (
-    MAX_MAGNITUDE,
     OUTCOMES,
     SAFE_NAME,
     Array,
     Table,
+    check_column,
     check_entry,
     check_extra,
     show_key,
@@ -344,7 +342,7 @@ def read_result(folder: str | Path) -> Result:
     path = folder / "result.json"
     if not path.is_file():
         raise HybridnavError(f"{path}: no such file (expected a hybridnav result folder)")
-    data = _load_json(path)
+    data = read_json(path, "result file")
     if not isinstance(data, dict):
         raise HybridnavError(f"{path}: expected a JSON object at the top level, got "
                              f"{type(data).__name__}")
@@ -450,76 +448,6 @@ def read_run(folder: str | Path, scenario: str | Path | None = None) -> tuple[Re
                 f"{tuple(float(v) for v in r.start)}: its robots do not start where the "
                 "result's do; pass the scenario the result was run on with --scenario")
     return result, loaded
-
-
-class _Unreadable:
-    """A JSON number the writer never writes (NaN, Infinity, 1e999, an integer past Python's
-    digit limit), kept in place so that the message can name its key."""
-
-    def __init__(self, what: str) -> None:
-        self.what = what
-
-
-class _Duplicates(dict):
-    """A JSON object with a key given twice (the first of them in ``duplicate``)."""
-
-    duplicate: str = ""
-
-
-def _json_int(text: str) -> Any:
-    try:
-        return int(text)
-    except ValueError:                 # Python's 4300-digit limit
-        return _Unreadable(f"an integer of {len(text.lstrip('-'))} digits")
-
-
-def _json_float(text: str) -> Any:
-    value = float(text)
-    return value if math.isfinite(value) else _Unreadable(f"{short_repr(text, 40)} (beyond "
-                                                          "the float range)")
-
-
-def _json_object(pairs: list[tuple[str, Any]]) -> dict:
-    out = dict(pairs)
-    if len(out) == len(pairs):
-        return out
-    dup = _Duplicates(out)
-    seen: set[str] = set()
-    for k, _ in pairs:
-        if k in seen:
-            dup.duplicate = k
-            break
-        seen.add(k)
-    return dup
-
-
-def _load_json(path: Path) -> Any:
-    """``result.json`` parsed, every number in it finite and readable and no key given twice."""
-    text = read_text_file(path, "result file")
-    try:
-        data = json.loads(text, parse_int=_json_int, parse_float=_json_float,
-                          parse_constant=lambda c: _Unreadable(c), object_pairs_hook=_json_object)
-    except json.JSONDecodeError as exc:
-        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
-    except RecursionError:
-        raise HybridnavError(f"{path}: not a result: nested too deeply") from None
-    stack: list[tuple[str, Any]] = [("", data)]
-    while stack:                       # iterative: as deep as the JSON parser went
-        key, value = stack.pop()
-        if isinstance(value, _Unreadable):
-            raise HybridnavError(f"{path}: {key or '(top level)'}: expected a number as "
-                                 f"hybridnav writes them (finite, at most "
-                                 f"{sys.get_int_max_str_digits() or 'any number of'} digits), got "
-                                 f"{value.what}")
-        if isinstance(value, _Duplicates):
-            raise HybridnavError(f"{path}: {key or '(top level)'}: duplicate key "
-                                 f"{short_repr(value.duplicate, 40)}")
-        if isinstance(value, dict):
-            stack.extend((f"{key}.{show_key(k)}" if key else show_key(k), v)
-                         for k, v in reversed(value.items()))
-        elif isinstance(value, list):
-            stack.extend((f"{key}[{i}]", v) for i, v in reversed(list(enumerate(value))))
-    return data
 
 
 # --------------------------------------------------------------------------------------------
@@ -718,7 +646,8 @@ def _csv_rows(path: Path, what: str) -> list[list[str]]:
 
 def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """Times and states of a trajectory CSV: finite numbers (of magnitude at most
-    :data:`hybridnav.resultspec.MAX_MAGNITUDE`), at strictly increasing times."""
+    :data:`hybridnav.resultspec.MAX_MAGNITUDE`; ``x`` and ``y`` at most
+    :data:`hybridnav.limits.MAX_POSITION`), at strictly increasing times."""
     if not path.is_file():
         raise HybridnavError(f"{path}: no such file (every robot has a trajectory CSV)")
     rows = _csv_rows(path, "trajectory")
@@ -729,13 +658,9 @@ def _read_trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...
         raise HybridnavError(f"{path}: expected at least one sample after the header")
     cols = [_floats([r[j] for r in rows[1:]], path, f"column {show_key(name)}")
             for j, name in enumerate(rows[0])]
-    for name, col in zip(rows[0], cols):
-        bad = ~(np.abs(col) <= MAX_MAGNITUDE)
-        if bad.any():
-            k = int(np.argmax(bad))
-            raise HybridnavError(f"{path}: column {show_key(name)}: expected finite numbers of "
-                                 f"magnitude at most {MAX_MAGNITUDE:g}, got {float(col[k])!r} "
-                                 f"at line {k + 2}")
+    for j, (name, col) in enumerate(zip(rows[0], cols)):   # x and y: what the figures draw
+        check_column(col, "position" if j in (1, 2) else "finite",
+                     f"{path}: column {show_key(name)}", first_line=2)
     back = np.flatnonzero(np.diff(cols[0]) <= 0)
     if len(back):
         k = int(back[0]) + 1

@@ -17,6 +17,8 @@ What a column holds (its *kind*):
 kind          values
 ============  ======================================================================
 ``finite``    finite numbers of magnitude at most :data:`MAX_MAGNITUDE`
+``position``  finite numbers of magnitude at most :data:`hybridnav.limits.MAX_POSITION`
+              (coordinates in the plane, what the figures draw)
 ``index``     whole numbers from 0 to 2**53
 ``extended``  as ``finite``, or ``inf`` / ``-inf`` (no ``nan``)
 ``any``       as ``finite``, ``nan``, ``inf`` or ``-inf``
@@ -34,11 +36,13 @@ from typing import Any
 import numpy as np
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import MAX_ROBOT_NAME, SAFE_NAME
+from hybridnav.fileio import MAX_ROBOT_NAME, SAFE_NAME, show_key
+from hybridnav.limits import MAX_POSITION
 from hybridnav.params import short_repr
 
 __all__ = ["EXTRAS", "MAX_MAGNITUDE", "METRICS", "OTHER_METRIC", "OUTCOMES", "SAFE_NAME", "Array",
-           "Metric", "Table", "check_entry", "check_extra", "declared", "show_key", "spec_of"]
+           "Metric", "Table", "check_column", "check_entry", "check_extra", "declared", "show_key",
+           "spec_of"]
 
 #: The outcome of each robot. A planner that runs out of its step or time budget reports
 #: ``timeout``; it never loops forever and never raises for it.
@@ -51,6 +55,7 @@ MAX_MAGNITUDE = 1e300
 
 _KINDS = {
     "finite": f"finite numbers of magnitude at most {MAX_MAGNITUDE:g}",
+    "position": f"finite coordinates of magnitude at most {MAX_POSITION:g}",
     "index": "whole numbers from 0 to 2**53",
     "extended": "numbers or +-inf (no nan)",
     "any": "numbers, nan or +-inf",
@@ -146,12 +151,16 @@ class Table:
         The exact number of rows, if fixed.
     less : tuple of (str, str)
         Pairs of columns ``(a, b)`` with ``a < b`` in every row (an extent's bounds).
+    ascending : tuple of str
+        Columns whose values never decrease from row to row (rows in the order they were
+        recorded, what a reader that looks a time up by bisection needs).
     """
 
     columns: Mapping[str, Any]
     others: str | None = None
     rows: int | None = None
     less: tuple[tuple[str, str], ...] = ()
+    ascending: tuple[str, ...] = ()
 
     def expected(self) -> str:
         """The columns, as the messages list them."""
@@ -194,11 +203,20 @@ class Table:
         self.check_names(list(table), source)
         for col, values in table.items():
             kind = self.columns.get(col, self.others)
-            _check_column(np.asarray(values), kind, f"{source}: column {col}", first_line)
+            check_column(np.asarray(values), kind, f"{source}: column {col}", first_line)
         n = len(next(iter(table.values()))) if table else 0
         if self.rows is not None and n != self.rows:
             raise HybridnavError(f"{source}: expected {self.rows} row{'s' * (self.rows != 1)}"
                                  f" of {', '.join(self.columns)}, got {n}")
+        for col in self.ascending:
+            values = np.asarray(table[col])
+            back = np.flatnonzero(np.diff(values) < 0)
+            if len(back):
+                k = int(back[0]) + 1
+                raise HybridnavError(f"{source}: column {col}: expected rows in the order they "
+                                     f"were recorded ({col} never decreasing), got "
+                                     f"{float(values[k])!r} after {float(values[k - 1])!r} at "
+                                     f"{_at(k, first_line)}")
         for a, b in self.less:
             bad = ~(np.asarray(table[a]) < np.asarray(table[b]))
             if bad.any():
@@ -242,7 +260,7 @@ class Array:
                                  f"index {at}")
 
 
-_XY = Table({"x": "finite", "y": "finite"})
+_XY = Table({"x": "position", "y": "position"})
 
 #: The extras planners record, by the prefix of their names (``<prefix>_<robot>``).
 EXTRAS: dict[str, Table | Array] = {
@@ -250,23 +268,25 @@ EXTRAS: dict[str, Table | Array] = {
     "signals": Table({"t": "finite"}, others="any"),
     # hapf: the harmonic potential on its grid and the grid's extent
     "harmonic_potential": Array(ndim=2),
-    "harmonic_grid": Table({"x0": "finite", "x1": "finite", "y0": "finite", "y1": "finite"},
+    "harmonic_grid": Table({"x0": "position", "x1": "position", "y0": "position",
+                            "y1": "position"},
                            rows=1, less=(("x0", "x1"), ("y0", "y1"))),
     # every swarm search (pbpf, path planners, step planners, pso-ba): best cost per iteration
     "swarm_best": Table({"plan": "index", "iteration": "index", "best": "extended"}),
     # step planners, pso-ba: the final candidates of each search (at most MAX_CANDIDATES of
     # hybridnav.planners.base each; cost inf where infeasible), for the animations
-    "candidates": Table({"plan": "index", "t": "finite", "x": "finite", "y": "finite",
-                         "cost": "extended"}),
+    # (in the order the searches ran: the animation finds a time's search by bisection)
+    "candidates": Table({"plan": "index", "t": "finite", "x": "position", "y": "position",
+                         "cost": "extended"}, ascending=("plan", "t")),
     # path planners
     "planned": _XY, "rfd_path": _XY, "rfd_seed": _XY,
     # step planners
-    "steps": Table({"t": "finite", "target_x": "finite", "target_y": "finite",
+    "steps": Table({"t": "finite", "target_x": "position", "target_y": "position",
                     "cost": "finite", "mode": ("hold", "goal", "step"), "xdot": "finite",
                     "ydot": "finite"}),
-    "waypoints": Table({"t": "finite", "x": "finite", "y": "finite", "cost": "finite"}),
+    "waypoints": Table({"t": "finite", "x": "position", "y": "position", "cost": "finite"}),
     # pso-ba (fitness and the bat parameters are nan where no PSO-BA run placed the point)
-    "path_points": Table({"t": "finite", "x": "finite", "y": "finite",
+    "path_points": Table({"t": "finite", "x": "position", "y": "position",
                           "mode": ("goal", "repaired", "wall", "track"), "fitness": "any",
                           "alpha": "any", "gamma": "any"}),
 }
@@ -358,22 +378,25 @@ def check_entry(entry: Any, source: str) -> None:
             raise HybridnavError(f"{source}.{show_key(key)}: {problem}")
 
 
-def show_key(key: Any) -> str:
-    """A key as messages show it: a plain name as it is, anything else quoted and cut.
-
-    Parameters
-    ----------
-    key : any
-    """
-    return key if isinstance(key, str) and SAFE_NAME.fullmatch(key) else short_repr(key, 40)
-
-
 def _at(k: int, first_line: int | None) -> str:
     """Row ``k`` of a table, as a line of its file or a row index."""
     return f"line {k + first_line}" if first_line is not None else f"row {k}"
 
 
-def _check_column(values: np.ndarray, kind: Any, key: str, first_line: int | None) -> None:
+def check_column(values: np.ndarray, kind: Any, key: str, first_line: int | None = None) -> None:
+    """Raise a :class:`HybridnavError` unless ``values`` hold what ``kind`` declares (see the
+    module docstring), naming ``key`` and the first bad row.
+
+    Parameters
+    ----------
+    values : ndarray
+        A 1-D column (numbers as floats, text as ``str``).
+    kind : str or tuple
+    key : str
+        What the messages start with (``<file>: column x``).
+    first_line : int or None
+        Line of the first row in the file (rows are named by line then), else None.
+    """
     if kind == "text" or isinstance(kind, tuple):
         what = _KINDS["text"] if kind == "text" else f"one of {', '.join(kind)}"
         if values.dtype.kind != "U":
@@ -391,6 +414,7 @@ def _check_column(values: np.ndarray, kind: Any, key: str, first_line: int | Non
         big = np.isfinite(values) & (np.abs(values) > MAX_MAGNITUDE)
         bad = {"finite": ~np.isfinite(values) | big,
                "index": ~((values >= 0) & (values <= 2.0**53) & (values == np.floor(values))),
+               "position": ~(np.abs(values) <= MAX_POSITION),
                "extended": np.isnan(values) | big,
                "any": big}[kind]
     if bad.any():

@@ -311,8 +311,12 @@ def test_bad_input_is_one_line_naming_the_file(run_dir, tmp_path):
     for args, message in cases:
         rc, out, err = cli(*args)
         assert (rc, out, err) == (2, "", f"hybridnav: error: {message}\n"), args
-    for option, value, what in (("--fps", "0", "a number of frames per second in (0, 100]"),
-                                ("--fps", "nan", "a number of frames per second in (0, 100]"),
+    for option, value, what in (("--fps", "0", "a number of frames per second in [0.01, 100]"),
+                                ("--fps", "nan", "a number of frames per second in [0.01, 100]"),
+                                # below ~0.0016 a GIF frame outlasts its 16-bit duration field
+                                # (Pillow raised OverflowError)
+                                ("--fps", "0.001", "a number of frames per second in [0.01, 100]"),
+                                ("--fps", "1e400", "a number of frames per second in [0.01, 100]"),
                                 ("--dpi", "5", "an integer in [10, 600]"),
                                 ("--max-frames", "0", "an integer in [1, 10000]")):
         with pytest.raises(SystemExit) as exit_, contextlib.redirect_stderr(io.StringIO()) as e:
@@ -322,11 +326,16 @@ def test_bad_input_is_one_line_naming_the_file(run_dir, tmp_path):
             f"hybridnav: error: argument {option}: expected {what}, got '{value}' (see "
             "'hybridnav animate --help')")
     assert not list(run_dir.glob("*.gif"))
-    with pytest.raises(HybridnavError, match=r"^fps: expected a number of frames per second in "
-                                             r"\(0, 100\], got True$"):
-        animate(run_dir, tmp_path / "a.gif", fps=True)
+    for fps in (True, 0.001, 10**400, float("inf")):
+        with pytest.raises(HybridnavError, match=r"^fps: expected a number of frames per second in"
+                                                 r" \[0\.01, 100\], got "):
+            animate(run_dir, tmp_path / "a.gif", fps=fps)
     with pytest.raises(HybridnavError, match=r"^animate: scenario: expected the scenario the "):
         animate(read_result(run_dir), tmp_path / "a.gif")
+    # the slowest rate is written: a frame of 100 s
+    slow = animate(run_dir, tmp_path / "slow.gif", fps=0.01, max_frames=2, dpi=10)
+    with Image.open(slow.path) as im:
+        assert (slow.fps, im.n_frames, im.info["duration"]) == (0.01, 2, 100_000)
 
 
 def test_the_help_has_an_example():
@@ -384,9 +393,17 @@ def test_a_tuning_job_animates_its_best_system_per_generation(tmp_path):
                                              ".animate_tuning animates it"):
         animate(folder, tmp_path / "e.gif")
     rc, _, err = cli(folder, "--world", "nowhere", "--max-frames", 2)
-    assert rc == 2 and err.startswith("hybridnav: error: world: expected the name of one of "
-                                      "the job's worlds (['effc-env-a', 'effc-env-b', ")
+    assert rc == 2 and err.startswith(f"hybridnav: error: {folder / 'generations.json'}: world: "
+                                      "expected the name of one of the job's worlds "
+                                      "(['effc-env-a', 'effc-env-b', ")
     assert err.endswith("got 'nowhere'\n")
+    # one frame: the last generation's run at its end (it was generation 0 at t = 0)
+    one = animate_tuning(folder, tmp_path / "one.gif", max_frames=1, dpi=20,
+                         world="effc-train-2")
+    last = planners.get("effc", fis=result.generations[-1]["system"],
+                        **job["planner"]).run(scenario)
+    assert one.labels[0].startswith(f"generation {result.generations[-1]['generation']}: ")
+    assert one.times == pytest.approx((float(last.robots[0].t[-1]),))
 
 
 def test_a_tuning_folder_without_generations(tmp_path):
@@ -406,3 +423,100 @@ def test_a_tuning_folder_without_generations(tmp_path):
     assert rc == 2 and err == (f"hybridnav: error: {folder / 'generations.json'}: worlds: "
                                "expected an object of train, validation and test lists, got "
                                "None\n")
+
+
+def small_generations(folder: Path, **change) -> Path:
+    """A tuning folder whose generations.json is written by hand: effc-2rule on effc-train-1,
+    three generations (``change`` replaces top-level keys)."""
+    from hybridnav import fuzzy
+
+    folder.mkdir(parents=True, exist_ok=True)
+    data = {"format": "hybridnav-generations/1", "planner": "effc", "planner_params": {},
+            "worlds": {"train": ["effc-train-1"], "validation": [], "test": []},
+            "systems": [fuzzy.load("effc-2rule").to_dict()],
+            "generations": [{"stage": 0, "generation": g, "score": 1.0 - g / 10, "system": 0}
+                            for g in range(3)]}
+    data.update(change)
+    (folder / "generations.json").write_text(json.dumps(data))
+    return folder / "generations.json"
+
+
+@pytest.mark.parametrize("edit, message", [
+    # Python's int-string limit: json.loads raised ValueError (a traceback)
+    (lambda t: t.replace('"generation": 1', '"generation": ' + "7" * 5000, 1),
+     "generations[1].generation: expected a number as hybridnav writes them (finite, at most "
+     "4300 digits), got an integer of 5000 digits"),
+    # an int beyond floats: formatting the score raised OverflowError
+    (lambda t: t.replace('"score": 0.9', '"score": 1' + "0" * 400, 1),
+     "generations[1].score: expected a finite number or null, got 1000000000000000000000000000000"
+     "000000000...0000000000 (401 characters)"),
+    # NaN and Infinity were taken silently
+    (lambda t: t.replace('"score": 0.9', '"score": NaN', 1),
+     "generations[1].score: expected a number as hybridnav writes them (finite, at most 4300 "
+     "digits), got NaN"),
+    (lambda t: t.replace('"score": 0.8', '"score": -Infinity', 1),
+     "generations[2].score: expected a number as hybridnav writes them (finite, at most 4300 "
+     "digits), got -Infinity"),
+    (lambda t: t.replace('"score": 0.8', '"score": 1e999', 1),
+     "generations[2].score: expected a number as hybridnav writes them (finite, at most 4300 "
+     "digits), got '1e999' (beyond the float range)"),
+    (lambda t: t.replace('"score": 0.8', '"score": true', 1),
+     "generations[2].score: expected a finite number or null, got True"),
+    (lambda t: t.replace('"generation": 2', '"generation": -2', 1),
+     "generations[2].generation: expected a whole number from 0 to 2**63 - 1, got -2"),
+    (lambda t: t.replace('"system": 0}]', '"system": 1}]', 1),
+     "generations[2].system: expected an index into systems (an integer in [0, 0]), got 1"),
+    (lambda t: t.replace('"planner": "effc"', '"planner": "effc", "planner": "apf"', 1),
+     "(top level): duplicate key 'planner'"),
+])
+def test_hostile_numbers_in_generations_json(tmp_path, edit, message, monkeypatch):
+    gens = small_generations(tmp_path / "tuned")
+    gens.write_text(edit(gens.read_text()))
+    monkeypatch.setattr(planners, "get", None)        # refused before any run
+    rc, out, err = cli(gens.parent)
+    assert (rc, out, err) == (2, "", f"hybridnav: error: {gens}: {message}\n")
+    assert sorted(p.name for p in gens.parent.iterdir()) == ["generations.json"]
+
+
+def test_a_tuning_animation_checks_its_file_before_it_runs(tmp_path, monkeypatch):
+    gens = small_generations(tmp_path / "tuned")
+    monkeypatch.setattr(planners, "get", None)        # no planner runs before these errors
+    (tmp_path / "file").write_text("")
+    for out, message in (
+            (tmp_path / "x.png", f"{tmp_path / 'x.png'}: expected an animation file name ending "
+                                 "in .gif or .mp4, got .png"),
+            (tmp_path / "file" / "a.gif", f"{tmp_path / 'file' / 'a.gif'}: cannot write "
+                                          f"({tmp_path / 'file'} is not a folder)"),
+            (tmp_path / "d.gif", f"{tmp_path / 'd.gif'}: cannot write (it is a folder; expected "
+                                 "a file name)")):
+        if out.name == "d.gif":
+            out.mkdir()
+        rc, _, err = cli(gens.parent, "--out", out)
+        assert (rc, err) == (2, f"hybridnav: error: {message}\n")
+    from hybridnav.tuner import animate_tuning
+
+    with pytest.raises(HybridnavError, match=r"^fps: expected a number of frames per second in "
+                                             r"\[0\.01, 100\], got 0\.001$"):
+        animate_tuning(gens.parent, fps=0.001)
+    assert sorted(p.name for p in gens.parent.iterdir()) == ["generations.json"]
+
+
+def test_one_frame_is_the_end_and_a_failure_leaves_no_folder(run_dir, tmp_path, monkeypatch):
+    result = read_result(run_dir)
+    end = max(float(rr.t[-1]) for rr in result.robots)
+    rc, out, err = cli(run_dir, "--out", tmp_path / "one.gif", "--max-frames", 1, "--dpi", 20)
+    assert rc == 0, err
+    assert out == f"wrote {tmp_path / 'one.gif'}: 1 frame at 10 fps, 128 x 128 pixels " \
+                  f"(t = {end:.1f} s)\n"
+    assert animate(run_dir, tmp_path / "b.gif", max_frames=1, dpi=20).times == (end,)
+    # the folders the file would go in are made only to write it, and removed on a failure
+    from hybridnav.plotting import animation
+
+    def fail(self):
+        raise HybridnavError("disk full (simulated)")
+
+    monkeypatch.setattr(animation._Stage, "render", fail)
+    rc, _, err = cli(run_dir, "--out", tmp_path / "new" / "sub" / "a.gif", "--max-frames", 2,
+                     "--dpi", 20)
+    assert (rc, err) == (2, "hybridnav: error: disk full (simulated)\n")
+    assert not (tmp_path / "new").exists()

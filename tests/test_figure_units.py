@@ -335,6 +335,12 @@ def test_tune_figures(tmp_path, captured):
     assert {f.split(".")[0] for f in figures} <= set(FIGURES)
     for f in (tmp_path / "o").iterdir():                # --force knows what it would remove
         assert f.is_dir() or f.name in OUTPUT_FILES, f.name
+    # what 'hybridnav tune' lists is every file the job left, checkpoint.json and
+    # evaluations.jsonl included (they were missing from its "wrote ..." line)
+    left = sorted(p.relative_to(tmp_path / "o").as_posix()
+                  for p in (tmp_path / "o").rglob("*") if p.is_file())
+    assert sorted(result.files) == left and len(set(result.files)) == len(result.files)
+    assert {"checkpoint.json", "evaluations.jsonl"} <= set(result.files)
     assert "coverage.svg" in (tmp_path / "o" / "report.md").read_text()
     for fig, path in captured:
         check_figure(fig, "m", path)
@@ -365,6 +371,14 @@ def test_format_and_dpi_on_the_command_line(tmp_path, capsys):
     listed = capsys.readouterr().out.splitlines()[-1]
     assert "path.svg" in listed and "signals.svg" in listed and ".png" not in listed
     assert (out / "path.svg").read_bytes()[:5] == b"<?xml" and not list(out.glob("*.png"))
+    # 'plot' on the folder writes the requested format only, in place or elsewhere
+    before = {p.name for p in out.iterdir()}
+    assert main(["plot", str(out), "--format", "pdf"]) == 0
+    assert capsys.readouterr().out == f"wrote {out}/: path.pdf, signals.pdf\n"
+    assert {p.name for p in out.iterdir()} - before == {"path.pdf", "signals.pdf"}
+    assert main(["plot", str(out), "--format", "svg", "-o", str(tmp_path / "again")]) == 0
+    assert sorted(p.name for p in (tmp_path / "again").iterdir()) == ["path.svg", "signals.svg"]
+    capsys.readouterr()
     # --dpi scales the pixels (surface.png: a constrained 6.4 x 5.2 inch figure)
     for dpi in (50, 120):
         assert main(["fis", "effc-2rule", "-o", str(tmp_path / f"d{dpi}"), "--dpi",
@@ -379,11 +393,14 @@ def test_format_and_dpi_on_the_command_line(tmp_path, capsys):
     (["fis", "effc-2rule", "-o", "{tmp}", "--format", "jpg"],
      "argument --format: expected one of png, pdf, svg, got 'jpg'"),
     (["fis", "effc-2rule", "-o", "{tmp}", "--dpi", "0"],
-     "argument --dpi: expected an integer in [1, 1200] (dots per inch), got '0'"),
+     "argument --dpi: expected an integer in [10, 1200] (dots per inch), got '0'"),
+    # below 10 dpi FreeType raised RuntimeError (invalid ppem value) while drawing the text
+    (["fis", "effc-2rule", "-o", "{tmp}", "--dpi", "5"],
+     "argument --dpi: expected an integer in [10, 1200] (dots per inch), got '5'"),
     (["run", "effc-train-1", "--planner", "apf", "-o", "{tmp}", "--dpi", "1201"],
-     "argument --dpi: expected an integer in [1, 1200] (dots per inch), got '1201'"),
+     "argument --dpi: expected an integer in [10, 1200] (dots per inch), got '1201'"),
     (["compare", "--planners", "apf", "--scenarios", "effc-train-1", "-o", "{tmp}",
-      "--dpi", "2.5"], "argument --dpi: expected an integer in [1, 1200] (dots per inch)"),
+      "--dpi", "2.5"], "argument --dpi: expected an integer in [10, 1200] (dots per inch)"),
 ])
 def test_bad_format_or_dpi_is_one_line_and_status_2(argv, message, tmp_path, capsys):
     from hybridnav.cli import main
@@ -402,12 +419,13 @@ def test_the_python_api_checks_format_and_dpi(tmp_path):
 
     with pytest.raises(HybridnavError, match=r"^fmt: expected one of png, pdf, svg, got 'gif'$"):
         analyze("point_mass", out=tmp_path / "a", fmt="gif")
-    with pytest.raises(HybridnavError, match=r"^dpi: expected an integer in \[1, 1200\]"):
+    with pytest.raises(HybridnavError, match=r"^dpi: expected an integer in \[10, 1200\]"):
         analyze("point_mass", out=tmp_path / "a", dpi=0)
     assert not (tmp_path / "a").exists()
-    for bad in (0, -3, 1201, 2.5, True, "120"):
+    for bad in (0, -3, 1, 9, 1201, 2.5, True, "120"):
         with pytest.raises(HybridnavError, match="^dpi: expected an integer"):
             check_dpi(bad)
+    assert check_dpi(10) == 10 and check_dpi(1200) == 1200
     assert check_format(".SVG") == "svg" and figure_name("signals.png", "pdf") == "signals.pdf"
     with pytest.raises(HybridnavError, match="^format: expected one of png, pdf, svg"):
         check_format("eps")

@@ -184,7 +184,7 @@ def test_nan_and_infinity_in_result_json(written, tmp_path, literal, shown):
           f"4300 digits), got {shown}")
 
 
-@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1e308"])
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1e308", "2e9"])
 def test_nan_or_inf_in_the_grid_csv(written, tmp_path, value):
     folder = copy_of(written, "hapf", tmp_path)
 
@@ -194,7 +194,7 @@ def test_nan_or_inf_in_the_grid_csv(written, tmp_path, value):
 
     edit_table(folder / "harmonic_grid_R.csv", change)
     fails(folder, written, tmp_path, "harmonic_grid_R.csv",
-          f"column x0: expected finite numbers of magnitude at most 1e+300, got "
+          f"column x0: expected finite coordinates of magnitude at most 1e+09, got "
           f"{float(value)!r} at line 2")
 
 
@@ -370,6 +370,36 @@ def test_a_damaged_trajectory(written, tmp_path, line, value, message):
     fails(folder, written, tmp_path, "trajectory_R.csv", message)
 
 
+@pytest.mark.parametrize("column, value", [(1, "1e200"), (2, "-2e9"), (1, "inf")])
+def test_a_trajectory_far_outside_any_world(written, tmp_path, column, value):
+    """Coordinates near 1e200 crashed Matplotlib's Agg renderer (OverflowError) in 'plot' and
+    'animate': x and y are bounded by limits.MAX_POSITION, 1000 x the largest workspace."""
+    folder = copy_of(written, "effc", tmp_path)
+
+    def change(rows):
+        rows[3][column] = value
+        return rows
+
+    edit_table(folder / "trajectory_R.csv", change)
+    fails(folder, written, tmp_path, "trajectory_R.csv",
+          f"column {'xy'[column - 1]}: expected finite coordinates of magnitude at most 1e+09, "
+          f"got {float(value)!r} at line 4")
+
+
+def test_candidates_out_of_order(written, tmp_path):
+    """The writer records the searches in the order they ran (the animation bisects their
+    times): a shuffled candidates table is refused, not drawn at the wrong times."""
+    folder = copy_of(written, "pso-ba", tmp_path)
+    path = folder / "candidates_R.csv"
+    rows = [line.split(",") for line in path.read_text().splitlines()]
+    late = max(range(1, len(rows)), key=lambda k: float(rows[k][0]))
+    assert float(rows[late][0]) > 0
+    edit_table(path, lambda rows: [rows[0], rows[late]] + rows[1:late] + rows[late + 1:])
+    fails(folder, written, tmp_path, "candidates_R.csv",
+          f"column plan: expected rows in the order they were recorded (plan never decreasing), "
+          f"got {float(rows[1][0])!r} after {float(rows[late][0])!r} at line 3")
+
+
 def test_steps_with_an_unknown_mode(written, tmp_path):
     folder = copy_of(written, "fastep-kinematic", tmp_path)
 
@@ -421,9 +451,17 @@ def _robots():
     ({"harmonic_potential_R": {"x": [0.0]}},
      r"result: extras.harmonic_potential_R: expected an array \(.npy\), got a table"),
     ({"planned_R": {"x": [np.nan], "y": [0.0]}},
-     "result: extras.planned_R: column x: expected finite numbers .* got nan at row 0"),
+     "result: extras.planned_R: column x: expected finite coordinates .* got nan at row 0"),
     ({"swarm_best_R": {"plan": [0], "iteration": [0], "best": [np.nan]}},
      r"column best: expected numbers or \+-inf \(no nan\), got nan at row 0"),
+    # the reader refuses both: the writer never writes them
+    ({"planned_R": {"x": [2e9], "y": [0.0]}},
+     r"column x: expected finite coordinates of magnitude at most 1e\+09, got 2000000000.0 at "
+     "row 0"),
+    ({"candidates_R": {"plan": [1, 0], "t": [0.0, 0.0], "x": [0.0, 0.0], "y": [0.0, 0.0],
+                       "cost": [1.0, 1.0]}},
+     r"extras.candidates_R: column plan: expected rows in the order they were recorded \(plan "
+     r"never decreasing\), got 0.0 after 1.0 at row 1"),
 ])
 def test_the_writer_refuses_an_extra_that_is_not_as_declared(extras, message):
     with pytest.raises(HybridnavError, match=message):

@@ -186,7 +186,7 @@ def save_memberships_png(system: FuzzySystem, path: str | os.PathLike[str], dpi:
     system : FuzzySystem
     path : str or path-like
     dpi : int
-        Dots per inch, in ``[1, 1200]``.
+        Dots per inch, in ``[10, 1200]``.
     """
     return _save(plot_memberships(system), path, dpi)
 
@@ -201,7 +201,7 @@ def save_surface_png(system: FuzzySystem, path: str | os.PathLike[str], dpi: int
     system : FuzzySystem
     path : str or path-like
     dpi : int
-        Dots per inch, in ``[1, 1200]``.
+        Dots per inch, in ``[10, 1200]``.
     **kwargs
         Passed to :func:`plot_surface`.
     """

@@ -37,8 +37,8 @@ from matplotlib.patches import Circle as CirclePatch
 from matplotlib.patches import Polygon as PolygonPatch
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import atomic_path
-from hybridnav.params import short_repr
+from hybridnav.fileio import atomic_path, check_writable
+from hybridnav.params import check_fps, short_repr
 from hybridnav.plotting.diagnostics import extras_of
 from hybridnav.plotting.scenes import draw_moving_obstacles, draw_scenario
 from hybridnav.results import Result, read_run
@@ -111,11 +111,12 @@ def animate(source: str | os.PathLike[str] | Result, path: str | os.PathLike[str
         The scenario the result is of: for a folder, a built-in name or a ``.toml`` file
         (default: the built-in scenario the result names); for a result, a Scenario too.
     fps : float
-        Frames per second, in (0, 100].
+        Frames per second, in [0.01, 100] (:func:`hybridnav.params.check_fps`: a GIF cannot
+        show a frame longer than 655.35 s).
     dpi : int
         Resolution, in [10, 600] (a frame is 6.4 x 6.4 inches: 512 x 512 pixels at 80).
     max_frames : int
-        Most frames, in [1, 10000].
+        Most frames, in [1, 10000] (one frame shows the end of the run).
     fmt : {"gif", "mp4"}, optional
         Default: from the suffix of ``path``.
 
@@ -147,6 +148,7 @@ def animate(source: str | os.PathLike[str] | Result, path: str | os.PathLike[str
                              "does)")
     out = Path(path) if path is not None else folder / "animation.gif"
     fmt = _format(out, fmt)                        # before any file is read
+    check_writable(out)
     result, scen = read_run(folder, scenario)
     return animate_result(result, scen, out, fps=fps, dpi=dpi, max_frames=max_frames, fmt=fmt)
 
@@ -155,7 +157,8 @@ def animate_result(result: Result, scenario: Any, path: str | os.PathLike[str], 
                    fps: float = 10.0, dpi: int = 80, max_frames: int = 150,
                    fmt: str | None = None) -> Animated:
     """Write an animation of one run: frames at evenly spaced times from 0 to the end of the
-    longest robot's run (at every sample time when there are at most ``max_frames``).
+    longest robot's run (at every sample time when there are at most ``max_frames``; a single
+    frame shows the end).
 
     Parameters
     ----------
@@ -178,7 +181,7 @@ def animate_result(result: Result, scenario: Any, path: str | os.PathLike[str], 
     samples = np.unique(np.concatenate([rr.t for rr in result.robots])) if result.robots \
         else np.zeros(1)
     # every sample when there are few, else evenly spaced times (farther apart than samples)
-    times = samples if len(samples) <= max_frames else np.linspace(0.0, t_end, max_frames)
+    times = samples if len(samples) <= max_frames else _spread(0.0, t_end, max_frames)
     stage = _Stage(scenario, dpi)
     runs = [_Track.of(rr) for rr in result.robots]
     candidates = extras_of(result, "candidates")
@@ -225,7 +228,7 @@ def animate_runs(scenario: Any, runs: Sequence[tuple[str, Any]],
         raise HybridnavError("animate_runs: runs: expected at least one (title, result)")
     runs = list(runs)
     if len(runs) > max_frames:                     # evenly chosen runs, the last kept
-        pick = np.unique(np.linspace(0, len(runs) - 1, max_frames).round().astype(int))
+        pick = np.unique(_spread(0, len(runs) - 1, max_frames).round().astype(int))
         runs = [runs[i] for i in pick]
     tracks = [[_Track.of(rr) for rr in res.robots] for _, res in runs]
     per = max(1, min(_PER_RUN, max_frames // len(runs)))
@@ -519,6 +522,12 @@ def _format(path: Path, fmt: str | None) -> str:
     return fmt
 
 
+def _spread(first: float, last: float, n: int) -> np.ndarray:
+    """``n`` evenly spaced values from ``first`` to ``last``; one frame is ``last`` (a run's end,
+    the last run: what the animation has come to), not ``first`` as ``np.linspace`` gives."""
+    return np.linspace(first, last, n) if n > 1 else np.array([last], dtype=float)
+
+
 def _digits(times: np.ndarray) -> int:
     """Decimals that tell the frames' times apart (at least 1): a GIF writer merges frames that
     are the same picture, titles included."""
@@ -532,14 +541,12 @@ def _check_settings(fps: Any, dpi: Any, max_frames: Any) -> tuple[float, int, in
     def number(v: Any) -> bool:
         return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
 
-    if not number(fps) or not 0.0 < float(fps) <= 100.0:
-        raise HybridnavError(f"fps: expected a number of frames per second in (0, 100], got "
-                             f"{short_repr(fps)}")
+    fps = check_fps(fps)
     for key, v, lo, hi in (("dpi", dpi, 10, 600), ("max_frames", max_frames, 1, 10000)):
         if not number(v) or v != int(v) or not lo <= v <= hi:
             raise HybridnavError(f"{key}: expected an integer in [{lo}, {hi}], got "
                                  f"{short_repr(v)}")
-    return float(fps), int(dpi), int(max_frames)
+    return fps, int(dpi), int(max_frames)
 
 
 def _scenario_of(result: Result, scenario: Any) -> Any:

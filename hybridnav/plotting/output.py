@@ -85,7 +85,7 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = DEFAULT_DP
         Ends in ``.png``, ``.pdf`` or ``.svg`` (what the commands write), or another suffix
         matplotlib writes (``.jpg``, ``.eps``, ...: ``hybridnav show -o``).
     dpi : int
-        Dots per inch, in ``[1, MAX_DPI]``.
+        Dots per inch, in ``[MIN_DPI, MAX_DPI]`` (10 to 1200).
     bbox_inches : str or None
         As for :meth:`matplotlib.figure.Figure.savefig`.
 

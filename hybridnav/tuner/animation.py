@@ -10,23 +10,30 @@ runs one after the other with :func:`hybridnav.plotting.animate_runs`.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Any
 
 from hybridnav.errors import HybridnavError
-from hybridnav.fileio import read_text_file
+from hybridnav.fileio import check_writable, read_json
 from hybridnav.params import short_repr
 from hybridnav.plotting.animation import (
     GENERATIONS_FILE,
     Animated,
+    _check_settings,
+    _format,
     _is_tuning,
     animate_runs,
 )
+from hybridnav.resultspec import Metric
 from hybridnav.tuner.job import load_scenario_set
 
 __all__ = ["animate_tuning", "is_tuning_folder"]
+
+#: a generation's stage and number: whole numbers as the logbook counts them
+_COUNT = Metric("count")
+#: a generation's score (the logbook's ``min``): a finite number, or null where it had none
+_SCORE = Metric("number", null=True)
 
 
 def is_tuning_folder(folder: str | os.PathLike[str]) -> bool:
@@ -78,6 +85,10 @@ def animate_tuning(folder: str | os.PathLike[str], path: str | os.PathLike[str] 
         raise HybridnavError(f"{folder}: no such folder (expected a folder written by "
                              "'hybridnav tune')")
     path = Path(path) if path is not None else folder / "animation.gif"
+    # the settings and the file to write before anything is read or run
+    fps, dpi, max_frames = _check_settings(fps, dpi, max_frames)
+    fmt = _format(path, fmt)
+    check_writable(path)
     gens, systems, planner, params, scenario = _read_generations(folder, world)
     if planner not in planners.PLANNERS:
         raise HybridnavError(f"{folder / GENERATIONS_FILE}: planner: expected one of "
@@ -89,7 +100,7 @@ def animate_tuning(folder: str | os.PathLike[str], path: str | os.PathLike[str] 
         k = g["system"]
         if k not in done:
             done[k] = planners.get(planner, **{**params, "fis": systems[k]}).run(scenario)
-        score = "-" if g["score"] is None else f"{g['score']:.4g}"
+        score = "-" if g.get("score") is None else f"{float(g['score']):.4g}"
         runs.append((f"generation {g['generation']}"
                      + (f" (stage {g['stage']})" if kfold else "") + f": score {score}",
                      done[k]))
@@ -105,11 +116,8 @@ def _read_generations(folder: Path, world: str | None):
         raise HybridnavError(f"{path}: no such file: a navigation tuning job run by hybridnav "
                              "0.3.0 or later writes it (its best system per generation); run "
                              "the job again to animate it")
-    text = read_text_file(path, "generations file")
-    try:
-        data = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise HybridnavError(f"{path}: not valid JSON: {exc}") from None
+    # strict: a number past Python's digit limit, NaN or 1e999 is refused at its key
+    data = read_json(path, "generations file")
 
     def bad(key: str, what: str, got: Any) -> HybridnavError:
         return HybridnavError(f"{path}: {key}: expected {what}, got {short_repr(got)}")
@@ -140,13 +148,17 @@ def _read_generations(folder: Path, world: str | None):
     if not isinstance(gens, list) or not gens:
         raise bad("generations", "a non-empty list", gens)
     for i, g in enumerate(gens):
-        ok = isinstance(g, dict) and all(
-            type(g.get(k)) is int and g[k] >= 0 for k in ("stage", "generation", "system")) \
-            and g["system"] < len(loaded) and (g.get("score") is None or (
-                isinstance(g.get("score"), (int, float)) and not isinstance(g["score"], bool)))
-        if not ok:
+        if not isinstance(g, dict) or not {"stage", "generation", "system"} <= g.keys():
             raise bad(f"generations[{i}]", "an object of stage, generation, system (an index "
                       f"into systems, < {len(loaded)}) and score (a number or null)", g)
+        system = g["system"]
+        if type(system) is not int or not 0 <= system < len(loaded):
+            raise bad(f"generations[{i}].system", f"an index into systems (an integer in [0, "
+                      f"{len(loaded) - 1}])", system)
+        for key, declared in (("stage", _COUNT), ("generation", _COUNT), ("score", _SCORE)):
+            problem = declared.problem(g.get(key))
+            if problem:                    # 10**400 or NaN: never formatted below
+                raise HybridnavError(f"{path}: generations[{i}].{key}: {problem}")
     base = data.get("base", "")
     if not isinstance(base, str):
         raise bad("base", "the job file's folder", base)
@@ -163,7 +175,7 @@ def _read_generations(folder: Path, world: str | None):
         if scenario is not None:
             break
     if scenario is None:
-        raise HybridnavError(f"world: expected the name of one of the job's worlds "
+        raise HybridnavError(f"{path}: world: expected the name of one of the job's worlds "
                              f"({short_repr(names, 300)}), got {short_repr(world)}"
                              if world is not None else f"{path}: worlds: the job has no world")
     return gens, loaded, planner, params, scenario

@@ -45,7 +45,7 @@ from hybridnav.tuner.result import TuningResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FIGURES", "OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "run_job",
+__all__ = ["FIGURES", "OUTPUT_FILES", "OUTPUT_FOLDERS", "clear_outputs", "output_files", "run_job",
            "write_generations", "write_outputs"]
 
 #: File name stem of the C export a tuning job writes (effc.h, effc.c; functions effc_*)
@@ -85,15 +85,11 @@ def clear_outputs(out: str | Path) -> list[Path]:
     out = Path(out)
     gone: list[Path] = []
 
-    def known(path: Path, inner: bool) -> bool:
-        return path.is_file() and not path.is_symlink() and (
-            path.name in OUTPUT_FILES or (inner and bool(_FOLDER_FILES.match(path.name))))
-
     def clear(folder: Path, inner: bool) -> None:
         for path in sorted(folder.iterdir()):
-            if path.is_dir() and not path.is_symlink() and inner and path.name == "learning":
+            if inner and _is_inner_folder(path, "learning"):
                 clear(path, True)
-            elif known(path, inner):
+            elif _is_output(path, inner):
                 path.unlink()
                 gone.append(path)
         gone.extend(clean_temporaries(folder))
@@ -103,12 +99,50 @@ def clear_outputs(out: str | Path) -> list[Path]:
                 gone.append(folder)
 
     clear(out, False)
-    for name in sorted(p.name for p in out.iterdir()):
-        folder = out / name
-        if folder.is_dir() and not folder.is_symlink() and (
-                name in ("falsified", "front", "learning") or _ROBUST.match(name)):
-            clear(folder, True)
+    for folder in _output_folders(out):
+        clear(folder, True)
     return gone
+
+
+def output_files(out: str | Path) -> list[str]:
+    """The files of a tuning run in ``out`` (what :func:`clear_outputs` would remove), as paths
+    relative to ``out`` (``falsified/falsified-0004.toml``), sorted.
+
+    Parameters
+    ----------
+    out : str or Path
+        A tuning run's folder.
+    """
+    out = Path(out)
+    found: list[str] = []
+
+    def walk(folder: Path, inner: bool) -> None:
+        for path in sorted(folder.iterdir()):
+            if inner and _is_inner_folder(path, "learning"):
+                walk(path, True)
+            elif _is_output(path, inner):
+                found.append(path.relative_to(out).as_posix())
+
+    walk(out, False)
+    for folder in _output_folders(out):
+        walk(folder, True)
+    return found
+
+
+def _is_output(path: Path, inner: bool) -> bool:
+    """A file a tuning run writes (``inner``: in one of :data:`OUTPUT_FOLDERS`)."""
+    return path.is_file() and not path.is_symlink() and (
+        path.name in OUTPUT_FILES or (inner and bool(_FOLDER_FILES.match(path.name))))
+
+
+def _is_inner_folder(path: Path, *names: str) -> bool:
+    return path.is_dir() and not path.is_symlink() and path.name in names
+
+
+def _output_folders(out: Path) -> list[Path]:
+    """The folders of :data:`OUTPUT_FOLDERS` in ``out``."""
+    return [p for p in sorted(out.iterdir()) if p.is_dir() and not p.is_symlink() and (
+        p.name in ("falsified", "front", "learning") or _ROBUST.match(p.name))]
 
 
 def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = False,
@@ -120,7 +154,8 @@ def run_job(job: Job, out: str | Path, *, resume: bool = False, force: bool = Fa
 
     The job's objects (:meth:`Job.tunable`, :meth:`Job.cost`, :meth:`Job.optimizer`) go to
     :func:`hybridnav.tuner.tune`; the returned :class:`TuningResult` carries the verdicts and
-    the names of the files written (``result.files``).
+    the names of every file the job leaves in ``out`` (``result.files``: the outputs, the
+    checkpoint and ``evaluations.jsonl``).
 
     Parameters
     ----------
@@ -233,6 +268,13 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         The figures' format: ``png``, ``pdf`` or ``svg``.
     dpi : int
         The figures' resolution in dots per inch.
+
+    Returns
+    -------
+    list of str
+        Every file of the run in ``out`` (relative to it): those written here, then what the
+        optimizer keeps there (``checkpoint.json``, ``evaluations.jsonl``, ...;
+        :func:`output_files`), ``report.md`` last.
     """
     say = phase or (lambda msg: None)
     from hybridnav.fuzzy import plots
@@ -305,6 +347,9 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     if effc and f"{C_BASENAME}.c" in files:
         say("software-in-the-loop check: the exported C compiled and run against evaluate")
         sil = _sil_lines(job, result.system, out)
+    # and what the optimizer keeps there (checkpoint.json, evaluations.jsonl, the folders of a
+    # robust or two-stage run): the list is every file the job leaves
+    files += [f for f in output_files(out) if f not in files and f != "report.md"]
     atomic_write_text(out / "report.md", _report(job, result, summary, unc, files, falsified,
                                                  sil, fmt))
     files.append("report.md")
