@@ -103,6 +103,37 @@ def test_family_kernel_equals_the_numpy_evaluation(case):
     assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-12 * scale
 
 
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(families())
+def test_bisection_on_monotone_runs_changes_no_bit(case):
+    """Large batches find the output terms' level crossings by bisection on their monotone runs
+    (kernel.monotone_runs), small ones scan every sample: the outputs are the same to the bit
+    (the same crossing intervals), also for terms cut into many runs (more than the kernel
+    bisects: scanned)."""
+    fam, tables, rng = case
+    B = 300
+    member = rng.integers(0, tables.size, B)
+    X = _inputs(fam, rng, B)
+    for wiggle in (False, True):
+        if wiggle:                               # a comb: more turns than _MAX_TURNS
+            tables.output[..., ::3] *= 0.5
+        big = kernel.family_evaluate(fam, tables, member, X)
+        small = np.concatenate([kernel.family_evaluate(fam, tables, member[i:i + 100],
+                                                       {k: v[i:i + 100] for k, v in X.items()})
+                                for i in range(0, B, 100)])
+        assert np.array_equal(big, small, equal_nan=True)
+
+
+def test_monotone_runs_mark_each_turn():
+    out = np.array([[[0, 1, 1, 2, 1, 1, 0, 0, 3], [0, 0, 0, 0, 0, 0, 0, 0, 0],
+                     [1, 2, np.nan, 3, 4, 5, 6, 7, 8]]], dtype=float)
+    runs = kernel.monotone_runs(out, most=2)
+    assert runs[0, 0].tolist() == [2, 3, 7]      # up to sample 3, down to 7 (flat keeps the
+    assert runs[0, 1].tolist()[0] == 0           # direction), up again; flat: one run
+    assert runs[0, 2].tolist()[0] == -1          # a NaN sample: scanned
+    assert kernel.monotone_runs(out, most=1)[0, 0, 0] == -1     # more turns than bisected
+
+
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(families(), st.integers(0, 2**32 - 1))
 def test_family_kernel_equals_numpy_with_learned_antecedents(case, seed):

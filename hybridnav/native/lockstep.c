@@ -40,6 +40,11 @@ typedef struct {
     const int32_t *prog;       /* per rule a postfix program (see family_native.py) */
     const int32_t *prog_start; /* (R + 1) offsets into prog */
     double default_out;
+    /* (K, T, NB + 1) or NULL: per output term its number of turning samples n (or -1: scan it
+     * sample by sample), then the n turning samples; between two of them (and the ends) the
+     * term's samples never decrease or never increase */
+    const int32_t *runs;
+    int NB;
 } hn_family;
 
 enum { OP_TERM = 1, OP_NOT = 2, OP_AND = 3, OP_OR = 4 };
@@ -199,6 +204,31 @@ static double hn_fuzzy(const hn_family *f, int64_t k, const double *x, double *w
     for (int t = 0; t < T; ++t) {
         const double c = c3[t], *Ft = F + (size_t)t * M;
         if (c == INFINITY) continue;
+        const int32_t *rb = f->runs ? f->runs + ((size_t)k * T + t) * (f->NB + 1) : NULL;
+        if (rb && rb[0] >= 0) {
+            /* on a monotone run [a, b] the test F >= c changes at most once: where it does,
+             * bisection finds it (the same intervals as the scan below) */
+            for (int i = 0, a = 0; i <= rb[0]; ++i) {
+                int b = i < rb[0] ? rb[1 + i] : M - 1;
+                int pa = Ft[a] >= c;
+                if (pa != (Ft[b] >= c)) {
+                    int lo = a, hi = b;
+                    while (hi - lo > 1) {
+                        int mid = lo + (hi - lo) / 2;
+                        if ((Ft[mid] >= c) == pa) lo = mid; else hi = mid;
+                    }
+                    int q = nhit;                   /* insert lo, sorted, once */
+                    while (q > 0 && hit[q - 1] > lo) --q;
+                    if (!(q > 0 && hit[q - 1] == lo)) {
+                        memmove(hit + q + 1, hit + q, sizeof(int) * (nhit - q));
+                        hit[q] = lo;
+                        ++nhit;
+                    }
+                }
+                a = b;
+            }
+            continue;
+        }
         int prev = Ft[0] >= c;
         for (int m = 1; m < M; ++m) {
             if (m + 8 <= M) {                      /* skip blocks without a change */

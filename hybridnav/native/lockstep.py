@@ -37,7 +37,36 @@ class _Family(Structure):
                 ("wt", c_void_p), ("wm", c_void_p),
                 ("tout", c_void_p), ("tmax", c_void_p), ("R", c_int), ("weights", c_void_p),
                 ("cons", c_void_p), ("ante", c_void_p), ("prog", c_void_p),
-                ("prog_start", c_void_p), ("default_out", c_double)]
+                ("prog_start", c_void_p), ("default_out", c_double), ("runs", c_void_p),
+                ("NB", c_int)]
+
+#: turning samples per output term the kernel's bisection takes (a term with more is scanned)
+_MAX_TURNS = 8
+
+
+def monotone_runs(output: np.ndarray, most: int = _MAX_TURNS) -> np.ndarray:
+    """The turning samples of each output term's samples ``output`` ``(K, T, M)``: ``(K, T,
+    most + 1)`` int32, per term the count ``n`` (``-1``: more than ``most``, or a NaN sample)
+    and then the ``n`` samples where the direction (up or down; flat keeps the last) changes.
+    Between two turning samples (and the ends) a term never decreases or never increases, so
+    a level's crossings are found by bisection."""
+    K, T, M = output.shape
+    runs = np.full((K, T, most + 1), -1, dtype=np.int32)
+    if M < 3:
+        runs[..., 0] = 0
+        return runs
+    d = np.sign(np.diff(output, axis=2))                       # (K, T, M - 1)
+    last = np.maximum.accumulate(np.where(d != 0, np.arange(M - 1), 0), axis=2)
+    way = np.take_along_axis(d, last, axis=2)                  # flat: the last direction
+    turn = way[..., 1:] != way[..., :-1]                       # at sample j + 1
+    count = turn.sum(axis=2)
+    kk, tt, jj = np.nonzero(turn)
+    start = (np.cumsum(count.ravel()) - count.ravel())[kk * T + tt]
+    rank = np.arange(len(kk)) - start
+    ok = rank < most
+    runs[kk[ok], tt[ok], 1 + rank[ok]] = jj[ok] + 1
+    runs[..., 0] = np.where((count > most) | np.isnan(output).any(axis=2), -1, count)
+    return runs
 
 
 class _Stack(Structure):
@@ -191,7 +220,7 @@ def _fits(family, tables) -> bool:
     return True
 
 
-def _family_struct(family, tables, keep: _Keep) -> _Family | None:
+def _family_struct(family, tables, keep: _Keep, runs: bool = True) -> _Family | None:
     terms = [len(v.terms) for v in family.inputs]
     T = len(family.output.terms)
     if not _fits(family, tables):
@@ -233,27 +262,31 @@ def _family_struct(family, tables, keep: _Keep) -> _Family | None:
         f.prog = keep.ptr(prog[0] or [0], np.int32)
         f.prog_start = keep.ptr(prog[1], np.int32)
     f.default_out = float(family.output.default)
+    if runs:
+        f.runs = keep.ptr(monotone_runs(np.asarray(tables.output, dtype=np.float64)), np.int32)
+        f.NB = _MAX_TURNS
     return f
 
 
-def _loaded(family, tables, model=None):
+def _loaded(family, tables, model=None, runs: bool = True):
     """``(lib, keep, family struct)`` for a kernel call, or ``None`` (no kernel, or tables it
-    cannot read safely)."""
+    cannot read safely); ``runs``: with the output terms' monotone runs (worth their cost
+    over many evaluations)."""
     lib = _library(model)
     if lib is None:
         return None
     keep = _Keep()
-    f = _family_struct(family, tables, keep)
+    f = _family_struct(family, tables, keep, runs)
     return None if f is None else (lib, keep, f)
 
 
 def family_evaluate(family, tables, member: np.ndarray, inputs) -> np.ndarray | None:
     """:meth:`SystemFamily.evaluate` compiled, or ``None`` where the kernel does not apply."""
-    ready = _loaded(family, tables)
+    B = len(member)
+    ready = _loaded(family, tables, runs=B >= 256)
     if ready is None:
         return None
     lib, keep, f = ready
-    B = len(member)
     member = np.ascontiguousarray(member, dtype=np.int64)
     if B and (member.min() < 0 or member.max() >= tables.size):
         return None                        # NumPy's indexing (wrapping, IndexError) decides
