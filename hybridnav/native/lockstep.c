@@ -54,6 +54,23 @@ enum { OP_TERM = 1, OP_NOT = 2, OP_AND = 3, OP_OR = 4 };
 #define HN_MAX_T 64
 
 
+/* four doubles (GCC's vector extension: AVX where the clone has it, else SSE pairs) */
+typedef double hn_v4 __attribute__((vector_size(32)));
+typedef long long hn_v4i __attribute__((vector_size(32)));
+static inline hn_v4 hn_load(const double *p) { hn_v4 v; memcpy(&v, p, sizeof v); return v; }
+static inline void hn_store(double *p, hn_v4 v) { memcpy(p, &v, sizeof v); }
+/* a < b ? a : b and a > b ? a : b lane by lane (np.minimum / np.maximum where no NaN) */
+static inline hn_v4 hn_vmin(hn_v4 a, hn_v4 b)
+{
+    hn_v4i m = a < b;
+    return (hn_v4)(((hn_v4i)a & m) | ((hn_v4i)b & ~m));
+}
+static inline hn_v4 hn_vmax(hn_v4 a, hn_v4 b)
+{
+    hn_v4i m = a > b;
+    return (hn_v4)(((hn_v4i)a & m) | ((hn_v4i)b & ~m));
+}
+
 static double hn_maximum(double a, double b) { return (isnan(a) || isnan(b)) ? NAN : (b > a ? b : a); }
 
 /* largest j with xs[j] <= v (searchsorted right - 1), xs[0] <= v <= xs[n - 1]. On a uniform
@@ -169,20 +186,26 @@ static double hn_fuzzy(const hn_family *f, int64_t k, const double *x, double *w
     double ta[8] = {0}, tm[8] = {0};
     const double *wt = f->wt, *wm = f->wm;
     int m = 0;
-    for (; m + 8 <= M; m += 8) {
-        double a[8];
-        for (int l = 0; l < 8; ++l) a[l] = F[m + l] < cut[0] ? F[m + l] : cut[0];
-        for (int t = 1; t < T; ++t) {
-            const double ct = cut[t], *Ft = F + (size_t)t * M + m;
-            for (int l = 0; l < 8; ++l) {
-                double v = Ft[l] < ct ? Ft[l] : ct;
-                a[l] = v > a[l] ? v : a[l];
+    {   /* lanes l and l + 4 of the two vectors are the partial sums l and l + 4 */
+        hn_v4 ta0 = {0, 0, 0, 0}, ta1 = ta0, tm0 = ta0, tm1 = ta0;
+        for (; m + 8 <= M; m += 8) {
+            hn_v4 c0 = {cut[0], cut[0], cut[0], cut[0]};
+            hn_v4 a0 = hn_vmin(hn_load(F + m), c0), a1 = hn_vmin(hn_load(F + m + 4), c0);
+            for (int t = 1; t < T; ++t) {
+                const double *Ft = F + (size_t)t * M + m;
+                hn_v4 ct = {cut[t], cut[t], cut[t], cut[t]};
+                a0 = hn_vmax(hn_vmin(hn_load(Ft), ct), a0);
+                a1 = hn_vmax(hn_vmin(hn_load(Ft + 4), ct), a1);
             }
+            hn_store(A + m, a0);
+            hn_store(A + m + 4, a1);
+            ta0 += a0 * hn_load(wt + m);
+            ta1 += a1 * hn_load(wt + m + 4);
+            tm0 += a0 * hn_load(wm + m);
+            tm1 += a1 * hn_load(wm + m + 4);
         }
-        for (int l = 0; l < 8; ++l) {
-            A[m + l] = a[l];
-            ta[l] += a[l] * wt[m + l];
-            tm[l] += a[l] * wm[m + l];
+        for (int l = 0; l < 4; ++l) {
+            ta[l] = ta0[l]; ta[l + 4] = ta1[l]; tm[l] = tm0[l]; tm[l + 4] = tm1[l];
         }
     }
     for (; m < M; ++m) {
