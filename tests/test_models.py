@@ -286,3 +286,21 @@ def test_without_a_working_compiler_the_models_fall_back_silently(tmp_path):
     expected = m.rollout(x0[None], np.array([[45.0, 25.0]]), 50)[0, -1]
     np.testing.assert_allclose(eval(proc.stdout), expected, rtol=0, atol=1e-12)
     assert list(tmp_path.iterdir()) == []          # no generated C files in the working folder
+
+
+def test_a_model_without_body_rates_builds_its_controller_once(monkeypatch):
+    """commanded_rates of a model whose body_rates are None (the point mass) answers None from
+    its cache: the controller is not rebuilt symbolically every control cycle (it was, at
+    half of a FAStep run's time)."""
+    m = models.get("point_mass")
+    calls = []
+    original = type(m).controller
+    monkeypatch.setattr(type(m), "controller",
+                        lambda self, *a: calls.append(1) or original(self, *a))
+    X, T = np.zeros((3, m.nx)), np.ones((3, 2))
+    assert m.commanded_rates(X, T) is None
+    assert m.commanded_rates(X, T) is None
+    assert len(calls) == 1
+    u = models.get("unicycle")
+    np.testing.assert_allclose(u.commanded_rates(np.zeros((2, u.nx)), np.ones((2, 2))),
+                               u.commanded_rates(np.zeros((2, u.nx)), np.ones((2, 2))))

@@ -255,12 +255,12 @@ class Model(ABC):
         :meth:`body_rates`; None when the model has none."""
         X, targets = self._check_batch(X, targets)
         cache = self.__dict__.setdefault("_rates_fn", {})
-        fn = cache.get("one")
-        if fn is None:
+        if "one" not in cache:              # (None, for a model without rates, is kept too)
             s = self.sym
             rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
-            fn = None if rates is None else cs.Function("rates", [s.x, s.target, s.p], [rates])
-            cache["one"] = fn
+            cache["one"] = (None if rates is None
+                            else cs.Function("rates", [s.x, s.target, s.p], [rates]))
+        fn = cache["one"]
         if fn is None:
             return None
         n = len(X)
