@@ -478,6 +478,26 @@ def test_hostile_numbers_in_generations_json(tmp_path, edit, message, monkeypatc
     assert sorted(p.name for p in gens.parent.iterdir()) == ["generations.json"]
 
 
+@pytest.mark.parametrize("change, message", [
+    ({"planner_params": {"speed": "fast"}},
+     "planner_params (planner 'effc', fis systems[0]): planner effc: speed: expected a number, "
+     "got 'fast'"),
+    ({"planner": "apf"},
+     "planner_params (planner 'apf', fis systems[0]): planner apf: unknown parameter 'fis'"),
+])
+def test_planner_settings_refused_are_named_by_generations_json(tmp_path, change, message,
+                                                                monkeypatch):
+    """The planner's settings come from generations.json: a refused one was a bare 'planner
+    effc: speed: ...' that named neither the file nor its key; and no run starts before."""
+    from hybridnav.planners.base import Planner
+
+    gens = small_generations(tmp_path / "tuned", **change)
+    monkeypatch.setattr(Planner, "run", None)          # refused before any run
+    rc, out, err = cli(gens.parent)
+    assert (rc, out) == (2, "")
+    assert err.startswith(f"hybridnav: error: {gens}: {message}")
+
+
 def test_a_tuning_animation_checks_its_file_before_it_runs(tmp_path, monkeypatch):
     gens = small_generations(tmp_path / "tuned")
     monkeypatch.setattr(planners, "get", None)        # no planner runs before these errors

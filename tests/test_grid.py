@@ -218,3 +218,13 @@ def test_rasterize_equals_every_cell_against_every_obstacle():
             want |= walls.clearance(P) < max(inflate, res / 2.0)
             want |= w.border_clearance(P) < (inflate if border else 0.0)
             assert np.array_equal(g.occ, want.reshape(H, W))
+
+
+@pytest.mark.parametrize("t", [float("inf"), float("-inf"), float("nan")])
+def test_rasterize_refuses_a_time_that_is_not_finite(t):
+    """At t = inf a static circle's box (centre + t * 0) is NaN: the pruned rasterize dropped
+    the circle (12 blocked cells became 0); a non-finite time is refused instead."""
+    w = World((0.0, 10.0, 0.0, 10.0), (Circle((5.0, 5.0), 1.0),))
+    with pytest.raises(HybridnavError, match=r"^t: expected a finite time or None, got "):
+        rasterize(w, 0.5, t=t)
+    assert rasterize(w, 0.5, t=1e6).occ.sum() == rasterize(w, 0.5).occ.sum() == 12

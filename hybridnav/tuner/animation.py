@@ -94,12 +94,23 @@ def animate_tuning(folder: str | os.PathLike[str], path: str | os.PathLike[str] 
         raise HybridnavError(f"{folder / GENERATIONS_FILE}: planner: expected one of "
                              f"{', '.join(sorted(planners.PLANNERS))}, got {short_repr(planner)}")
     kfold = len({g["stage"] for g in gens}) > 1
+    # each generation's planner made before any runs: its settings come from generations.json,
+    # so a refused one is named by the file and its keys (the planner's own message after)
+    made: dict[int, Any] = {}
+    for g in gens:
+        k = g["system"]
+        if k not in made:
+            try:
+                made[k] = planners.get(planner, **{**params, "fis": systems[k]})
+            except HybridnavError as exc:
+                raise HybridnavError(f"{folder / GENERATIONS_FILE}: planner_params (planner "
+                                     f"{short_repr(planner)}, fis systems[{k}]): {exc}") from None
     done: dict[int, Any] = {}
     runs = []
     for g in gens:
         k = g["system"]
         if k not in done:
-            done[k] = planners.get(planner, **{**params, "fis": systems[k]}).run(scenario)
+            done[k] = made[k].run(scenario)
         score = "-" if g.get("score") is None else f"{float(g['score']):.4g}"
         runs.append((f"generation {g['generation']}"
                      + (f" (stage {g['stage']})" if kfold else "") + f": score {score}",

@@ -282,7 +282,8 @@ def rasterize(
     inflate : float
         Clearance required around obstacles (e.g. the robot radius), non-negative.
     t : float or None
-        None rasterizes static obstacles only; a time includes moving circles at that time.
+        None rasterizes static obstacles only; a (finite) time includes moving circles at that
+        time.
     border : bool
         Also keep ``inflate`` away from the workspace boundary.
 
@@ -296,6 +297,9 @@ def rasterize(
     inflate = float(inflate)
     if not (inflate >= 0 and math.isfinite(inflate)):
         raise HybridnavError(f"inflate: expected a non-negative number, got {inflate!r}")
+    if t is not None and not math.isfinite(float(t)):
+        # (at an infinite time a static circle's box, centre + t * 0, is NaN: it was dropped)
+        raise HybridnavError(f"t: expected a finite time or None, got {t!r}")
     xmin, xmax, ymin, ymax = world.workspace
     cells = grid_cells(xmax - xmin, ymax - ymin, res)
     if cells > MAX_GRID_CELLS:
