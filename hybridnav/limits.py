@@ -9,10 +9,11 @@ limit                           value          what it bounds
 ==============================  =============  ====================================================
 :data:`MAX_COORDINATE`          1e6            ``|x|``, ``|y|`` of workspace bounds, obstacles,
                                                starts and goals (and their sizes)
-:data:`MAX_POSITION`            1e9            ``|x|``, ``|y|`` of the positions a result folder
+:data:`MAX_POSITION`            1e150          ``|x|``, ``|y|`` of the positions a result folder
                                                holds (trajectories, planned and candidate
                                                points): a run ends when a robot leaves its
-                                               workspace, so none comes near it; far beyond,
+                                               workspace, but a diverging model can leave it
+                                               by 1e40 in one step (still plotted); near 1e200
                                                Matplotlib's renderer overflows
 :data:`MAX_STEPS`               2,000,000      control cycles of one run, ``ceil(max_time / dt)``
 :data:`MAX_GRID_CELLS`          20,000,000     cells of an occupancy grid (about 20 MB as booleans,
@@ -34,8 +35,9 @@ __all__ = ["MAX_COORDINATE", "MAX_GRID_CELLS", "MAX_OBSTACLES", "MAX_POSITION", 
 import math
 
 MAX_COORDINATE = 1e6
-#: 1000 x MAX_COORDINATE: room for the step with which a robot leaves the largest workspace
-MAX_POSITION = 1e9
+#: far beyond any workspace (a diverging model's last step can reach 1e40; that run must still
+#: plot) and far below where Matplotlib's renderer overflows (near 1e200)
+MAX_POSITION = 1e150
 MAX_STEPS = 2_000_000
 MAX_GRID_CELLS = 20_000_000
 MAX_OBSTACLES = 10_000
