@@ -365,7 +365,7 @@ static void hn_group(const hn_stack *s, int64_t e, int g, double px, double py, 
 {
     const int C = s->C, Ed = s->Ed;
     const int64_t *gs = s->g_start + (size_t)e * (s->G + 1);
-    double crmin = INFINITY;
+    double crmin = INFINITY, amin = INFINITY;
     D[C + g] = INFINITY;
     gedge[g] = -1;
     for (int64_t j = gs[g]; j < gs[g + 1]; ++j) {
@@ -378,12 +378,21 @@ static void hn_group(const hn_stack *s, int64_t e, int g, double px, double py, 
         u = u < 0.0 ? 0.0 : u;
         u = u > 1.0 ? 1.0 : u;
         double qx = ax + u * abx, qy = ay + u * aby;
-        double de = hypot(px - qx, py - qy);
-        tmp_de[j] = de;
+        /* sqrt(dx^2 + dy^2) is within two ulps of hypot (which NumPy calls): it settles the
+         * edges far from the nearest, and only the others get hypot below */
+        double dx = px - qx, dy = py - qy, a = sqrt(dx * dx + dy * dy);
+        tmp_de[j] = a;
         tmp_q[2 * j] = qx;
         tmp_q[2 * j + 1] = qy;
         double cr = abx * apy - aby * apx;
         if (cr < crmin) crmin = cr;
+        if (a < amin) amin = a;
+    }
+    for (int64_t j = gs[g]; j < gs[g + 1]; ++j) {
+        double a = tmp_de[j];
+        if (a > amin + 1e-12 * (1.0 + a + amin))
+            continue;                  /* farther than the nearest by far more than rounding */
+        double de = hypot(px - tmp_q[2 * j], py - tmp_q[2 * j + 1]);
         if (gedge[g] < 0 || de < D[C + g]) { D[C + g] = de; gedge[g] = (int)j; }
     }
     if (crmin > 0.0 && s->closed[(size_t)e * s->G + g]) D[C + g] = -D[C + g];
@@ -435,18 +444,40 @@ static double hn_nearest(const hn_stack *s, int64_t e, double px, double py, dou
     int64_t cell = hn_cell(s, e, px, py);
     if (cell >= 0) {       /* only the columns that can be nearest here (all finite: P is) */
         const int C = s->C, CG = s->C + s->G;
+        const int64_t i0 = s->cell_off[cell], i1 = s->cell_off[cell + 1];
+        /* circles first by sqrt(dx^2 + dy^2) (within two ulps of hypot; its scale kept beside
+         * it), groups exactly: only the candidates within rounding of the smallest get hypot */
+        double amin = INFINITY, smin = 0.0;
+        for (int64_t i = i0; i < i1; ++i) {
+            int c = s->cell_col[i];
+            double a, sc = 0.0;
+            if (c < C) {
+                size_t q = ((size_t)e * C + c);
+                double dx = px - s->c0[2 * q], dy = py - s->c0[2 * q + 1];
+                sc = sqrt(dx * dx + dy * dy);
+                a = sc - s->cr[q];
+                tmp_q[2 * (size_t)(s->Ed + c)] = sc;
+            } else {
+                hn_group(s, e, c - C, px, py, D, gedge, tmp_de, tmp_q);
+                a = D[c];
+            }
+            D[c] = a;
+            if (a < amin) { amin = a; smin = sc; }
+        }
         int bcol = -1, bk = 0;
         double bd = INFINITY, bh = 0.0;
-        for (int64_t i = s->cell_off[cell]; i < s->cell_off[cell + 1]; ++i) {
+        for (int64_t i = i0; i < i1; ++i) {
             int c = s->cell_col[i], k = s->kof[(size_t)e * CG + c];
-            double d, h = 0.0;
+            double d = D[c], h = 0.0;
             if (c < C) {
+                double sc = tmp_q[2 * (size_t)(s->Ed + c)];
+                if (d > amin + 1e-12 * (1.0 + sc + smin))
+                    continue;          /* farther than the nearest by far more than rounding */
                 size_t q = ((size_t)e * C + c);
                 h = hypot(px - s->c0[2 * q], py - s->c0[2 * q + 1]);
                 d = h - s->cr[q];
-            } else {
-                hn_group(s, e, c - C, px, py, D, gedge, tmp_de, tmp_q);
-                d = D[c];
+            } else if (d > amin + 1e-12 * (1.0 + smin)) {
+                continue;
             }
             if (bcol < 0 || d < bd || (d == bd && k < bk)) { bcol = c; bk = k; bd = d; bh = h; }
         }
