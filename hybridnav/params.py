@@ -43,7 +43,7 @@ DEFAULT_DPI = 120
 #: the largest resolution accepted: a page-wide figure at 1200 dpi is already ~10^8 pixels
 MAX_DPI = 1200
 #: the smallest resolution accepted: below about 6 dpi FreeType cannot size the figures' text
-#: (``FT_Set_Char_Size ... invalid ppem value``)
+#: (FreeType: "invalid ppem value")
 MIN_DPI = 10
 #: the frame rates of an animation (``--fps``): at most 100, at least 0.01 (a frame shown for
 #: 100 s; a GIF keeps a frame's duration as a 16-bit count of centiseconds, at most 655.35 s, so
