@@ -85,23 +85,39 @@ def clear_outputs(out: str | Path) -> list[Path]:
     out = Path(out)
     gone: list[Path] = []
 
-    def clear(folder: Path, inner: bool) -> None:
-        for path in sorted(folder.iterdir()):
-            if inner and _is_inner_folder(path, "learning"):
-                clear(path, True)
-            elif _is_output(path, inner):
-                path.unlink()
-                gone.append(path)
+    def remove(path: Path) -> None:
+        path.unlink()
+        gone.append(path)
+
+    def leave(folder: Path, inner: bool) -> None:
         gone.extend(clean_temporaries(folder))
         if inner:
             with contextlib.suppress(OSError):
                 folder.rmdir()                   # only when nothing of the user's is left
                 gone.append(folder)
 
-    clear(out, False)
-    for folder in _output_folders(out):
-        clear(folder, True)
+    _walk_outputs(out, remove, leave)
     return gone
+
+
+def _walk_outputs(out: Path, visit: Callable[[Path], None],
+                  leave: Callable[[Path, bool], None] | None = None) -> None:
+    """``visit`` every output file of a tuning run in ``out`` (in sorted order, folder by
+    folder: ``out``, then the run's folders and the learning folders inside them), and
+    ``leave(folder, inner)`` after each folder."""
+
+    def walk(folder: Path, inner: bool) -> None:
+        for path in sorted(folder.iterdir()):
+            if inner and _is_inner_folder(path, "learning"):
+                walk(path, True)
+            elif _is_output(path, inner):
+                visit(path)
+        if leave is not None:
+            leave(folder, inner)
+
+    walk(out, False)
+    for folder in _output_folders(out):
+        walk(folder, True)
 
 
 def output_files(out: str | Path) -> list[str]:
@@ -115,17 +131,7 @@ def output_files(out: str | Path) -> list[str]:
     """
     out = Path(out)
     found: list[str] = []
-
-    def walk(folder: Path, inner: bool) -> None:
-        for path in sorted(folder.iterdir()):
-            if inner and _is_inner_folder(path, "learning"):
-                walk(path, True)
-            elif _is_output(path, inner):
-                found.append(path.relative_to(out).as_posix())
-
-    walk(out, False)
-    for folder in _output_folders(out):
-        walk(folder, True)
+    _walk_outputs(out, lambda path: found.append(path.relative_to(out).as_posix()))
     return found
 
 
