@@ -19,7 +19,7 @@ score) and hands its population to stage ``j + 1`` (as MATLAB's ``tunefis`` with
 ``KFoldValue``). The returned system is the last stage's best on its own fold.
 
 **Several objectives** (NSGA2): the Pareto front is the first non-dominated front of the final
-population; every member is scored on the validation cost and ``select`` (default
+population, one member per distinct objective vector (the first in the population); every member is scored on the validation cost and ``select`` (default
 :func:`select_member`: the member with the smallest first validation objective among those the
 cost calls feasible) picks the returned system.
 
@@ -701,7 +701,9 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
     if run.mo:
         nd = non_dominated(F)
         fX, fF = X[nd], F[nd]
-        _, uniq = np.unique(fX, axis=0, return_index=True)
+        # one member per distinct point of the front: candidates that differ only in genes the
+        # objectives ignore (a switched-off rule's terms) are the first of them in the population
+        _, uniq = np.unique(fF, axis=0, return_index=True)
         uniq = np.sort(uniq)
         fX, fF = fX[uniq], fF[uniq]
         front = pd.DataFrame(fF, columns=[f"objective_{i}" for i in range(fF.shape[1])])
