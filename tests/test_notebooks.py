@@ -4,14 +4,21 @@ them executed (`python tools/execute_notebooks.py`), with the outputs the code g
 from __future__ import annotations
 
 import copy
+import importlib.util
 import re
+import warnings
 from pathlib import Path
 
 import nbformat
 import pytest
 from nbclient import NotebookClient
 
-NOTEBOOKS = sorted((Path(__file__).resolve().parent.parent / "notebooks").glob("*.ipynb"))
+ROOT = Path(__file__).resolve().parent.parent
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+_spec = importlib.util.spec_from_file_location("execute_notebooks",
+                                               ROOT / "tools" / "execute_notebooks.py")
+execute_notebooks = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(execute_notebooks)
 
 
 _NUMBER = re.compile(r"-?\d+\.\d*(?:e[-+]?\d+)?|-?\d+e[-+]?\d+", re.I)
@@ -52,6 +59,15 @@ def test_notebook_executes_and_is_stored_executed(path, tmp_path):
     stderr = "".join(o["text"] for c in nb.cells if c.cell_type == "code"
                      for o in c.get("outputs", []) if o.get("name") == "stderr")
     assert "HybridnavDeprecationWarning" not in stderr       # the notebooks use current names
+    stored_on = stored.metadata.get("hybridnav", {}).get("machine")
+    here = execute_notebooks.machine()
+    assert stored_on, f"{path.name}: store it with python tools/execute_notebooks.py"
+    if stored_on != here:
+        # a tuner's numbers (and the rules it learns) follow last-bit differences of NumPy's
+        # SIMD kernels and BLAS: only the cells' own asserts hold across kinds of CPU
+        warnings.warn(f"{path.name}: stored on {stored_on!r}, executed on {here!r}; the "
+                      "stored outputs are not compared", stacklevel=1)
+        return
     fresh = [c for c in nb.cells if c.cell_type == "code"]
     for i, (old, new) in enumerate(zip(code, fresh)):
         assert _printed(old) == _printed(new), \

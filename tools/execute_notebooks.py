@@ -2,7 +2,8 @@
 
 The repository keeps the notebooks executed, so that they read with their tables and figures on
 any notebook viewer; ``tests/test_notebooks.py`` executes them again and checks that the stored
-text outputs are what the code prints now. Run after changing a notebook or what it shows::
+text outputs are what the code prints now (on the same kind of CPU: :func:`machine`, recorded in
+each notebook's metadata). Run after changing a notebook or what it shows::
 
     python tools/execute_notebooks.py            # all of them
     python tools/execute_notebooks.py 02_fuzzy_tuning.ipynb
@@ -10,6 +11,7 @@ text outputs are what the code prints now. Run after changing a notebook or what
 
 from __future__ import annotations
 
+import platform
 import sys
 import tempfile
 from pathlib import Path
@@ -20,12 +22,32 @@ from nbclient import NotebookClient
 FOLDER = Path(__file__).resolve().parent.parent / "notebooks"
 
 
+#: NumPy's SIMD targets that change the last bits of its transcendental functions and go with
+#: other BLAS kernels (x86-64 levels: V3 is AVX2 + FMA, V4 is AVX-512; ARM: ASIMD, SVE)
+_SIMD = ("X86_V2", "X86_V3", "X86_V4", "AVX2", "FMA3", "AVX512F", "AVX512_SKX", "ASIMD", "SVE")
+
+
+def machine() -> str:
+    """The kind of CPU the outputs depend on: the architecture and NumPy's SIMD targets in use.
+
+    Optimizers and trajectories amplify last-bit differences, so a notebook executed on an
+    AVX-512 machine prints other tuned numbers (and learns other rules) than on an AVX2 one;
+    :mod:`tests.test_notebooks` compares stored outputs only on the kind of machine that stored
+    them (``metadata.hybridnav.machine``)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:                                     # NumPy < 2
+        from numpy.core._multiarray_umath import __cpu_features__ as features
+    return " ".join([platform.machine()] + [f for f in _SIMD if features.get(f)])
+
+
 def execute(path: Path) -> nbformat.NotebookNode:
     """The notebook at ``path`` executed in a temporary folder (what it writes goes there)."""
     nb = nbformat.read(path, as_version=4)
     with tempfile.TemporaryDirectory() as tmp:
         NotebookClient(nb, timeout=600, kernel_name="python3",
                        resources={"metadata": {"path": tmp}}).execute()
+    nb.metadata["hybridnav"] = {"machine": machine()}
     return nb
 
 
