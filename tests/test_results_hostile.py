@@ -621,3 +621,32 @@ def test_damaged_result_folders(written, tmp_path, data, planner):
     rc, err = plot(folder, written, tmp_path)
     assert rc == 0 or (rc == 2 and _names_a_file_of(folder, err.removeprefix(
         "hybridnav: error: "))), err
+
+
+@pytest.mark.parametrize("value", [math.inf, math.nan, 1e200, -1e151])
+def test_a_step_that_diverges_ends_the_run_at_its_last_state_and_the_run_saves(value, tmp_path,
+                                                                               monkeypatch):
+    """A model whose step diverges (a user's model with a singularity: inf, NaN, or a position
+    no result folder holds) ends that robot out_of_bounds at its last state; the run is written
+    and read back (it once failed to save: "path_length: expected a finite number")."""
+    from hybridnav.models.base import Model
+    from hybridnav.world import load_scenario
+
+    real, calls = Model.step, []
+
+    def step(self, X, T):
+        calls.append(1)
+        out = real(self, X, T)
+        if len(calls) == 20:
+            out = out.copy()
+            out[:, 0] = value
+        return out
+
+    monkeypatch.setattr(Model, "step", step)
+    r = planners.get("apf").run(load_scenario("effc-env-b"), seed=0)
+    robot = r.robots[0]
+    assert robot.outcome == "out_of_bounds" and len(robot.states) == 20
+    assert np.isfinite(robot.states).all() and math.isfinite(robot.path_length)
+    write_result(r, tmp_path / "run")
+    back = read_result(tmp_path / "run").robots[0]
+    np.testing.assert_array_equal(back.states, robot.states)

@@ -7,7 +7,10 @@ it (one batched call per model group), then checks, at the new time:
 * ``collided``: a footprint disk closer than 0 to an obstacle (moving ones at that time) or to
   another robot's footprint (``min_robot_clearance`` tells which: below 0 for a robot that
   touched another robot);
-* ``out_of_bounds``: a footprint disk leaving the workspace;
+* ``out_of_bounds``: a footprint disk leaving the workspace, or a step that diverged (a state
+  that is not finite, a position beyond :data:`hybridnav.limits.MAX_POSITION` or a component
+  beyond :data:`hybridnav.resultspec.MAX_MAGNITUDE`: a result could not hold it); such a step is
+  not recorded, the robot ends at its last state;
 * ``reached``: within ``goal_radius`` of the goal (a ``goal_follow`` goal is the followed robot's
   current position);
 * ``stuck``: the controller said so (``sim.stop(i, "stuck")``), or the last ``stuck_window``
@@ -35,8 +38,10 @@ from typing import Any
 
 import numpy as np
 
+from hybridnav.limits import MAX_POSITION
 from hybridnav.models.base import Model
 from hybridnav.results import RobotResult
+from hybridnav.resultspec import MAX_MAGNITUDE
 
 __all__ = ["Simulation", "model_groups", "simulate"]
 
@@ -80,6 +85,16 @@ class Simulation:
         if self.active[i]:
             self.active[i] = False
             self.outcome[i] = outcome
+
+
+def _recordable(X: np.ndarray) -> np.ndarray:
+    """Rows of states ``X`` a result can hold (:func:`hybridnav.results.read_result` reads them
+    back): finite, ``x`` and ``y`` within ``MAX_POSITION``, every component within
+    ``MAX_MAGNITUDE``."""
+    X = np.asarray(X, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return (np.all(np.abs(X) <= MAX_MAGNITUDE, axis=1)
+                & np.all(np.abs(X[:, :2]) <= MAX_POSITION, axis=1))
 
 
 def model_groups(models) -> list[tuple[Any, np.ndarray]]:
@@ -175,9 +190,13 @@ def simulate(
                 on = sim.active[idx]
                 effort[idx[on]] += np.sum(rates[on] ** 2, axis=1) * dt
             Xn = model.step(Xg, Tg)
+            sane = _recordable(Xn)
             for j, i in enumerate(idx):
                 if sim.active[i]:
-                    sim.X[i] = Xn[j]
+                    if sane[j]:
+                        sim.X[i] = Xn[j]
+                    else:               # diverged: ends where it was (see the module docstring)
+                        sim.stop(i, "out_of_bounds")
         sim.t = (k + 1) * dt
         share = (time.perf_counter() - tic) / max(1, int(was_active.sum()))
         compute[was_active] += share
