@@ -478,6 +478,18 @@ def test_hostile_numbers_in_generations_json(tmp_path, edit, message, monkeypatc
     assert sorted(p.name for p in gens.parent.iterdir()) == ["generations.json"]
 
 
+def test_a_world_generations_json_cannot_load_is_named_by_its_place(tmp_path, monkeypatch):
+    """Worlds are loaded one at a time (no more generated than needed): the message names the
+    item's place in its set, worlds.test[1] (it said worlds.test[1][0])."""
+    gens = small_generations(tmp_path / "tuned", worlds={
+        "train": ["effc-train-1"], "validation": [], "test": ["effc-env-b", "no-such-world"]})
+    monkeypatch.setattr(planners, "get", None)        # refused before any run
+    rc, out, err = cli(gens.parent, "--world", "effc-train-1")
+    assert (rc, out) == (2, "")
+    assert err.startswith(f"hybridnav: error: {gens}: worlds.test[1]: ")
+    assert "[1][0]" not in err
+
+
 @pytest.mark.parametrize("change, message", [
     ({"planner_params": {"speed": "fast"}},
      "planner_params (planner 'effc', fis systems[0]): planner effc: speed: expected a number, "

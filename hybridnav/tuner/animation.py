@@ -177,7 +177,7 @@ def _read_generations(folder: Path, world: str | None):
     names: list[str] = []
     for which in ("test", "validation", "train"):          # item by item: generate no more
         for i, item in enumerate(sets[which]):
-            scen = load_scenario_set([item], base or str(folder), f"{path}: worlds.{which}[{i}]")
+            scen = load_scenario_set([item], base or str(folder), f"{path}: worlds.{which}", i)
             names += [s.name for s in scen]
             hit = scen[:1] if world is None else [s for s in scen if s.name == world]
             if hit:

@@ -622,7 +622,7 @@ def _check_scenarios(data: dict[str, Any], raw: dict[str, Any], where: str, fail
                            f"step serves them all; got {len(keys)} different ones")
 
 
-def load_scenario_set(items: list, base: str | os.PathLike, where: str) -> list:
+def load_scenario_set(items: list, base: str | os.PathLike, where: str, first: int = 0) -> list:
     """The scenarios of a set as a job lists them: built-in names, scenario files (relative to
     ``base``) and generated sets ``{generate = N, seed = S, ...}``.
 
@@ -634,6 +634,9 @@ def load_scenario_set(items: list, base: str | os.PathLike, where: str) -> list:
         The folder relative file names are in (the job file's).
     where : str
         What the messages start with (e.g. ``"job.toml: scenarios.test"``).
+    first : int
+        The index of ``items[0]`` in the whole set, for the messages (items loaded one at a
+        time name their place in the set).
 
     Returns
     -------
@@ -648,19 +651,19 @@ def load_scenario_set(items: list, base: str | os.PathLike, where: str) -> list:
         raise HybridnavError(f"{where}: expected a list of scenario names, files and generated "
                              f"sets, got {type(items).__name__}")
     try:
-        return list(_load_set(json.dumps(items, sort_keys=True), str(base)))
+        return list(_load_set(json.dumps(items, sort_keys=True), str(base), int(first)))
     except HybridnavError as exc:
         raise HybridnavError(f"{where}{exc}") from None
 
 
 @functools.lru_cache(maxsize=16)
-def _load_set(items_json: str, base: str) -> list:
+def _load_set(items_json: str, base: str, first: int = 0) -> list:
     """The scenarios of one set (cached: generated worlds are drawn once per process)."""
     from hybridnav.world import load_scenario
     from hybridnav.world.generator import generator_from_table
 
     out = []
-    for i, item in enumerate(json.loads(items_json)):
+    for i, item in enumerate(json.loads(items_json), start=first):
         if isinstance(item, str):
             spec = item
             if spec.endswith((".json", ".toml")) or "/" in spec or os.sep in spec:
