@@ -203,16 +203,16 @@ def test_a_noisy_run_is_reproducible_from_its_seed(office):
 #: were sha256 digests of the states once, but the last bits of NumPy's transcendental functions
 #: depend on the CPU (AVX-512 machines use other SIMD kernels), so across machines the runs agree
 #: to rounding, not to the bit; on one machine sensor off and sensor "exact" agree to the bit.
+#: effc-train-1's robot starts on the diagonal heading along it: which side of the obstacle it
+#: passes turns on ~1e-14 rad (100 ulps), so there the outcome alone is pinned (``None``).
 BEFORE = {("effc-env-b", "effc"): ("reached", 279, 2.762830661956915,
                                    (1.504359548508, 1.593523073208, 0.289410955974)),
           ("effc-env-b", "apf"): ("stuck", 105, 1.0210248065735517,
                                   (3.336143425188e-02, 2.591722734570e-01, 6.104670038909e+01)),
           ("effc-env-b", "hapf"): ("reached", 289, 2.879689999708828,
                                    (1.503693644019, 1.576244394201, 0.474321699184)),
-          ("effc-train-1", "effc"): ("reached", 505, 5.039141115883822,
-                                     (3.024102559653, 2.908494357539, 1.593077248593)),
-          ("effc-train-1", "apf"): ("reached", 477, 4.757045488513171,
-                                    (2.964905730892, 2.914061499324, 1.183099674508))}
+          ("effc-train-1", "effc"): ("reached", None, None, None),
+          ("effc-train-1", "apf"): ("reached", None, None, None)}
 
 
 @pytest.mark.parametrize("scenario, planner", sorted(BEFORE))
@@ -222,9 +222,11 @@ def test_with_the_sensor_off_runs_are_the_runs_from_before(scenario, planner):
     runs = [planners.get(planner, **params).run(s, seed=0).robots[0]
             for params in (({}, {"sensor": "exact"}) if planner != "hapf" else ({},))]
     for r in runs:
-        assert (r.outcome, len(r.states)) == (outcome, n)
-        assert r.path_length == pytest.approx(length, rel=1e-6)
-        np.testing.assert_allclose(r.states[-1], final, rtol=1e-6, atol=1e-9)
+        assert r.outcome == outcome
+        if n is not None:
+            assert len(r.states) == n
+            assert r.path_length == pytest.approx(length, rel=1e-6)
+            np.testing.assert_allclose(r.states[-1], final, rtol=1e-6, atol=1e-9)
     for r in runs[1:]:
         np.testing.assert_array_equal(r.states, runs[0].states)
 
