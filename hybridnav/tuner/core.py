@@ -19,7 +19,8 @@ score) and hands its population to stage ``j + 1`` (as MATLAB's ``tunefis`` with
 ``KFoldValue``). The returned system is the last stage's best on its own fold.
 
 **Several objectives** (NSGA2): the Pareto front is the first non-dominated front of the final
-population, one member per distinct objective vector (the first in the population); every member is scored on the validation cost and ``select`` (default
+population, one member per distinct system (the first in the population of the vectors that give
+it); every member is scored on the validation cost and ``select`` (default
 :func:`select_member`: the member with the smallest first validation objective among those the
 cost calls feasible) picks the returned system.
 
@@ -701,10 +702,11 @@ def _result(run: _Run, start, settings: TunableSettings, select, name, judge: bo
     if run.mo:
         nd = non_dominated(F)
         fX, fF = X[nd], F[nd]
-        # one member per distinct point of the front: candidates that differ only in genes the
-        # objectives ignore (a switched-off rule's terms) are the first of them in the population
-        _, uniq = np.unique(fF, axis=0, return_index=True)
-        uniq = np.sort(uniq)
+        # one member per distinct system: vectors that differ only in genes the system does not
+        # use (a switched-off rule's terms) are one member, the first in the population
+        keys = [json.dumps(settings.to_system(x).to_dict(), sort_keys=True) for x in fX]
+        uniq = np.array(sorted({k: i for i, k in reversed(list(enumerate(keys)))}.values()),
+                        dtype=int)
         fX, fF = fX[uniq], fF[uniq]
         front = pd.DataFrame(fF, columns=[f"objective_{i}" for i in range(fF.shape[1])])
         if run.validation is not None:

@@ -44,7 +44,7 @@ class TuningResult:
         Their training objectives (``start_objectives`` from the first generation).
     objective_names : tuple of str
     front : pandas.DataFrame
-        The Pareto front, one row per distinct objective vector: ``member``, one
+        The Pareto front, one row per distinct system: ``member``, one
         ``objective_<i>`` column per objective (training),
         ``validation_<i>`` with validation, and ``returned``; one row with one objective.
     members : list of Member
