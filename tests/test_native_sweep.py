@@ -183,6 +183,64 @@ def test_compiled_pieces_near_equals_numpy(M, K, special, monkeypatch):
         _same(got, (lo, hi, border, frozen))
 
 
+def _static_reference(world, A, B, obs, radius):
+    ref = np.zeros(len(A), dtype=bool)
+    singles = world.singles()
+    with np.errstate(all="ignore"):
+        for o in range(len(singles)):
+            at = np.flatnonzero(obs == o)
+            ref[at] = singles[o].segment_collides(A[at], B[at], radius=radius)
+    return ref
+
+
+@pytest.mark.parametrize("special", [False, True])
+def test_compiled_static_hits_equal_each_obstacles_own_test(special):
+    """_Sweep.touches's exact test of (piece, static obstacle) pairs: each obstacle's own
+    World.segment_collides, to the boolean. Half-integer grids make moves that touch, end on or
+    run along edges and circles; NaN and infinite end points where ``special``."""
+    from hybridnav.world import Polygon
+
+    world = World((-6.0, 6.0, -6.0, 6.0), (
+        Circle((0.0, 0.0), 1.0), Rectangle((1.0, 1.0), (3.0, 2.0)),
+        Segment((-4.0, -1.0), (-1.0, -4.0)), Polygon([(-4.0, 2.0), (-2.0, 2.0), (-3.0, 4.0)]),
+        Circle((3.0, -3.0), 0.5)))
+    rng = np.random.default_rng([special, 11])
+    seen = set()
+    for _ in range(30):
+        M = 400
+        A = rng.integers(-12, 12, (M, 2)).astype(float) * 0.5
+        B = np.where(rng.random((M, 2)) < 0.2, A, rng.integers(-12, 12, (M, 2)) * 0.5)
+        if special:
+            _spoil(rng, (A, B), {np.nan: 0.05, np.inf: 0.03, -np.inf: 0.03})
+        obs = rng.integers(0, len(world.obstacles), M)
+        radius = float(rng.choice([0.0, 0.5, 1.0]))
+        got = boxes.static_hits(world, A, B, obs, radius)
+        ref = _static_reference(world, A, B, obs, radius)
+        assert np.array_equal(got, ref)
+        seen.update(ref.tolist())
+    assert seen == {True, False}
+
+
+@pytest.mark.parametrize("scenario", ["fastep-s2", "tractor-trailer-1", "turtlebot-office",
+                                      "pso-ba-dynamic"])
+def test_compiled_static_hits_on_the_built_in_worlds(scenario):
+    from hybridnav.world import load_scenario
+
+    full = load_scenario(scenario).world
+    world = World(full.workspace, tuple(o for o in full.obstacles
+                                         if not isinstance(o, MovingCircle)))
+    lo, hi, _ = world.boxes()
+    rng = np.random.default_rng(4)
+    k = rng.integers(0, len(world.obstacles), 3000)
+    A = rng.uniform(lo[k] - 1.0, hi[k] + 1.0)
+    B = A + rng.normal(0.0, 0.7, A.shape)
+    for radius in (0.0, 0.2):
+        got = boxes.static_hits(world, A, B, k, radius)
+        assert np.array_equal(got, _static_reference(world, A, B, k, radius))
+    if full._c_moving:               # moving circles: the NumPy path
+        assert boxes.static_hits(full, A, B, k, 0.2) is None
+
+
 def test_other_arrays_go_to_numpy():
     assert boxes.reach_first(np.zeros((3, 5, 1)), np.zeros((3, 2)), 1, 8, 1.0, 1.0) is None
     assert boxes.reach_first(np.zeros((3, 5, 2)), np.zeros((2, 2)), 1, 8, 1.0, 1.0) is None

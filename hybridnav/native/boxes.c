@@ -205,3 +205,81 @@ void hn_pieces_near(long long M, const double *restrict A, const double *restric
                                      & (ymax - hi[2 * i + 1] >= thr));
     hn_boxes_near(M, K, lo, hi, olo, ohi, opad, thr, out);
 }
+
+/* ---- the exact swept-disk test against static obstacles (World.segment_collides) ---------- */
+
+/* np.minimum / np.maximum: NaN if either is NaN */
+static inline double np_min(double a, double b) { return (a != a || b != b) ? a + b : (a < b ? a : b); }
+static inline double np_max(double a, double b) { return (a != a || b != b) ? a + b : (a > b ? a : b); }
+
+/* geometry._project: the distance from P to the segment A-B, the same operations */
+static inline double project(double px, double py, double ax, double ay, double bx, double by)
+{
+    const double abx = bx - ax, aby = by - ay, apx = px - ax, apy = py - ay;
+    const double den = abx * abx + aby * aby, num = apx * abx + apy * aby;
+    double s = den > 0.0 ? num / den : 0.0;
+    s = s < 0.0 ? 0.0 : s;              /* np.clip: NaN stays NaN */
+    s = s > 1.0 ? 1.0 : s;
+    const double qx = ax + s * abx, qy = ay + s * aby;
+    return hypot(px - qx, py - qy);
+}
+
+/* Whether the move A[i] -> B[i] (a disk of radius r) hits obstacle obs[i] of a static world:
+ * World.singles()[obs[i]].segment_collides for each pair, the same IEEE operations (circles:
+ * the centre's distance to the move minus the radius below r; segments and polygon edges: the
+ * segment-segment distance below r or a proper crossing; closed polygons also Cyrus-Beck
+ * through the interior). ccol[k]: circle column of obstacle k or -1; gcol[k]: its edge group. */
+void hn_static_hits(long long M, const double *restrict A, const double *restrict B,
+                    const long long *restrict obs, double r, const long long *restrict ccol,
+                    const long long *restrict gcol, const double *restrict c0,
+                    const double *restrict cr, const double *restrict eA,
+                    const double *restrict eB, const long long *restrict gstart,
+                    const unsigned char *restrict closed, unsigned char *restrict out)
+{
+    for (long long i = 0; i < M; i++) {
+        const double ax = A[2 * i], ay = A[2 * i + 1], bx = B[2 * i], by = B[2 * i + 1];
+        const long long k = obs[i];
+        int hit = 0;
+        if (ccol[k] >= 0) {
+            const long long c = ccol[k];
+            const double d = project(c0[2 * c], c0[2 * c + 1], ax, ay, bx, by);
+            hit = d - cr[c] < r;
+        } else {
+            const long long g = gcol[k];
+            const double dpx = bx - ax, dpy = by - ay;
+            double lo = -__builtin_inf(), hi = __builtin_inf();
+            int dead = 0;
+            for (long long e = gstart[g]; e < gstart[g + 1]; e++) {
+                const double qax = eA[2 * e], qay = eA[2 * e + 1];
+                const double qbx = eB[2 * e], qby = eB[2 * e + 1];
+                double d = np_min(np_min(project(ax, ay, qax, qay, qbx, qby),
+                                         project(bx, by, qax, qay, qbx, qby)),
+                                  np_min(project(qax, qay, ax, ay, bx, by),
+                                         project(qbx, qby, ax, ay, bx, by)));
+                const double dqx = qbx - qax, dqy = qby - qay;
+                const double o1 = dpx * (qay - ay) - dpy * (qax - ax);
+                const double o2 = dpx * (qby - ay) - dpy * (qbx - ax);
+                const double o3 = dqx * (ay - qay) - dqy * (ax - qax);
+                const double o4 = dqx * (by - qay) - dqy * (bx - qax);
+                const int proper = (((o1 > 0) & (o2 < 0)) | ((o1 < 0) & (o2 > 0)))
+                                   & (((o3 > 0) & (o4 < 0)) | ((o3 < 0) & (o4 > 0)));
+                if (proper) d = 0.0;
+                hit |= (d < r) | proper;
+                if (closed[g]) {        /* _through_interior, edge by edge */
+                    const double num = dqx * (ay - qay) - dqy * (ax - qax);
+                    const double den = dqx * dpy - dqy * dpx;
+                    const double root = -num / den;
+                    lo = np_max(lo, den > 0 ? root : -__builtin_inf());
+                    hi = np_min(hi, den < 0 ? root : __builtin_inf());
+                    dead |= (den == 0) & (num <= 0);
+                }
+            }
+            if (closed[g]) {
+                lo = np_max(lo, 0.0);
+                hi = np_min(hi, 1.0);
+                hit |= (lo < hi) & !dead;
+            }
+        }
+        out[i] = (unsigned char)hit;
+    }
+}

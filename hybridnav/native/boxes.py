@@ -8,7 +8,9 @@ stretches the sweep checks, its box along the stretch and :func:`near_any` with 
 in one pass; :func:`reach_first` is, for one block of rollout samples, the stretch boxes and the
 first sample within reach of each target (:func:`hybridnav.planners.step.sweep._reach_first`);
 :func:`pieces_near` is the pruning of :meth:`~hybridnav.planners.step.sweep._Sweep.touches`
-(the pieces' boxes, the border test and :func:`boxes_near`) in one pass.
+(the pieces' boxes, the border test and :func:`boxes_near`) in one pass; :func:`static_hits` is
+its exact test of the (piece, static obstacle) pairs the pruning leaves (each obstacle's
+:meth:`~hybridnav.world.World.segment_collides`).
 The same IEEE operations in the same order: the same booleans, NaN boxes included (the tests
 compare them). ``None`` where it does not apply (no compiler, kernels switched off, arrays of other
 shapes), and the caller runs its NumPy path.
@@ -24,7 +26,7 @@ import numpy as np
 from hybridnav.native import pycall
 
 __all__ = ["boxes_near", "disks_near", "near_any", "pieces_near", "reach_first",
-           "stretch_boxes"]
+           "static_hits", "stretch_boxes"]
 
 #: the kernel's functions: symbol -> (argtypes, restype)
 _SIGNATURES = {
@@ -39,7 +41,9 @@ _SIGNATURES = {
     "hn_pieces_near": ([c_int64, c_void_p, c_void_p] + [c_double] * 5 + [c_int64]
                        + [c_void_p] * 7, None),
     "hn_reach_first": ([c_int64] * 4 + [c_void_p, c_int64, c_int64, c_void_p, c_double,
-                        c_double, c_void_p, c_void_p, c_void_p], None)}
+                        c_double, c_void_p, c_void_p, c_void_p], None),
+    "hn_static_hits": ([c_int64, c_void_p, c_void_p, c_void_p, c_double] + [c_void_p] * 9,
+                       None)}
 
 
 def _library() -> dict[str, Callable] | None:
@@ -202,3 +206,44 @@ def pieces_near(A: np.ndarray, B: np.ndarray, thr: float, workspace, o_lo, o_hi,
         lib["hn_pieces_near"](M, A, B, float(thr), xmin, xmax, ymin, ymax, K, o_lo, o_hi, o_pad,
                               lo, hi, border, out)
     return lo, hi, border, out.T
+
+
+def _packed(world):
+    """A static world's obstacles as :func:`static_hits` reads them (built once per world)."""
+    views = world.__dict__.setdefault("_views", {})
+    if "static_hits" not in views:
+        K = len(world.obstacles)
+        ccol = np.full(K, -1, dtype=np.int64)
+        ccol[world._c_idx] = np.arange(world._c_idx.size)
+        gcol = np.full(K, -1, dtype=np.int64)
+        gcol[world._g_idx] = np.arange(world._g_idx.size)
+        gstart = np.append(world._g_start, len(world._eA)).astype(np.int64)
+        views["static_hits"] = (
+            ccol, gcol, np.ascontiguousarray(world._c0, dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(world._cr, dtype=np.float64),
+            np.ascontiguousarray(world._eA, dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(world._eB, dtype=np.float64).reshape(-1, 2), gstart,
+            np.ascontiguousarray(world._g_closed, dtype=np.uint8))
+    return views["static_hits"]
+
+
+def static_hits(world, A: np.ndarray, B: np.ndarray, obstacle: np.ndarray,
+                radius: float) -> np.ndarray | None:
+    """Whether the move ``A[i] -> B[i]`` (a disk of ``radius``) hits obstacle ``obstacle[i]``
+    of ``world`` (static obstacles only): ``world.singles()[obstacle[i]].segment_collides`` for
+    each pair, the same booleans (the same IEEE operations in the same order), in one pass.
+    ``None`` without the kernel, for moving circles or other shapes."""
+    lib = _library()
+    if lib is None or world._c_moving:
+        return None
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    B = np.ascontiguousarray(B, dtype=np.float64)
+    obstacle = np.ascontiguousarray(obstacle, dtype=np.int64)
+    if A.ndim != 2 or A.shape[1:] != (2,) or B.shape != A.shape or obstacle.shape != (len(A),):
+        return None
+    out = np.zeros(len(A), dtype=bool)
+    if len(A):
+        if obstacle.min() < 0 or obstacle.max() >= len(world.obstacles):
+            raise IndexError("static_hits: obstacle index out of range")
+        lib["hn_static_hits"](len(A), A, B, obstacle, float(radius), *_packed(world), out)
+    return out

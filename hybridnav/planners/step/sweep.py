@@ -45,6 +45,7 @@ from hybridnav.native.boxes import disks_near as compiled_disks_near
 from hybridnav.native.boxes import near_any as compiled_near_any
 from hybridnav.native.boxes import pieces_near as compiled_pieces_near
 from hybridnav.native.boxes import reach_first as compiled_reach_first
+from hybridnav.native.boxes import static_hits as compiled_static_hits
 from hybridnav.native.boxes import stretch_boxes as compiled_stretch_boxes
 from hybridnav.world import point_segment_distance
 
@@ -299,7 +300,15 @@ class _Sweep:
         if border and len(at):
             hit[at] |= ~self.world.inside_workspace(B[at], need)
         ns = len(self.static)
-        for o in np.flatnonzero(frozen.any(axis=0)):
+        columns = np.flatnonzero(frozen.any(axis=0))
+        if ns and len(columns) and columns[0] < ns:
+            # the static obstacles' exact tests of every (piece, obstacle) pair left, compiled
+            rows, obs = np.nonzero(frozen[:, :ns])
+            got = compiled_static_hits(self.static_world, A[rows], B[rows], obs, need)
+            if got is not None:
+                hit[rows[got]] = True
+                columns = columns[columns >= ns]
+        for o in columns:
             at = np.flatnonzero(frozen[:, o])
             if o < ns:
                 hit[at] |= self.static[o].segment_collides(A[at], B[at], radius=need)
