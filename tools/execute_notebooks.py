@@ -22,23 +22,30 @@ from nbclient import NotebookClient
 FOLDER = Path(__file__).resolve().parent.parent / "notebooks"
 
 
-#: NumPy's SIMD targets that change the last bits of its transcendental functions and go with
-#: other BLAS kernels (x86-64 levels: V3 is AVX2 + FMA, V4 is AVX-512; ARM: ASIMD, SVE)
-_SIMD = ("X86_V2", "X86_V3", "X86_V4", "AVX2", "FMA3", "AVX512F", "AVX512_SKX", "ASIMD", "SVE")
+#: the CPU features that change the last bits NumPy computes (its SIMD kernels for
+#: transcendental functions; BLAS picks kernels by the same generations): AVX2 + FMA, AVX-512;
+#: ARM's ASIMD, SVE (names every NumPy version has)
+_SIMD = ("AVX2", "FMA3", "AVX512F", "AVX512_SKX", "ASIMD", "SVE")
 
 
 def machine() -> str:
-    """The kind of CPU the outputs depend on: the architecture and NumPy's SIMD targets in use.
+    """The kind of machine the outputs depend on: the architecture, NumPy's version and the
+    SIMD features it dispatches to.
 
     Optimizers and trajectories amplify last-bit differences, so a notebook executed on an
     AVX-512 machine prints other tuned numbers (and learns other rules) than on an AVX2 one;
-    :mod:`tests.test_notebooks` compares stored outputs only on the kind of machine that stored
-    them (``metadata.hybridnav.machine``)."""
+    :mod:`tests.test_notebooks` compares the stored text outputs only on the kind of machine
+    that stored them (``metadata.hybridnav.machine``) and the outputs' structure everywhere."""
+    import numpy as np
+
     try:
         from numpy._core._multiarray_umath import __cpu_features__ as features
     except ImportError:                                     # NumPy < 2
         from numpy.core._multiarray_umath import __cpu_features__ as features
-    return " ".join([platform.machine()] + [f for f in _SIMD if features.get(f)])
+    arch = {"arm64": "aarch64", "amd64": "x86_64"}.get(platform.machine().lower(),
+                                                        platform.machine().lower())
+    numpy_version = ".".join(np.__version__.split(".")[:2])
+    return " ".join([arch, f"numpy-{numpy_version}"] + [f for f in _SIMD if features.get(f)])
 
 
 def execute(path: Path) -> nbformat.NotebookNode:
