@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -102,6 +103,46 @@ def test_pbpf_is_reproducible_and_improves_on_its_starting_gains():
     assert res.robots[0].outcome == "reached"
     default = planners.get("apf").run(s).robots[0]
     assert default.outcome != "reached" or res.robots[0].path_length <= default.path_length
+
+
+@pytest.mark.parametrize("name", ["effc-train-2", "effc-env-a", "effc-env-b", "pso-ba-dynamic", "turtlebot-office"])
+def test_pbpf_population_runs_compiled_as_in_numpy(name):
+    """PBPF's fitness: each member's own gains in the compiled APF cycle give the NumPy
+    lockstep's runs (outcomes, times, clearances and final states to the bit; the path length
+    sums sqrt where NumPy sums hypot: within an ulp per step)."""
+    from hybridnav.native import lockstep as native_lockstep
+    from hybridnav.planners.field.worldstack import WorldStack
+
+    if not native_lockstep.available():
+        pytest.skip("no compiler: the NumPy loop is the only one")
+    s = load_scenario(name)
+    p = copy.copy(planners.get("pbpf"))
+    p.values = p.scaled_values(s)               # as a run does: speed and gains at its scale
+    r = s.robots[0]
+    single = dataclasses.replace(s, robots=[r])
+    rng = np.random.default_rng(1)
+    base = np.log([p.values[g] for g in ("xi", "eta", "rho0")])
+    gains = np.exp(base + np.log(10.0) * rng.uniform(-1, 1, (24, 3)))
+    stack = WorldStack([single.world])
+    radius, overrides = single.model(r).radius, p.model_overrides(r)
+    got = p._compiled(single, gains, radius, overrides, stack)
+    want = p._numpy(single, gains, radius, overrides, stack)
+    assert got is not None
+    assert len(np.unique(want.path_length)) > 12          # the gains matter
+    for key in ("outcome", "time", "min_clearance", "final_distance", "final_states"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(want, key), err_msg=key)
+    np.testing.assert_allclose(got.path_length, want.path_length, rtol=1e-13)
+
+
+def test_pbpf_tunes_the_same_gains_with_and_without_the_compiled_cycle(monkeypatch):
+    s = load_scenario("effc-env-b")
+    fast = planners.get("pbpf", population=4, generations=2).run(s, seed=3)
+    monkeypatch.setenv("HYBRIDNAV_NATIVE", "0")
+    slow = planners.get("pbpf", population=4, generations=2).run(s, seed=3)
+    np.testing.assert_array_equal(fast.robots[0].states, slow.robots[0].states)
+    assert fast.robots[0].outcome == slow.robots[0].outcome
+    key = f"swarm_best_{s.robots[0].name}"
+    np.testing.assert_allclose(fast.extras[key]["best"], slow.extras[key]["best"], rtol=1e-13)
 
 
 def test_lockstep_matches_the_per_robot_simulation():

@@ -554,6 +554,7 @@ typedef struct {
     double *paths;             /* (N, steps + 1, 2) or NULL */
     int field;                 /* HN_FIELD_EFFC (the family f) or HN_FIELD_APF (f unused) */
     double xi, sigma0, eta, rho0, force_tol;   /* APF's gains (apf.py) */
+    const double *gains;       /* (members, 3): xi, eta, rho0 per member (PBPF), or NULL */
 } hn_run;
 
 enum { HN_FIELD_EFFC = 0, HN_FIELD_APF = 1 };
@@ -614,16 +615,21 @@ static double hn_clear_cb(double qx, double qy, void *ctx)
 /* APF's force at robot n (apf.py's apf_lockstep field): the attraction, plus the repulsion of
  * every obstacle of its world whose footprint clearance is within rho0 (summed in the world's
  * obstacle order, as np.sum over the columns); NaN where the force is below force_tol xi sigma0
- * (a local minimum) */
+ * (a local minimum). The gains are the run's, or member n's row of r->gains (PBPF's search). */
 static void hn_apf_field(const hn_stack *s, const hn_run *r, hn_work *w, int64_t n, double t,
                          double *Fx, double *Fy)
 {
     const double *x = r->X + (size_t)n * r->nx;
     double px = x[0], py = x[1];
     int64_t e = r->env[n];
+    double xi = r->xi, eta = r->eta, rho0 = r->rho0;
+    if (r->gains) {
+        const double *gm = r->gains + 3 * (size_t)r->member[n];
+        xi = gm[0]; eta = gm[1]; rho0 = gm[2];
+    }
     double Dx = px - r->goals[2 * n], Dy = py - r->goals[2 * n + 1];
     double dist = hypot(Dx, Dy);
-    double scale = dist <= r->sigma0 ? r->xi : r->xi * r->sigma0 / (dist > 0 ? dist : 1.0);
+    double scale = dist <= r->sigma0 ? xi : xi * r->sigma0 / (dist > 0 ? dist : 1.0);
     double fx = -scale * Dx, fy = -scale * Dy;
     if (s->Kp) {
         const int C = s->C, CG = s->C + s->G;
@@ -640,7 +646,7 @@ static void hn_apf_field(const hn_stack *s, const hn_run *r, hn_work *w, int64_t
                 /* sqrt is within two ulps of hypot: far circles are settled without it */
                 double sq = sqrt(dx * dx + dy * dy);
                 if (!(sq - s->cr[q] - rad
-                      <= r->rho0 + 1e-12 * (1.0 + sq + fabs(s->cr[q]) + fabs(rad) + r->rho0)))
+                      <= rho0 + 1e-12 * (1.0 + sq + fabs(s->cr[q]) + fabs(rad) + rho0)))
                     continue;                       /* (NaN: never within rho0 either) */
                 double h = hypot(dx, dy), ux = 1.0, uy = 0.0;
                 d = h - s->cr[q];
@@ -657,8 +663,8 @@ static void hn_apf_field(const hn_stack *s, const hn_run *r, hn_work *w, int64_t
                 qy = w->tmp_q[2 * j + 1];
             }
             double rho = hn_maximum(d - rad, 1e-9);
-            if (!(rho <= r->rho0)) continue;
-            double mag = r->eta * (1.0 / rho - 1.0 / r->rho0) / (rho * rho);
+            if (!(rho <= rho0)) continue;
+            double mag = eta * (1.0 / rho - 1.0 / rho0) / (rho * rho);
             double ax = px - qx, ay = py - qy, norm = hypot(ax, ay);
             double dn = norm > 0 ? norm : 1.0;
             sx += mag * (ax / dn);
@@ -667,7 +673,7 @@ static void hn_apf_field(const hn_stack *s, const hn_run *r, hn_work *w, int64_t
         fx = fx + sx;
         fy = fy + sy;
     }
-    if (hypot(fx, fy) <= r->force_tol * r->xi * r->sigma0) { fx = NAN; fy = NAN; }
+    if (hypot(fx, fy) <= r->force_tol * xi * r->sigma0) { fx = NAN; fy = NAN; }
     *Fx = fx;
     *Fy = fy;
 }

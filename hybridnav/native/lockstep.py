@@ -90,7 +90,7 @@ class _Run(Structure):
                 ("noise_steps", c_int64), ("status", c_void_p), ("length", c_void_p),
                 ("t_end", c_void_p), ("min_clear", c_void_p), ("paths", c_void_p),
                 ("field", c_int), ("xi", c_double), ("sigma0", c_double), ("eta", c_double),
-                ("rho0", c_double), ("force_tol", c_double)]
+                ("rho0", c_double), ("force_tol", c_double), ("gains", c_void_p)]
 
 _FIELD_EFFC, _FIELD_APF = 0, 1
 
@@ -368,13 +368,21 @@ def effc_run(batch, family, tables, planner: dict[str, Any], *, repeats: int, no
     return _field_run(lib, keep, f, r, batch, planner, radius, record_paths)
 
 
-def apf_run(batch, values: dict[str, Any], *, radius: np.ndarray, record_paths: bool):
+def apf_run(batch, values: dict[str, Any], *, radius: np.ndarray, record_paths: bool,
+            gains: np.ndarray | None = None):
     """The APF lockstep run of ``batch`` compiled (the ``apf`` planner's ``values``): the arrays
     of :func:`hybridnav.planners.field.lockstep.finish`, or ``None`` where the kernel does not
-    apply."""
+    apply.
+
+    ``gains`` ``(members, 3)``: each member's own ``xi, eta, rho0`` (PBPF's population) instead
+    of those of ``values``."""
     model = batch.model
     if not _single_disk(model):
         return None
+    if gains is not None:
+        gains = np.asarray(gains, dtype=float)
+        if gains.shape != (batch.M, 3):
+            return None
     lib = _library(model)
     if lib is None:
         return None
@@ -385,6 +393,8 @@ def apf_run(batch, values: dict[str, Any], *, radius: np.ndarray, record_paths: 
     r.in_clear = -1
     r.xi, r.sigma0, r.eta = float(values["xi"]), float(values["sigma0"]), float(values["eta"])
     r.rho0, r.force_tol = float(values["rho0"]), float(values["force_tol"])
+    if gains is not None:
+        r.gains = keep.ptr(gains, np.float64)
     return _field_run(lib, keep, None, r, batch, values, radius, record_paths)
 
 

@@ -10,9 +10,11 @@ gain vector (searched in log space within ``gain_range`` of the APF defaults). E
 * **gene transfer**: the population is sorted; ``infections`` times a random bacterium of the
   better half copies a random gene into a random bacterium of the worse half.
 
-The fitness of gains is the length of the APF path they produce (simulated in lockstep for the
-whole batch, :func:`hybridnav.planners.field.lockstep.lockstep_field`), or ``penalty`` times the
-straight-line distance plus the distance left when the robot does not reach the goal. Static
+The fitness of gains is the length of the APF path they produce, or ``penalty`` times the
+straight-line distance plus the distance left when the robot does not reach the goal. The whole
+population is simulated in lockstep: in the compiled APF control cycle with one gain row per
+member (:func:`hybridnav.native.lockstep.apf_run`), or in NumPy
+(:func:`hybridnav.planners.field.lockstep.lockstep_field`) where no compiler is found. Static
 goals only (the search needs a fixed target).
 """
 
@@ -96,12 +98,36 @@ class PBPF(APF):
             g[name] = state.gains[idx, j]
         return g
 
-    def _fitness(self, scenario, genomes: np.ndarray) -> np.ndarray:
-        """APF path length per log-gain vector (lockstep), penalized when the goal is missed."""
+    def _fitness(self, scenario, genomes: np.ndarray, stack=None) -> np.ndarray:
+        """APF path length per log-gain vector (lockstep), penalized when the goal is missed.
+
+        The population runs in the compiled control cycle
+        (:func:`hybridnav.native.lockstep.apf_run` with one gain row per member) where it
+        applies, else in NumPy: the same runs to the bit."""
         v = self.values
         gains = np.exp(genomes)
         radius = scenario.model(scenario.robots[0]).radius
         r = scenario.robots[0]
+        overrides = self.model_overrides(r)
+        res = self._compiled(scenario, gains, radius, overrides, stack)
+        if res is None:
+            res = self._numpy(scenario, gains, radius, overrides, stack)
+        d0 = math.dist(r.start, r.goal)
+        ok = res.outcome[0] == "reached"
+        return np.where(ok, res.path_length[0], v["penalty"] * d0 + res.final_distance[0])
+
+    def _compiled(self, scenario, gains, radius, overrides, stack):
+        from hybridnav.native.lockstep import apf_run
+        from hybridnav.planners.field.lockstep import prepare
+
+        # the search runs without the safety filter (the NumPy loop below passes none)
+        values = {**self.values, "safety_margin": 0.0}
+        batch = prepare([scenario], len(gains), overrides, stack)
+        return apf_run(batch, values, radius=np.array([float(radius)]), record_paths=False,
+                       gains=gains)
+
+    def _numpy(self, scenario, gains, radius, overrides, stack):
+        v = self.values
 
         def field(env, members, P, goals, t):
             g = gains[members]
@@ -111,26 +137,25 @@ class PBPF(APF):
             F[small] = np.nan                  # a local minimum: stuck, as APF.velocity says
             return F
 
-        overrides = self.model_overrides(r)
-        res = lockstep_field([scenario], len(genomes), field, model_overrides=overrides,
-                             speed=v["speed"], stuck_window=v["stuck_window"],
-                             stuck_radius=v["stuck_radius"])
-        d0 = math.dist(r.start, r.goal)
-        ok = res.outcome[0] == "reached"
-        return np.where(ok, res.path_length[0], v["penalty"] * d0 + res.final_distance[0])
+        return lockstep_field([scenario], len(gains), field, model_overrides=overrides,
+                              speed=v["speed"], stuck_window=v["stuck_window"],
+                              stuck_radius=v["stuck_radius"], stack=stack)
 
     def _search(self, scenario, rng, lo, hi):
         v = self.values
         n, nc, ng = v["population"], v["clones"], len(GENES)
+        from hybridnav.planners.field.worldstack import WorldStack
+
+        stack = WorldStack([scenario.world])         # one world packed for the whole search
         pop = lo + (hi - lo) * rng.random((n, ng))
-        fit = self._fitness(scenario, pop)
+        fit = self._fitness(scenario, pop, stack)
         history = [float(fit.min())]
         for _ in range(v["generations"]):
             # bacterial mutation, gene by gene; all bacteria and their clones in one batch
             for gene in rng.permutation(ng):
                 clones = np.repeat(pop[:, None, :], nc + 1, axis=1)
                 clones[:, 1:, gene] = lo[gene] + (hi[gene] - lo[gene]) * rng.random((n, nc))
-                cf = self._fitness(scenario, clones.reshape(-1, ng)).reshape(n, nc + 1)
+                cf = self._fitness(scenario, clones.reshape(-1, ng), stack).reshape(n, nc + 1)
                 cf[:, 0] = fit               # the original keeps its known fitness
                 best = np.argmin(cf, axis=1)
                 pop = clones[np.arange(n), best]
@@ -145,7 +170,7 @@ class PBPF(APF):
                 infected = pop.copy()
                 infected[targets, genes] = pop[sources, genes]
                 touched = np.unique(targets)
-                fit[touched] = self._fitness(scenario, infected[touched])
+                fit[touched] = self._fitness(scenario, infected[touched], stack)
                 pop = infected
             history.append(float(fit.min()))
         return pop[int(np.argmin(fit))], history
