@@ -14,6 +14,21 @@ other tests would build that fixture twice.
 
 from __future__ import annotations
 
+import os
+import tempfile
+from pathlib import Path
+
+# Bytecode: where PYTHONDONTWRITEBYTECODE is set (as on our CI machines), every process the suite
+# starts (the xdist workers, command-line runs, pool and dask workers, notebook kernels, the docs
+# build) compiled every hybridnav module again: 0.3-0.5 s each. The suite's processes keep their
+# bytecode in a cache folder of their own instead (PYTHONPYCACHEPREFIX, outside the source tree,
+# which is what not writing bytecode protects); set before xdist starts its workers.
+if os.environ.get("PYTHONDONTWRITEBYTECODE") and not os.environ.get("PYTHONPYCACHEPREFIX"):
+    user = os.getuid() if hasattr(os, "getuid") else os.getpid()
+    os.environ["PYTHONPYCACHEPREFIX"] = str(Path(tempfile.gettempdir())
+                                            / f"hybridnav-pycache-{user}")
+    del os.environ["PYTHONDONTWRITEBYTECODE"]
+
 
 def _slow(item) -> bool:
     return item.get_closest_marker("slow") is not None
