@@ -54,6 +54,32 @@ numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 
+
+def _share_numpydoc_template() -> None:
+    """numpydoc 1.x builds a new jinja environment for every docstring it renders and compiles
+    its template again each time (2,600 docstrings: about 20 s of a 70 s build); every
+    environment it builds here shares the template compiled first (the same file and loader
+    settings throughout a build)."""
+    import numpydoc.docscrape_sphinx as ds
+
+    base = ds.SandboxedEnvironment
+    if getattr(base, "_hybridnav_shared", False):
+        return
+
+    class SharedTemplate(base):
+        _hybridnav_shared = True
+        _compiled: dict = {}
+
+        def get_template(self, name, *args, **kwargs):
+            if name not in self._compiled:
+                self._compiled[name] = super().get_template(name, *args, **kwargs)
+            return self._compiled[name]
+
+    ds.SandboxedEnvironment = SharedTemplate
+
+
+_share_numpydoc_template()
+
 myst_enable_extensions = ["colon_fence", "dollarmath"]
 myst_heading_anchors = 3
 
