@@ -105,8 +105,10 @@ def test_pbpf_is_reproducible_and_improves_on_its_starting_gains():
     assert default.outcome != "reached" or res.robots[0].path_length <= default.path_length
 
 
-@pytest.mark.parametrize("name", ["effc-train-2", "effc-env-a", "effc-env-b", "pso-ba-dynamic", "turtlebot-office"])
-def test_pbpf_population_runs_compiled_as_in_numpy(name):
+@pytest.mark.parametrize("name, margin", [("effc-train-2", 0.0), ("effc-env-a", 0.0),
+                                          ("effc-env-a", 0.05), ("effc-env-b", 0.0),
+                                          ("pso-ba-dynamic", 0.0), ("turtlebot-office", 0.0)])
+def test_pbpf_population_runs_compiled_as_in_numpy(name, margin):
     """PBPF's fitness: each member's own gains in the compiled APF cycle give the NumPy
     lockstep's runs (outcomes, times, clearances and final states to the bit; the path length
     sums sqrt where NumPy sums hypot: within an ulp per step)."""
@@ -116,7 +118,7 @@ def test_pbpf_population_runs_compiled_as_in_numpy(name):
     if not native_lockstep.available():
         pytest.skip("no compiler: the NumPy loop is the only one")
     s = load_scenario(name)
-    p = copy.copy(planners.get("pbpf"))
+    p = copy.copy(planners.get("pbpf", safety_margin=margin))
     p.values = p.scaled_values(s)               # as a run does: speed and gains at its scale
     r = s.robots[0]
     single = dataclasses.replace(s, robots=[r])
@@ -143,6 +145,19 @@ def test_pbpf_tunes_the_same_gains_with_and_without_the_compiled_cycle(monkeypat
     assert fast.robots[0].outcome == slow.robots[0].outcome
     key = f"swarm_best_{s.robots[0].name}"
     np.testing.assert_allclose(fast.extras[key]["best"], slow.extras[key]["best"], rtol=1e-13)
+
+
+@pytest.mark.parametrize("name", ["effc-train-1", "effc-env-b"])
+def test_pbpf_searches_what_it_runs_with_the_safety_filter(name):
+    """The gain search simulates the run the planner makes: with a safety margin, the best
+    fitness is the path length of the run with the tuned gains (the search used to leave the
+    filter out)."""
+    s = load_scenario(name)
+    res = planners.get("pbpf", population=4, generations=2, safety_margin=0.05).run(s, seed=3)
+    r = res.robots[0]
+    best = list(res.extras[f"swarm_best_{r.name}"]["best"])[-1]
+    assert r.outcome == "reached"
+    assert r.path_length == pytest.approx(best, rel=1e-12)
 
 
 def test_lockstep_matches_the_per_robot_simulation():

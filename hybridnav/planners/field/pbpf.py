@@ -10,8 +10,10 @@ gain vector (searched in log space within ``gain_range`` of the APF defaults). E
 * **gene transfer**: the population is sorted; ``infections`` times a random bacterium of the
   better half copies a random gene into a random bacterium of the worse half.
 
-The fitness of gains is the length of the APF path they produce, or ``penalty`` times the
-straight-line distance plus the distance left when the robot does not reach the goal. The whole
+The fitness of gains is the length of the APF path they produce (with the escape-circle safety
+filter where the run has it: ``safety_margin`` and heading-controlled robots), or ``penalty``
+times the straight-line distance plus the distance left when the robot does not reach the goal.
+The search sees the map's exact geometry, also for a run with ``sensor = "lidar"``. The whole
 population is simulated in lockstep: in the compiled APF control cycle with one gain row per
 member (:func:`hybridnav.native.lockstep.apf_run`), or in NumPy
 (:func:`hybridnav.planners.field.lockstep.lockstep_field`) where no compiler is found. Static
@@ -120,9 +122,10 @@ class PBPF(APF):
         from hybridnav.native.lockstep import apf_run
         from hybridnav.planners.field.lockstep import prepare
 
-        # the search runs without the safety filter (the NumPy loop below passes none)
-        values = {**self.values, "safety_margin": 0.0}
         batch = prepare([scenario], len(gains), overrides, stack)
+        values = dict(self.values)
+        if getattr(batch.model, "options", {}).get("controller") != "heading":
+            values["safety_margin"] = 0.0        # the filter steers heading-controlled robots
         return apf_run(batch, values, radius=np.array([float(radius)]), record_paths=False,
                        gains=gains)
 
@@ -139,7 +142,8 @@ class PBPF(APF):
 
         return lockstep_field([scenario], len(gains), field, model_overrides=overrides,
                               speed=v["speed"], stuck_window=v["stuck_window"],
-                              stuck_radius=v["stuck_radius"], stack=stack)
+                              stuck_radius=v["stuck_radius"], stack=stack,
+                              safety={"margin": v["safety_margin"], "max_turn": v["max_turn"]})
 
     def _search(self, scenario, rng, lo, hi):
         v = self.values
