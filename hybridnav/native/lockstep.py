@@ -424,6 +424,9 @@ def _field_run(lib, keep: _Keep, f, r: _Run, batch, planner: dict[str, Any],
     r.env = keep.ptr(batch.env, np.int64)
     r.member = keep.ptr(batch.member, np.int64)
     r.safety = float(planner.get("safety_margin", 0.0))
+    if getattr(model, "options", {}).get("controller") != "heading":
+        r.safety = 0.0          # as lockstep_field: the filter steers heading-controlled robots
+        #                         (and reads x[2] as the heading)
     r.max_turn = float(planner["max_turn"])
     r.X = X.ctypes.data
     r.goals = keep.ptr(batch.goals, np.float64)

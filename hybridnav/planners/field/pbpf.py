@@ -123,10 +123,7 @@ class PBPF(APF):
         from hybridnav.planners.field.lockstep import prepare
 
         batch = prepare([scenario], len(gains), overrides, stack)
-        values = dict(self.values)
-        if getattr(batch.model, "options", {}).get("controller") != "heading":
-            values["safety_margin"] = 0.0        # the filter steers heading-controlled robots
-        return apf_run(batch, values, radius=np.array([float(radius)]), record_paths=False,
+        return apf_run(batch, self.values, radius=np.array([float(radius)]), record_paths=False,
                        gains=gains)
 
     def _numpy(self, scenario, gains, radius, overrides, stack):
