@@ -81,13 +81,12 @@ def _round_out(name, lo, hi, inputs):
     minimum is exactly zero); elsewhere it moves out by 1e-300. Exact zeros matter: LaSalle's
     argument needs ``Vdot <= 0`` with equality.
     """
-    if name in _ZERO_EXACT:
-        exact = np.ones(lo.shape, dtype=bool)
-    else:
-        exact = np.zeros(lo.shape, dtype=bool)
-        for arr in inputs:
-            exact |= arr == 0
     lo, hi = _widen(lo, hi)
+    if name in _ZERO_EXACT:
+        return lo, hi
+    exact = np.zeros(lo.shape, dtype=bool)
+    for arr in inputs:
+        exact |= arr == 0
     return (np.where((lo == 0) & ~exact, -_TINY, lo),
             np.where((hi == 0) & ~exact, _TINY, hi))
 
@@ -117,6 +116,10 @@ def _underflow(q, x, y):
 
 
 def _mul(a, b, c, d):
+    p = np.stack((a * c, a * d, b * c, b * d))
+    if not (np.isnan(p).any() or (p == 0).any()):
+        # no 0 * inf and no underflow: each product bounds itself (what the loop below gives)
+        return p.min(axis=0), p.max(axis=0)
     lo, hi = [], []
     for x, y in ((a, c), (a, d), (b, c), (b, d)):
         pl, ph = _underflow(_times(x, y), x, y)
@@ -317,9 +320,8 @@ class IntervalFunction:
             rl, rh = _finite_ends(rl, rh)
             defined = _and(wd[ins[0]], wd[ins[1]] if binary else None)
             dom = _domain(name, a, b, c, d, wp[ins[0]], wp[ins[1]] if binary else None)
-            nan = np.isnan(rl) | np.isnan(rh)
-            dom = ~nan if dom is None else dom & ~nan
-            defined = _and(defined, dom if not dom.all() else None)
+            # (no NaN reaches here: _apply makes a NaN end [-inf, inf] and flags it not ok)
+            defined = _and(defined, dom if dom is not None and not dom.all() else None)
             if name == "if_else_zero" and defined is not None:
                 # CasADi evaluates cond ? value : 0; a surely false cond gives 0 whatever value is
                 _, no = _truth(a, b)
