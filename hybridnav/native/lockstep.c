@@ -804,8 +804,12 @@ int hn_effc_run(const hn_family *f, const hn_stack *s, hn_run *r)
                 free(w.tmp_de); free(w.tmp_q); free(V); free(last); free(ring); free(xn); free(fwork); free(w.clear); free(w.near);
                 return -2;
             }
-            /* (sqrt: the length is reported, it feeds nothing back; within an ulp of hypot) */
-            r->length[n] += sqrt((xn[0] - x[0]) * (xn[0] - x[0]) + (xn[1] - x[1]) * (xn[1] - x[1]));
+            /* EFFC: sqrt, within an ulp of hypot (the tuner's results are the compiled cycle's);
+             * APF: hypot, NumPy's lengths to the bit (PBPF ranks its members by them, and
+             * near-tied members would be ordered by the rounding) */
+            double ddx = xn[0] - x[0], ddy = xn[1] - x[1];
+            r->length[n] += r->field == HN_FIELD_APF ? hypot(ddx, ddy)
+                                                      : sqrt(ddx * ddx + ddy * ddy);
             memcpy(x, xn, sizeof(double) * nx);
             hn_check(s, r, &w, n, tn);
         }
