@@ -30,15 +30,25 @@ def _six_digits(text: str) -> str:
 
 
 def _printed(cell) -> list[str]:
-    """What a cell printed and returned as text (stderr left out: warnings name local paths)."""
-    out = []
+    """What a cell printed and returned as text (stderr left out: warnings name local paths).
+    Consecutive prints are one text, as a notebook shows them: how the kernel splits them into
+    stream messages depends on timing."""
+    out: list[str] = []
+    joined = False                          # the last item is printed text: join what follows
     for o in cell.get("outputs", []):
-        if o.get("output_type") == "stream" and o.get("name") == "stdout":
-            out.append(_six_digits(o["text"]))
-        elif "text/plain" in o.get("data", {}) and not re.fullmatch(
+        if o.get("output_type") == "stream":
+            if o.get("name") == "stdout":
+                if joined:
+                    out[-1] += o["text"]
+                else:
+                    out.append(o["text"])
+                    joined = True
+            continue                        # (stderr does not separate prints either)
+        joined = False
+        if "text/plain" in o.get("data", {}) and not re.fullmatch(
                 r"<(Figure|matplotlib\.\w+).*>", o["data"]["text/plain"].strip(), re.S):
-            out.append(_six_digits(o["data"]["text/plain"]))
-    return out
+            out.append(o["data"]["text/plain"])
+    return [_six_digits(t) for t in out]
 
 
 @pytest.mark.slow
