@@ -105,6 +105,34 @@ def test_pbpf_is_reproducible_and_improves_on_its_starting_gains():
     assert default.outcome != "reached" or res.robots[0].path_length <= default.path_length
 
 
+def _pbpf_population(s, seed, n, **params):
+    """PBPF's fitness runs of ``n`` random gain rows on ``s``'s first robot, compiled and in
+    NumPy (``(compiled, numpy)`` lockstep results)."""
+    from hybridnav.native import lockstep as native_lockstep
+    from hybridnav.planners.field.worldstack import WorldStack
+
+    if not native_lockstep.available():
+        pytest.skip("no compiler: the NumPy loop is the only one")
+    p = copy.copy(planners.get("pbpf", **params))
+    p.values = p.scaled_values(s)               # as a run does: speed and gains at its scale
+    r = s.robots[0]
+    single = dataclasses.replace(s, robots=[r])
+    rng = np.random.default_rng(seed)
+    base = np.log([p.values[g] for g in ("xi", "eta", "rho0")])
+    gains = np.exp(base + np.log(10.0) * rng.uniform(-1, 1, (n, 3)))
+    stack = WorldStack([single.world])
+    radius, overrides = single.model(r).radius, p.model_overrides(r)
+    got = p._compiled(single, gains, radius, overrides, stack)
+    assert got is not None
+    return got, p._numpy(single, gains, radius, overrides, stack)
+
+
+def _assert_same_runs(got, want):
+    for key in ("outcome", "path_length", "time", "min_clearance", "final_distance",
+                "final_states"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(want, key), err_msg=key)
+
+
 @pytest.mark.parametrize("name, margin", [("effc-train-2", 0.0), ("effc-env-a", 0.0),
                                           ("effc-env-a", 0.05), ("effc-env-b", 0.0),
                                           ("pso-ba-dynamic", 0.0), ("pso-ba-dynamic", 0.05),
@@ -112,28 +140,72 @@ def test_pbpf_is_reproducible_and_improves_on_its_starting_gains():
 def test_pbpf_population_runs_compiled_as_in_numpy(name, margin):
     """PBPF's fitness: each member's own gains in the compiled APF cycle give the NumPy
     lockstep's runs to the bit (outcomes, lengths, times, clearances and final states)."""
-    from hybridnav.native import lockstep as native_lockstep
-    from hybridnav.planners.field.worldstack import WorldStack
-
-    if not native_lockstep.available():
-        pytest.skip("no compiler: the NumPy loop is the only one")
-    s = load_scenario(name)
-    p = copy.copy(planners.get("pbpf", safety_margin=margin))
-    p.values = p.scaled_values(s)               # as a run does: speed and gains at its scale
-    r = s.robots[0]
-    single = dataclasses.replace(s, robots=[r])
-    rng = np.random.default_rng(1)
-    base = np.log([p.values[g] for g in ("xi", "eta", "rho0")])
-    gains = np.exp(base + np.log(10.0) * rng.uniform(-1, 1, (24, 3)))
-    stack = WorldStack([single.world])
-    radius, overrides = single.model(r).radius, p.model_overrides(r)
-    got = p._compiled(single, gains, radius, overrides, stack)
-    want = p._numpy(single, gains, radius, overrides, stack)
-    assert got is not None
+    got, want = _pbpf_population(load_scenario(name), 1, 24, safety_margin=margin)
     assert len(np.unique(want.path_length)) > 12          # the gains matter
-    for key in ("outcome", "path_length", "time", "min_clearance", "final_distance",
-                "final_states"):
-        np.testing.assert_array_equal(getattr(got, key), getattr(want, key), err_msg=key)
+    _assert_same_runs(got, want)
+
+
+# PBPF ranks its members by path length (argmin over each bacterium's clones, argsort for the
+# gene transfer). Members that reach the goal along nearly the same path (no obstacle near it)
+# differ by a few ulps: when the compiled cycle summed sqrt(dx^2 + dy^2) and NumPy hypot(dx, dy),
+# the rounding reordered them and the two searches kept other gains (a review's reproducers).
+TIE_WORLD = """\
+name = "{name}"
+description = "one point-mass robot, start and goal in a generic direction"
+units = "m"
+dt = 0.1
+max_time = 600.0
+
+[workspace]
+xmin = 0.0
+xmax = 50.0
+ymin = 0.0
+ymax = 50.0
+
+[[robots]]
+name = "robot"
+model = "point_mass"
+start = [27.824435307310257, 28.60345208660854]
+goal = [10.929969552976505, 26.197023436422256]
+goal_radius = 0.5
+radius = 0.5
+{extra}"""
+
+FAR_CIRCLE = """
+[[obstacles]]
+type = "circle"
+center = [20.0, 40.0]
+radius = 3.0
+"""
+
+
+def _tie_world(tmp_path, name, extra=""):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(TIE_WORLD.format(name=name, extra=extra))
+    return load_scenario(str(path))
+
+
+def _tuned_gains(s, seed, monkeypatch, native, **params):
+    monkeypatch.setenv("HYBRIDNAV_NATIVE", "1" if native else "0")
+    run = copy.copy(planners.get("pbpf", **params))
+    run.values = run.scaled_values(s)
+    return run.prepare(s, np.random.default_rng(seed)).gains
+
+
+def test_pbpf_near_tied_lengths_are_the_numpy_loops_to_the_bit(tmp_path):
+    got, want = _pbpf_population(_tie_world(tmp_path, "free-pm"), 7, 20)
+    assert (want.outcome == "reached").all()
+    assert np.argmin(got.path_length[0]) == np.argmin(want.path_length[0])
+    _assert_same_runs(got, want)
+
+
+@pytest.mark.parametrize("extra, generations", [("", 1), (FAR_CIRCLE, 2)],
+                         ids=["no-obstacle", "far-circle"])
+def test_pbpf_tunes_the_same_gains_among_near_ties(tmp_path, monkeypatch, extra, generations):
+    s = _tie_world(tmp_path, "tie", extra)
+    fast = _tuned_gains(s, 0, monkeypatch, True, population=4, generations=generations)
+    slow = _tuned_gains(s, 0, monkeypatch, False, population=4, generations=generations)
+    np.testing.assert_array_equal(fast, slow)
 
 
 def test_pbpf_tunes_the_same_gains_with_and_without_the_compiled_cycle(monkeypatch):
