@@ -20,15 +20,16 @@ from pathlib import Path
 # Bytecode: where PYTHONDONTWRITEBYTECODE is set (as on our CI machines), every process the suite
 # starts (the xdist workers, command-line runs, pool and dask workers, notebook kernels, the docs
 # build) compiled every module it imports again: 0.3-0.5 s each for hybridnav alone. The suite's
-# processes keep bytecode in the user's own cache folder instead (PYTHONPYCACHEPREFIX:
-# ~/.cache/hybridnav/pycache, or under $XDG_CACHE_HOME; created private, used only when the user
-# owns it), never beside the sources. It holds every imported package's bytecode (about 60 MB)
+# processes keep bytecode in the user's own cache folder instead (PYTHONPYCACHEPREFIX: `pycache`
+# beside hybridnav's compiled kernels, ~/.cache/hybridnav/pycache by default; created private,
+# used only when the user owns it), never beside the sources. It holds every imported package's bytecode (about 60 MB)
 # and is reused by later sessions; delete it at will. Set before xdist starts its workers.
 
 
 def _private_pycache() -> Path | None:
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    folder = root / "hybridnav" / "pycache"
+    from hybridnav.native import cache_dir
+
+    folder = cache_dir().parent / "pycache"
     try:
         folder.mkdir(parents=True, exist_ok=True, mode=0o700)
         st = folder.stat()
