@@ -31,6 +31,7 @@ import numpy as np
 from hybridnav.planners.base import Param, searches_table
 from hybridnav.planners.field.apf import APF, apf_force
 from hybridnav.planners.field.lockstep import lockstep_field
+from hybridnav.planners.field.worldstack import WorldStack
 
 __all__ = ["PBPF"]
 
@@ -145,8 +146,6 @@ class PBPF(APF):
     def _search(self, scenario, rng, lo, hi):
         v = self.values
         n, nc, ng = v["population"], v["clones"], len(GENES)
-        from hybridnav.planners.field.worldstack import WorldStack
-
         stack = WorldStack([scenario.world])         # one world packed for the whole search
         pop = lo + (hi - lo) * rng.random((n, ng))
         fit = self._fitness(scenario, pop, stack)
