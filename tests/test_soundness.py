@@ -514,3 +514,21 @@ def test_a_state_just_past_the_level_set_is_not_a_counterexample(seed):
         x = rep.counterexample
         F = Fraction
         assert F(x[1]) ** 2 + F(x[0]) ** 2 * (2 - F(x[0]) ** 2) <= F(1 - 1e-14)
+
+
+@pytest.mark.parametrize("ulps", [2**10, 2**20])
+def test_boxes_a_few_ulps_wide_get_no_mean_value_proof(ulps):
+    """Far from the origin the boxes shrink to a few ulps, where the rounded centre sits on one
+    end: the mean-value form's radius is the distance to the other end, not (hi - lo) / 2.
+    Here Vdot = f = (x0 - x) + u/4 is positive at the region's corner x0 (u: its ulp), so no
+    proof may come back (a review found 'proved')."""
+    x0 = 1e8
+    if int(np.float64(x0).view(np.int64)) % 2 == 0:
+        x0 = float(np.nextafter(x0, np.inf))       # an odd last bit: the centre rounds up
+    u = float(np.spacing(x0))
+    x = cs.SX.sym("x", 1)
+    f = (x0 - x[0]) + u / 4
+    assert float(cs.Function("f", [x], [f])(x0)) > 0       # Vdot > 0 at a state of the region
+    cert = certify(x, f, x[0], Box(("x",), np.array([x0]), np.array([x0 + ulps * u])),
+                   max_boxes=2_000)                  # (the false proof took 11 boxes)
+    assert cert.status != "proved"

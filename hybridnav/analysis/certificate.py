@@ -502,7 +502,9 @@ def _mean_value_bound(F_mv, lo, hi, d_hi):
     g_lo, g_hi = both_lo[:n, 1:], both_hi[:n, 1:]
     c_hi = both_hi[n:, :1]
     smooth = sm[:n, 0]
-    r = (hi - lo) / 2
+    # the half-widths about the rounded centre, rounded up: on a box a few ulps wide the centre
+    # rounds to one end and (hi - lo) / 2 is half the distance to the other
+    r = np.nextafter(np.maximum(mid - lo, hi - mid), np.inf)
     with np.errstate(invalid="ignore", over="ignore"):
         s = np.sum(np.maximum(np.abs(g_lo), np.abs(g_hi)) * r, axis=1)
         mv = c_hi[:, 0] + s
