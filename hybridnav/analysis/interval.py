@@ -36,6 +36,8 @@ from collections.abc import Mapping, Sequence
 import casadi as cs
 import numpy as np
 
+from hybridnav.native import interval as native_interval
+
 __all__ = ["IntervalFunction", "UnsupportedOperation"]
 
 _EPS = 4 * np.finfo(float).eps
@@ -238,6 +240,15 @@ class IntervalFunction:
                     wraps[outs[0]] = (ins[0], ins[1])
             self._program.append((name, ins, outs, const, extra))
         self.sz_w = fn.sz_w()
+        self._kernel: native_interval.Program | None | bool = False     # False: not built yet
+
+    def _compiled(self) -> native_interval.Program | None:
+        """The program in the compiled kernel's form (None: it has operations the kernel
+        lacks)."""
+        if self._kernel is False:
+            self._kernel = native_interval.program(self._program, self.sz_w, self.nx,
+                                                   self.n_out, self._out_slot)
+        return self._kernel
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray, clamp: Mapping[int, tuple[float, float]]
                  | None = None, continuity: bool = False, _record: dict | None = None):
@@ -282,6 +293,12 @@ class IntervalFunction:
         wp: list = [None] * self.sz_w           # > 0 though lo = 0 (clamped to an open bound)
         clamp_slot = {self._out_slot[k]: v for k, v in (clamp or {}).items()
                       if k in self._out_slot}
+        if (_record is None and lo.ndim == 2 and lo.shape == hi.shape and lo.shape[1] == self.nx
+                and self._compiled() is not None):
+            # arithmetic only: the compiled kernel, the same operations per box
+            done = native_interval.evaluate(self._kernel, lo, hi, clamp_slot)
+            if done is not None:
+                return done if continuity else done[:3]
         out_lo = np.empty((n, self.n_out))
         out_hi = np.empty((n, self.n_out))
         smooth = np.ones((n, self.n_out), dtype=bool)

@@ -1,0 +1,142 @@
+"""The compiled interval evaluation (arithmetic programs) equals the NumPy path bit for bit: the
+enclosures, smoothness and continuity of every output, on boxes with zeros of both signs,
+subnormals, underflowing products, huge, infinite and NaN ends, with clamps; and programs with
+other operations, or switched-off kernels, take the NumPy path."""
+
+from __future__ import annotations
+
+import casadi as cs
+import numpy as np
+import pytest
+
+from hybridnav import models, native
+from hybridnav.analysis.interval import IntervalFunction
+from hybridnav.native import interval as native_interval
+
+x = cs.SX.sym("x", 3)
+X, Y, Z = x[0], x[1], x[2]
+
+#: arithmetic expressions covering every operation of the kernel (checked below)
+EXPRESSIONS = {
+    "products": [X * Y, X * Y * Z, (X - Y) * (Y + Z), 3.0 * X * Y - Z, -(X * Y), X],
+    "quotients": [X / Y, 1 / X, (X + 1) / (Y * Y + Z), X / (Y - Z) + Y / X],
+    "powers": [X * X, (X - Y) ** 2, X ** 2 * Y ** 2 + Z ** 2, -(X ** 2) + 2 * Y],
+    "twice": [X + X, 2 * (X * Y), (X + X) / (Y + Y)],
+    "underflow": [1e-200 * X * Y, X * Y * 1e-300, 1e300 * X / Y, X / (1e308 * Y)],
+    "constants": [X + 1e308 + 1e308, X * 0.0 + Y, cs.SX(np.inf) * X, X - cs.SX(np.inf)],
+    "lbcs-like": [1 / ((X - 1) ** 2 + (Y - 2) ** 2 - 0.25) + 1 / (X ** 2 + Y ** 2 - 1)
+                  * ((X - 3) ** 2 + Y ** 2), (X * Y - Z) / ((X - 1) ** 2 + 1e-3)],
+}
+SPECIAL = np.array([0.0, -0.0, 5e-324, -5e-324, 2.2250738585072014e-308, 1e-300, -1e-300, 1e-160,
+                    1.0, -1.0, 0.5, 3.0, 1e150, -1e200, 1e308, -1.7976931348623157e308,
+                    np.inf, -np.inf, np.nan])
+
+
+def _boxes(rng, n: int, special: bool):
+    a = rng.normal(0, 3, (n, 3))
+    b = rng.normal(0, 3, (n, 3))
+    if special:
+        for m in (a, b):
+            pick = rng.random(m.shape) < 0.35
+            m[pick] = rng.choice(SPECIAL, int(pick.sum()))
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    # points (lo = hi), and some reversed boxes: the two paths must agree on them too
+    lo[: n // 8] = hi[: n // 8]
+    if special:
+        lo[n // 8: n // 6], hi[n // 8: n // 6] = hi[n // 8: n // 6].copy(), lo[n // 8: n // 6].copy()
+    return lo, hi
+
+
+def _both(F: IntervalFunction, lo, hi, clamp, monkeypatch):
+    compiled = F(lo, hi, clamp, continuity=True)
+    with monkeypatch.context() as mp:
+        mp.setenv(native.ENV, "0")
+        reference = F(lo, hi, clamp, continuity=True)
+    return compiled, reference
+
+
+def _assert_same(compiled, reference):
+    for c, r in zip(compiled, reference):
+        assert c.dtype == r.dtype and c.shape == r.shape
+        np.testing.assert_array_equal(c, r)             # NaN equal to NaN; -0.0 == 0.0
+        if c.dtype == float:
+            # and the same bits, signed zeros aside
+            same = (c == r) | (np.isnan(c) & np.isnan(r))
+            assert same.all()
+
+
+def test_the_expressions_use_every_operation_of_the_kernel():
+    used = set()
+    for exprs in EXPRESSIONS.values():
+        F = IntervalFunction(x, exprs)
+        used |= {p[0] for p in F._program}
+        assert F._compiled() is not None
+    # (CasADi emits ``assign`` for matrix copies, not for these scalar expressions)
+    assert set(native_interval.CODES) - {"assign"} <= used
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+@pytest.mark.parametrize("special", [False, True])
+@pytest.mark.parametrize("group", sorted(EXPRESSIONS))
+def test_compiled_enclosures_equal_numpy(group, special, monkeypatch):
+    F = IntervalFunction(x, EXPRESSIONS[group])
+    rng = np.random.default_rng(abs(hash(group)) % 2 ** 32 + special)
+    for n in (1, 7, 600):
+        lo, hi = _boxes(rng, n, special)
+        _assert_same(*_both(F, lo, hi, None, monkeypatch))
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+def test_clamped_outputs_and_open_bounds_equal_numpy(monkeypatch):
+    """As the certificate uses it: constraints g > 0 clamped to [0, inf), then 1 / g."""
+    g = (X - 1) ** 2 + (Y + 0.5) ** 2 - 0.25
+    F = IntervalFunction(x, [g, 1 / g + X * Y, Y / g, X * X])
+    rng = np.random.default_rng(7)
+    for clamp in ({0: (0.0, np.inf)}, {0: (0.1, 4.0)}, {3: (0.0, 1.0)}, {0: (0.0, np.inf),
+                                                                          3: (-1.0, 2.0)}):
+        lo, hi = _boxes(rng, 400, True)
+        _assert_same(*_both(F, lo, hi, clamp, monkeypatch))
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+def test_the_lbcs_certificate_functions_equal_numpy(monkeypatch):
+    """V, Vdot and the constraints of the LbCS closed loop with its obstacles (the certificate
+    route's heaviest rational program)."""
+    from hybridnav.analysis.lyapunov import lyapunov_functions
+    from hybridnav.world import load_scenario
+
+    scen = load_scenario("aco-local-minimum")
+    lb = models.LbCS.from_scenario(scen)
+    model, v_num, vdot_num, _, _ = lyapunov_functions(lb, None, target=scen.robots[0].goal)
+    gx = cs.substitute(model.state_constraints(), model.sym.p, cs.DM(model.p_value()))
+    grad = cs.gradient(vdot_num, model.sym.x)
+    F = IntervalFunction(model.sym.x, [v_num, vdot_num, gx, grad])
+    assert F._compiled() is not None
+    ng = int(gx.numel())
+    clamp = {2 + k: (0.0, np.inf) for k in range(ng)}
+    rng = np.random.default_rng(3)
+    c = rng.uniform([-20, -20], [70, 70], (3000, 2))
+    w = 10.0 ** rng.uniform(-12, 1.5, (3000, 2))
+    lo, hi = c - w, c + w
+    lo[:50] = hi[:50]
+    _assert_same(*_both(F, lo, hi, clamp, monkeypatch))
+    _assert_same(*_both(F, lo, hi, None, monkeypatch))
+
+
+def test_other_operations_take_the_numpy_path():
+    F = IntervalFunction(x, [cs.sin(X) * Y, X * Y])
+    assert F._compiled() is None
+    lo, hi = np.zeros((4, 3)), np.ones((4, 3))
+    out_lo, out_hi, smooth = F(lo, hi)
+    assert out_lo.shape == (4, 2) and smooth.all()
+
+
+def test_switched_off_kernels_give_the_numpy_path(monkeypatch):
+    monkeypatch.setenv(native.ENV, "0")
+    F = IntervalFunction(x, [X * Y])
+    assert native_interval.evaluate(F._compiled(), np.zeros((2, 3)), np.ones((2, 3)), {}) is None
+    out_lo, out_hi, _ = F(np.zeros((2, 3)), np.ones((2, 3)))
+    assert (out_lo <= 0).all() and (out_hi >= 1).all()
