@@ -16,6 +16,7 @@ from hybridnav.analysis.region import Box, as_box
 from hybridnav.analysis.verdict import _num
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
+from hybridnav.models.compile import evaluate_rows
 
 __all__ = ["Equilibrium", "find_equilibria"]
 
@@ -108,7 +109,7 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
     dense = box.sample(50 * starts, rng)
     dense = dense[model.admissible(dense)]
     if len(dense):
-        fd = np.asarray(cs.Function("f", [s.x], [f]).map(len(dense))(dense.T))
+        fd = evaluate_rows(cs.Function("f", [s.x], [f]), dense)[0].T
         norm = np.linalg.norm(np.where(np.isfinite(fd), fd, np.inf), axis=0)
         runs = model.rollout(dense[:starts], np.tile(tgt, (min(starts, len(dense)), 1)),
                              min(int(round(200.0 / model.dt)), 5000))[:, -1]

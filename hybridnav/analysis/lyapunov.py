@@ -66,6 +66,7 @@ from hybridnav.analysis.verdict import LyapunovReport, _counterexample
 from hybridnav.analysis.witness import Witness
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
+from hybridnav.models.compile import evaluate_rows
 
 log = logging.getLogger(__name__)
 
@@ -385,12 +386,10 @@ def _sample(both, box: Box, level, n: int, rng) -> tuple[np.ndarray, np.ndarray,
     """``n`` states, ``V`` and ``Vdot`` there: uniform in the box, and, where fewer than a tenth
     fall in ``{V <= level}``, more drawn from boxes around that set (evidence only: the
     certificate route covers the whole box)."""
-    fmap = both.map(n)
-
     def draw(b: Box):
         p = b.sample(n, rng)
-        out = fmap(p.T)
-        return p, np.asarray(out[0]).ravel(), np.asarray(out[1]).ravel()
+        v, d = evaluate_rows(both, p)
+        return p, v.ravel(), d.ravel()
 
     pts, v, d = draw(box)
     if level is None:

@@ -21,6 +21,7 @@ from hybridnav.analysis.lyapunov import (
 from hybridnav.analysis.region import Box, as_box
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
+from hybridnav.models.compile import evaluate_rows
 
 log = logging.getLogger(__name__)
 
@@ -534,7 +535,7 @@ def _discrete_check(model, vfun, v_num, box: Box, target, rng) -> dict[str, Any]
     from hybridnav.analysis.lyapunov import _minimize_v
 
     pts = box.sample(4000, rng)
-    v = np.asarray(vfun.map(len(pts))(pts.T)).ravel()
+    v = evaluate_rows(vfun, pts)[0].ravel()
     ok = np.isfinite(v) & model.admissible(pts)
     if not ok.any():
         return {"status": "not_checked", "reason": "no finite V sampled"}
@@ -562,7 +563,7 @@ def _min_on_boundary(model, vfun: cs.Function, box: Box, rng, per_face: int = 40
             P[:, d] = bound
             pts.append(P)
     P = np.vstack(pts)
-    v = np.asarray(vfun.map(len(P))(P.T)).ravel()
+    v = evaluate_rows(vfun, P)[0].ravel()
     return float(np.min(v[np.isfinite(v) & model.admissible(P)]))
 
 
@@ -578,7 +579,7 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
     tries = 0
     while sum(len(s) for s in starts) < n and tries < 200:
         P = box.sample(max(4 * n, 1000), rng)
-        v = np.asarray(vfun.map(len(P))(P.T)).ravel()
+        v = evaluate_rows(vfun, P)[0].ravel()
         starts.append(P[np.isfinite(v) & (v <= level) & model.admissible(P)])
         tries += 1
     X0 = np.vstack(starts)[:n]
@@ -589,7 +590,7 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
     steps = 10_000 if horizon is None else int(np.ceil(horizon / model.dt))
     traj = model.rollout(X0, tgt, min(steps, 10_000))
     flat = traj.reshape(-1, model.nx)
-    V = np.asarray(vfun.map(len(flat))(flat.T)).reshape(len(X0), -1)
+    V = evaluate_rows(vfun, flat)[0].reshape(len(X0), -1)
     ref = level if np.isfinite(level) else float(np.max(V[:, 0]))   # global: the largest start
     slack = 1e-9 * max(ref, 1e-300)
     monotone = np.all(np.diff(V, axis=1) <= slack, axis=1)
@@ -600,7 +601,7 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
         rows = np.flatnonzero(~monotone)
         k = np.argmax(np.diff(V[rows], axis=1), axis=1)
         states = traj[rows, k]
-        d = np.asarray(dfun.map(len(states))(states.T)).ravel()
+        d = evaluate_rows(dfun, states)[0].ravel()
         real = d >= 0
         step_rises = int((~real).sum())
         if real.any():
@@ -662,7 +663,7 @@ def basin_share(model: Model, V=None, level: float = np.inf, *,
         Z[:] = target
     Z[:, 0], Z[:, 1] = X.ravel(), Y.ravel()
     vfun = cs.Function("V", [model.sym.x], [v_num])
-    v = np.asarray(vfun.map(len(Z))(Z.T)).reshape(n, n)
+    v = evaluate_rows(vfun, Z)[0].reshape(n, n)
     cert = np.isfinite(v) & (v <= level)
     cell = float((box.upper[0] - box.lower[0]) * (box.upper[1] - box.lower[1])) / (n - 1) ** 2
     basin_area = float(conv.sum()) * cell

@@ -12,6 +12,7 @@ import pandas as pd
 
 from hybridnav.analysis.lyapunov import lyapunov_functions
 from hybridnav.models.base import Model
+from hybridnav.models.compile import evaluate_rows
 
 __all__ = ["closed_loop_sweep", "grid_starts"]
 
@@ -98,7 +99,7 @@ def closed_loop_sweep(
     traj = model.rollout(X0, tgt, steps)
     _, v_num, _, _, _ = lyapunov_functions(model, V, target=target)
     flat = traj.reshape(-1, model.nx)
-    Vt = np.asarray(cs.Function("V", [model.sym.x], [v_num]).map(len(flat))(flat.T))
+    Vt = evaluate_rows(cs.Function("V", [model.sym.x], [v_num]), flat)[0]
     Vt = Vt.reshape(len(X0), -1)
     t = np.arange(steps + 1) * model.dt
     dist = np.hypot(traj[..., 0] - target[0], traj[..., 1] - target[1])

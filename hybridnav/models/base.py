@@ -40,7 +40,7 @@ import numpy as np
 import hybridnav.models.kernel as _kernel
 from hybridnav.deprecation import RenamedAttribute
 from hybridnav.errors import HybridnavError
-from hybridnav.models.compile import _Buffered, _compile, jit_available
+from hybridnav.models.compile import _Buffered, _compile, evaluate_rows, jit_available
 from hybridnav.params import Param, check_real
 
 __all__ = ["Model", "wrap_angle", "jit_available"]
@@ -331,8 +331,8 @@ class Model(ABC):
             self.__dict__["_admissible_fn"] = fn
         if fn is False:
             return np.ones(len(X), dtype=bool)
-        vals = np.asarray(fn.map(len(X))(X.T, self.p_value())).reshape(-1, len(X))
-        return np.all(vals > 0, axis=0)
+        (vals,) = evaluate_rows(fn, X, self.p_value())
+        return np.all(vals > 0, axis=1)
 
     def p_value(self) -> np.ndarray:
         """The numeric parameter vector in :attr:`param_names` order."""

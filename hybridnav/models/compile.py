@@ -115,3 +115,89 @@ class _Buffered:
 
     def __call__(self) -> None:
         self._trigger()
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluating a function at many states: the analysis tools' samples.
+# --------------------------------------------------------------------------------------------
+
+#: functions with more instructions than this stay in the virtual machine (gcc's time on a large
+#: generated file outweighs what a few batches gain)
+ROWS_JIT_MAX_INSTRUCTIONS = 20_000
+#: batches smaller than this stay in the virtual machine (nothing to gain from compiling)
+ROWS_JIT_MIN_ROWS = 5_000
+_ROWS: OrderedDict[str, cs.Function] = OrderedDict()
+
+
+def _rows_function(fn: cs.Function) -> cs.Function:
+    """``fn`` compiled (once per machine; once per process per function, kept by its serialized
+    form), or ``fn`` itself where it is too large to compile or compiling is off or fails. The
+    generated C performs the virtual machine's operations in its order (built without
+    floating-point contraction): the same values bit for bit (the tests compare them)."""
+    if fn.n_instructions() > ROWS_JIT_MAX_INSTRUCTIONS or not jit_available():
+        return fn
+    key = fn.serialize()
+    with _cache_lock:
+        found = _ROWS.get(key)
+        if found is not None:
+            _ROWS.move_to_end(key)
+            return found
+    try:
+        found = _jit_function(f"rows_{fn.name()}", fn)
+    except Exception as exc:
+        log.info("JIT compilation of %s failed, using the virtual machine: %s", fn.name(), exc)
+        found = fn
+    with _cache_lock:
+        _ROWS[key] = found
+        while len(_ROWS) > _FUNCTION_CACHE_SIZE:
+            _ROWS.popitem(last=False)
+    return found
+
+
+_ROW_MAPS: OrderedDict[tuple[str, int], cs.Function] = OrderedDict()
+
+
+def _rows_map(fn: cs.Function, n: int) -> cs.Function:
+    """``fn`` (compiled for large batches) mapped over ``n`` rows, its other inputs shared
+    (large batches' maps are kept: building the map of a compiled function over 100,000 rows
+    takes longer than evaluating it)."""
+    shared = list(range(1, fn.n_in()))
+    if n < ROWS_JIT_MIN_ROWS:
+        return fn.map(f"{fn.name()}_rows", "serial", n, shared, [])
+    key = (fn.serialize(), n, jit_available())
+    with _cache_lock:
+        found = _ROW_MAPS.get(key)
+        if found is not None:
+            _ROW_MAPS.move_to_end(key)
+            return found
+    found = _rows_function(fn).map(f"{fn.name()}_rows", "serial", n, shared, [])
+    with _cache_lock:
+        _ROW_MAPS[key] = found
+        while len(_ROW_MAPS) > _FUNCTION_CACHE_SIZE:
+            _ROW_MAPS.popitem(last=False)
+    return found
+
+
+def evaluate_rows(fn: cs.Function, X: np.ndarray, *shared: Any) -> list[np.ndarray]:
+    """``fn`` at every row of ``X`` ``(N, nx)`` (its first input), the other inputs ``shared``
+    by every row: one ``(N, numel)`` array per output.
+
+    Large batches run the compiled function (:func:`_rows_function`), and every batch writes into
+    NumPy arrays through ``Function.buffer()`` instead of converting CasADi matrices (whose
+    conversion to NumPy goes through a Python list of floats). The values are those of calling
+    ``fn.map(N)`` in the virtual machine."""
+    X = np.ascontiguousarray(X, dtype=float)
+    n = X.shape[0]
+    if n == 0:
+        return [np.empty((0, fn.size1_out(i) * fn.size2_out(i))) for i in range(fn.n_out())]
+    fm = _rows_map(fn, n)
+    ins = [X] + [np.ascontiguousarray(np.asarray(s, dtype=float).reshape(-1, order="F"))
+                 for s in shared]
+    outs = [np.empty((n, fn.size1_out(i) * fn.size2_out(i))) for i in range(fn.n_out())]
+    buf, trigger = fm.buffer()
+    for i, a in enumerate(ins):
+        buf.set_arg(i, memoryview(a))
+    for i, a in enumerate(outs):
+        buf.set_res(i, memoryview(a))
+    trigger()
+    return outs
