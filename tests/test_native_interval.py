@@ -183,3 +183,17 @@ def test_clamps_other_than_real_numbers_as_the_numpy_path(monkeypatch):
     # real scalars of any NumPy type still use the kernel, as the NumPy path would
     for ok in ({0: (0, np.inf)}, {0: (np.float32(0.1), np.int64(4))}, {0: (False, True)}):
         _assert_same(*_both(F, lo, hi, ok, monkeypatch))
+
+
+def test_a_program_with_an_output_out_of_range_is_not_compiled():
+    """The kernel writes outputs by index unchecked: a malformed program (an output row beyond
+    n_out, or of a slot never written) takes the NumPy path, which raises (review)."""
+    F = IntervalFunction(x, [X * Y])
+    prog = list(F._program)
+    assert native_interval.program(prog, F.sz_w, F.nx, F.n_out, F._out_slot) is not None
+    name, ins, outs, const, same = prog[-1]
+    assert name == "output"
+    for bad in (("output", ins, [outs[0], F.n_out], const, same),
+                ("output", [F.sz_w + 5], outs, const, same)):
+        assert native_interval.program(prog[:-1] + [bad], F.sz_w, F.nx, F.n_out,
+                                       F._out_slot) is None

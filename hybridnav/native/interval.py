@@ -56,8 +56,8 @@ class Program:
 def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
             out_slot: Mapping[int, int]) -> Program | None:
     """The kernel's form of ``IntervalFunction._program`` (``(name, ins, outs, const, same)``
-    tuples), or ``None`` where the kernel does not apply: another operation, or a work slot
-    written twice (the kernel keeps one value per slot and box)."""
+    tuples), or ``None`` where the kernel does not apply: another operation, a work slot
+    written twice (the kernel keeps one value per slot and box), or an index out of range."""
     rows = []
     written: set[int] = set()
     consts: set[int] = set()
@@ -65,6 +65,10 @@ def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
         if name not in CODES or same is not None:
             return None
         if name == "output":
+            # (the kernel writes row outs[1] of its (N, n_out) arrays, unchecked: the NumPy
+            # path's IndexError, not a write out of bounds, for a malformed program)
+            if ins[0] not in written or outs[0] != 0 or not 0 <= outs[1] < n_out:
+                return None
             rows.append((CODES[name], ins[0], -1, outs[1], 0.0))
             continue
         slot = outs[0]
