@@ -140,3 +140,60 @@ def test_switched_off_kernels_give_the_numpy_path(monkeypatch):
     assert native_interval.evaluate(F._compiled(), np.zeros((2, 3)), np.ones((2, 3)), {}) is None
     out_lo, out_hi, _ = F(np.zeros((2, 3)), np.ones((2, 3)))
     assert (out_lo <= 0).all() and (out_hi >= 1).all()
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+def test_a_clamped_constant_is_no_open_bound(monkeypatch):
+    """The NumPy path marks a slot > 0 (an open bound ``g > 0`` clamped to [0, ...]) only where
+    it computes the slot (inputs, operations), never for a constant: a constant 0 clamped to
+    [0, inf) stays a divisor holding 0, so x / 0 is undefined on the box, not [0, 0] (review:
+    the kernel took the flag for every clamped slot; CasADi folds x / 0 itself, so the program is
+    written here by hand)."""
+    F = IntervalFunction(x, [X / (Y + 3.0), cs.SX(5.0)])
+    F._program = [("input", [0, 0], [0], None, None), ("const", [], [2], 0.0, None),
+                  ("div", [0, 2], [4], None, None), ("inv", [2], [5], None, None),
+                  ("output", [4], [0, 0], None, None), ("output", [2], [0, 1], None, None),
+                  ("output", [5], [0, 2], None, None)]
+    F._out_slot, F.n_out, F._kernel = {0: 4, 1: 2, 2: 5}, 3, False
+    assert F._compiled() is not None
+    lo = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    hi = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    compiled, reference = _both(F, lo, hi, {1: (0.0, np.inf)}, monkeypatch)
+    _assert_same(compiled, reference)
+    assert np.isneginf(compiled[0][:, [0, 2]]).all() and not compiled[2][:, [0, 2]].any()
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+def test_clamps_other_than_real_numbers_as_the_numpy_path(monkeypatch):
+    """Per-box clamp arrays broadcast in the NumPy path (the kernel cannot take them), and
+    ``None``, strings or complex numbers are errors there (the kernel's float array would take
+    ``None`` as NaN and ``"0"`` as 0): such clamps take the NumPy path (review)."""
+    g = X * X + Y - 1
+    F = IntervalFunction(x, [g, 1 / g + X * Y])
+    rng = np.random.default_rng(11)
+    lo, hi = _boxes(rng, 6, False)
+    clamp = {0: (np.zeros(6), np.full(6, np.inf))}
+    _assert_same(*_both(F, lo, hi, clamp, monkeypatch))
+    _assert_same(*_both(F, lo, hi, {0: (np.longdouble("0.1"), 2.0)}, monkeypatch))
+    for bad in ({0: (None, 1.0)}, {0: ("0", "inf")}):
+        with pytest.raises(TypeError):
+            F(lo, hi, bad)
+    # real scalars of any NumPy type still use the kernel, as the NumPy path would
+    for ok in ({0: (0, np.inf)}, {0: (np.float32(0.1), np.int64(4))}, {0: (False, True)}):
+        _assert_same(*_both(F, lo, hi, ok, monkeypatch))
+
+
+def test_a_program_with_an_output_out_of_range_is_not_compiled():
+    """The kernel writes outputs by index unchecked: a malformed program (an output row beyond
+    n_out, or of a slot never written) takes the NumPy path, which raises (review)."""
+    F = IntervalFunction(x, [X * Y])
+    prog = list(F._program)
+    assert native_interval.program(prog, F.sz_w, F.nx, F.n_out, F._out_slot) is not None
+    name, ins, outs, const, same = prog[-1]
+    assert name == "output"
+    for bad in (("output", ins, [outs[0], F.n_out], const, same),
+                ("output", [F.sz_w + 5], outs, const, same)):
+        assert native_interval.program(prog[:-1] + [bad], F.sz_w, F.nx, F.n_out,
+                                       F._out_slot) is None

@@ -45,23 +45,30 @@ class Program:
     arrays."""
 
     def __init__(self, op, in0, in1, out, konst, sz_w: int, nx: int, n_out: int,
-                 out_slot: Mapping[int, int]) -> None:
+                 out_slot: Mapping[int, int], const_slots: frozenset[int] = frozenset()) -> None:
         self.op, self.in0, self.in1, self.out, self.konst = op, in0, in1, out, konst
         self.sz_w, self.nx, self.n_out = sz_w, nx, n_out
         self.out_slot = dict(out_slot)
+        #: slots written by ``const``: the NumPy path neither clamps them nor marks them > 0
+        self.const_slots = const_slots
 
 
 def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
             out_slot: Mapping[int, int]) -> Program | None:
     """The kernel's form of ``IntervalFunction._program`` (``(name, ins, outs, const, same)``
-    tuples), or ``None`` where the kernel does not apply: another operation, or a work slot
-    written twice (the kernel keeps one value per slot and box)."""
+    tuples), or ``None`` where the kernel does not apply: another operation, a work slot
+    written twice (the kernel keeps one value per slot and box), or an index out of range."""
     rows = []
     written: set[int] = set()
+    consts: set[int] = set()
     for name, ins, outs, const, same in instructions:
         if name not in CODES or same is not None:
             return None
         if name == "output":
+            # (the kernel writes row outs[1] of its (N, n_out) arrays, unchecked: the NumPy
+            # path's IndexError, not a write out of bounds, for a malformed program)
+            if ins[0] not in written or outs[0] != 0 or not 0 <= outs[1] < n_out:
+                return None
             rows.append((CODES[name], ins[0], -1, outs[1], 0.0))
             continue
         slot = outs[0]
@@ -74,6 +81,7 @@ def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
             rows.append((CODES[name], ins[1], -1, slot, 0.0))
         elif name == "const":
             rows.append((CODES[name], -1, -1, slot, float(const)))
+            consts.add(slot)
         else:
             binary = name in _BINARY
             if ins[0] not in written or (binary and ins[1] not in written):
@@ -83,14 +91,23 @@ def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
         return None
     ints = np.array([r[:4] for r in rows], dtype=np.int64)
     return Program(*(np.ascontiguousarray(ints[:, j]) for j in range(4)),
-                   np.array([r[4] for r in rows], dtype=np.float64), sz_w, nx, n_out, out_slot)
+                   np.array([r[4] for r in rows], dtype=np.float64), sz_w, nx, n_out, out_slot,
+                   frozenset(consts))
+
+
+#: clamp bounds the kernel takes as the NumPy path does: real scalars (``np.float64`` and
+#: ``bool`` are ``float`` and ``int``); a per-box array broadcasts there, ``np.longdouble``
+#: computes in its precision, and ``None``, strings or complex numbers are errors there
+_SCALARS = (int, float, np.integer, np.bool_, np.float16, np.float32)
 
 
 def evaluate(prog: Program, lo: np.ndarray, hi: np.ndarray,
              clamp_slot: Mapping[int, tuple[float, float]]) -> tuple[Any, ...] | None:
     """``(out_lo, out_hi, smooth, continuous)`` of ``IntervalFunction._call`` on the boxes
     ``lo``, ``hi`` ``(N, nx)`` with the per-slot clamps ``clamp_slot``; ``None`` where no kernel
-    is available."""
+    is available, or a clamp bound is not a real scalar (:data:`_SCALARS`)."""
+    if not all(isinstance(v, _SCALARS) for pair in clamp_slot.values() for v in pair):
+        return None
     lib = _library()
     if lib is None:
         return None
@@ -103,7 +120,8 @@ def evaluate(prog: Program, lo: np.ndarray, hi: np.ndarray,
     pos = np.zeros(sz, dtype=np.uint8)
     for slot, (a, b) in clamp_slot.items():
         has[slot], cl[slot], ch[slot] = 1, a, b
-        pos[slot] = cl[slot] == 0
+        # (a constant's slot is not clamped, nor an open bound: as in the NumPy path)
+        pos[slot] = cl[slot] == 0 and slot not in prog.const_slots
     out_lo, out_hi = np.empty((n, prog.n_out)), np.empty((n, prog.n_out))
     smooth = np.ones((n, prog.n_out), dtype=bool)
     cont = np.ones((n, prog.n_out), dtype=bool)
