@@ -22,6 +22,7 @@ import logging
 import math
 import re
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -296,46 +297,68 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     nav = job["cost"]["kind"] == "navigation"
-    falsified = None
-    if nav:
-        # the falsification search's rates belong to the verdict: before result.json is written
-        cfg = job["falsify"]
-        if cfg["budget"]:
-            say(f"falsification search: {cfg['budget']} worlds against each of tuned, start "
-                "and apf")
-        falsified = _falsify(job, job.cost("train"), result, backend, out)
-        _reweigh(job, result, falsified)
-    say("writing the tuned system, tables and figures")
-    files = result.save(out)
     start = result.start
-    files.append(save(_convergence(result), "convergence"))
-    fig = Figure(figsize=(11, 7), layout="constrained")
-    left, right = fig.subfigures(1, 2)
-    plots.plot_memberships(start, fig=left)
-    left.suptitle(f"start: {start.name}")
-    plots.plot_memberships(result.system, fig=right)
-    right.suptitle(f"tuned: {result.system.name}")
-    files.append(save(fig, "mfs"))
-    if len(start.inputs) == 2:
-        files.append(save(plots.plot_surface(result.system), "surface", bbox_inches=None))
-    if len(result.objective_names) > 1:
-        files.append(save(_front(result), "front"))
-    summary, unc = None, None
+    unc = None
     if nav:
-        cost = job.cost("train")
-        summary = summarize(result.heldout) if result.heldout is not None else pd.DataFrame()
-        atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
-        files.append("heldout_summary.csv")
         from hybridnav.tuner.costs.base import Candidates
 
         # of the systems themselves (the start as given, not a repaired or learned form)
         unc = np.concatenate([Candidates.of(s).uncovered(job["coverage"]["grid"])
                               for s in (start, result.system)])
+
+    def figures() -> tuple[list[str], list[str]]:
+        """The figures of the systems and the optimizer's run (none depends on the
+        falsification search): those listed before the tables, and the coverage map."""
+        first = [save(_convergence(result), "convergence")]
+        fig = Figure(figsize=(11, 7), layout="constrained")
+        left, right = fig.subfigures(1, 2)
+        plots.plot_memberships(start, fig=left)
+        left.suptitle(f"start: {start.name}")
+        plots.plot_memberships(result.system, fig=right)
+        right.suptitle(f"tuned: {result.system.name}")
+        first.append(save(fig, "mfs"))
+        if len(start.inputs) == 2:
+            first.append(save(plots.plot_surface(result.system), "surface", bbox_inches=None))
+        if len(result.objective_names) > 1:
+            first.append(save(_front(result), "front"))
+        later = []
+        if nav and len(start.inputs) == 2:          # a map over the two inputs
+            later.append(save(_coverage(job, {"start": start, "tuned": result.system}, unc),
+                              "coverage"))
+        return first, later
+
+    falsified = drawn = None
+    serial = isinstance(backend, SerialBackend)
+    if nav:
+        # the falsification search's rates belong to the verdict: before result.json is written
+        cfg = job["falsify"]
+        if cfg["budget"]:
+            say(f"falsification search: {cfg['budget']} worlds against each of tuned, start "
+                "and apf" + ("" if serial else " (the figures drawn meanwhile)"))
+        if cfg["budget"] and not serial:
+            # the searches run on the workers: this process draws the figures meanwhile (this
+            # thread; the searches' thread waits for the workers), the same files
+            with ThreadPoolExecutor(1, thread_name_prefix="hybridnav-falsify") as pool:
+                searching = pool.submit(_falsify, job, job.cost("train"), result, backend, out)
+                try:
+                    drawn = figures()
+                finally:
+                    falsified = searching.result()
+        else:
+            falsified = _falsify(job, job.cost("train"), result, backend, out)
+        _reweigh(job, result, falsified)
+    say("writing the tuned system, tables and figures")
+    files = result.save(out)
+    first, later = drawn or figures()
+    files += first
+    summary = None
+    if nav:
+        summary = summarize(result.heldout) if result.heldout is not None else pd.DataFrame()
+        atomic_write_text(out / "heldout_summary.csv", summary.to_csv(index=False))
+        files.append("heldout_summary.csv")
         if falsified is not None:
             files += falsified["files"]
-        if len(start.inputs) == 2:          # a map over the two inputs
-            files.append(save(_coverage(job, {"start": start, "tuned": result.system}, unc),
-                              "coverage"))
+        files += later
         say("path figure: start, tuned and apf on the paper's and some test worlds")
         files += _paths(job, result, out, backend, save)
         files += write_generations(job, result, out)
