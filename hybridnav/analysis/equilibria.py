@@ -16,7 +16,7 @@ from hybridnav.analysis.region import Box, as_box
 from hybridnav.analysis.verdict import _num
 from hybridnav.errors import HybridnavError
 from hybridnav.models.base import Model
-from hybridnav.models.compile import evaluate_rows
+from hybridnav.models.compile import _Buffered, evaluate_rows
 
 __all__ = ["Equilibrium", "find_equilibria"]
 
@@ -116,11 +116,28 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
         runs = runs[np.all(np.isfinite(runs), axis=1) & box.contains(runs)]
         X0 = np.vstack([X0, dense[np.argsort(norm)[:starts // 2]], runs])
     span = float(np.max(box.upper - box.lower)) or 1.0
+    # Newton calls f and its Jacobian tens of times per start: each through a CasADi buffer
+    # (CasADi's matrices convert to NumPy through Python lists) and on its own (F computes all
+    # three); the same expressions, so the same values
+    nx = model.nx
+    fb = _Buffered(cs.Function("f", [s.x], [cs.densify(f)]), [(nx,)], [(nx,)])
+    jb = _Buffered(cs.Function("J", [s.x], [cs.densify(cs.jacobian(f, s.x))]), [(nx,)],
+                   [(nx * nx,)])
+
+    def fun(z):
+        fb.ins[0][:] = z
+        fb()
+        return fb.outs[0].copy()
+
+    def jac(z):
+        jb.ins[0][:] = z
+        jb()
+        return jb.outs[0].reshape(nx, nx, order="F").copy()
+
     found: list[Equilibrium] = []
     for x0 in X0:
         with np.errstate(all="ignore"):
-            sol = root(lambda z: np.asarray(F(z)[0]).ravel(), x0,
-                       jac=lambda z: np.asarray(F(z)[1]), method="hybr", tol=1e-14)
+            sol = root(fun, x0, jac=jac, method="hybr", tol=1e-14)
         z = sol.x
         fz, jz, vz = (np.asarray(a) for a in F(z))
         if not (np.all(np.isfinite(fz)) and np.linalg.norm(fz) < 1e-9 * max(1.0, span)):
