@@ -73,3 +73,30 @@ def test_rows_without_compiling_and_empty_batches(monkeypatch):
         assert ((a == b) | (np.isnan(a) & np.isnan(b))).all()
     empty = mc.evaluate_rows(fn, np.empty((0, nx)))
     assert [e.shape for e in empty] == [(0, 1), (0, 1)]
+
+
+@pytest.mark.parametrize("n", [1, 4, mc.ROWS_JIT_MIN_ROWS])
+def test_structurally_zero_outputs_are_zeros(n):
+    """A buffer holds an output's structural nonzeros only: an identically zero output (an empty
+    1 x 1, as CasADi writes a Vdot that vanishes) and a sparse column are written dense."""
+    x = cs.SX.sym("x", 2)
+    sparse_col = cs.SX(3, 1)
+    sparse_col[1] = x[0] * x[1]
+    fn = cs.Function("f", [x], [cs.SX(1, 1), sparse_col, x[0] - x[1]])
+    X = np.random.default_rng(0).normal(size=(n, 2))
+    zero, col, diff = mc.evaluate_rows(fn, X)
+    assert zero.shape == (n, 1) and not zero.any()
+    assert col.shape == (n, 3) and not col[:, [0, 2]].any()
+    np.testing.assert_array_equal(col[:, 1], X[:, 0] * X[:, 1])
+    np.testing.assert_array_equal(diff[:, 0], X[:, 0] - X[:, 1])
+
+
+def test_rows_of_one_function_reuse_its_map():
+    fn, nx, shared = CASES["constraints"]
+    X = np.ones((3, nx))
+    mc.evaluate_rows(fn, X, *shared)
+    first = mc._rows_map(fn, 3)
+    assert mc._rows_map(fn, 3) is first
+    z = cs.SX.sym("z", 2)
+    other = cs.Function("g2", [z], [z[0]])
+    assert mc._rows_map(other, 3) is not first

@@ -154,28 +154,38 @@ def _rows_function(fn: cs.Function) -> cs.Function:
     return found
 
 
-_ROW_MAPS: OrderedDict[tuple[str, int], cs.Function] = OrderedDict()
+_ROW_MAPS: OrderedDict[tuple[int, int, bool], tuple[cs.Function, cs.Function]] = OrderedDict()
 
 
 def _rows_map(fn: cs.Function, n: int) -> cs.Function:
-    """``fn`` (compiled for large batches) mapped over ``n`` rows, its other inputs shared
-    (large batches' maps are kept: building the map of a compiled function over 100,000 rows
-    takes longer than evaluating it)."""
-    shared = list(range(1, fn.n_in()))
-    if n < ROWS_JIT_MIN_ROWS:
-        return fn.map(f"{fn.name()}_rows", "serial", n, shared, [])
-    key = (fn.serialize(), n, jit_available())
+    """``fn`` (compiled for large batches) mapped over ``n`` rows, its other inputs shared.
+
+    Kept per function object and ``n`` (building a map costs about 60 us, a hundred times a
+    small batch's evaluation, and a compiled function's map over 100,000 rows longer than its
+    evaluation): the entry holds the function, so its ``id`` is not reused while kept."""
+    key = (id(fn), n, n >= ROWS_JIT_MIN_ROWS and jit_available())
     with _cache_lock:
         found = _ROW_MAPS.get(key)
-        if found is not None:
+        if found is not None and found[0] is fn:
             _ROW_MAPS.move_to_end(key)
-            return found
-    found = _rows_function(fn).map(f"{fn.name()}_rows", "serial", n, shared, [])
+            return found[1]
+    f = _dense_outputs(fn)
+    f = _rows_function(f) if key[2] else f
+    mapped = f.map(f"{fn.name()}_rows", "serial", n, list(range(1, fn.n_in())), [])
     with _cache_lock:
-        _ROW_MAPS[key] = found
+        _ROW_MAPS[key] = (fn, mapped)
         while len(_ROW_MAPS) > _FUNCTION_CACHE_SIZE:
             _ROW_MAPS.popitem(last=False)
-    return found
+    return mapped
+
+
+def _dense_outputs(fn: cs.Function) -> cs.Function:
+    """``fn`` with every output dense: a buffer holds only an output's structural nonzeros (an
+    identically zero ``Vdot`` has none), the caller's arrays every entry."""
+    if all(fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
+        return fn
+    args = fn.mx_in()
+    return cs.Function(fn.name(), args, [cs.densify(o) for o in fn.call(args)])
 
 
 def evaluate_rows(fn: cs.Function, X: np.ndarray, *shared: Any) -> list[np.ndarray]:
@@ -188,6 +198,8 @@ def evaluate_rows(fn: cs.Function, X: np.ndarray, *shared: Any) -> list[np.ndarr
     ``fn.map(N)`` in the virtual machine."""
     X = np.ascontiguousarray(X, dtype=float)
     n = X.shape[0]
+    if X.ndim != 2 or not all(fn.sparsity_in(i).is_dense() for i in range(fn.n_in())):
+        raise ValueError("evaluate_rows: expected X of shape (N, nx) and dense inputs")
     if n == 0:
         return [np.empty((0, fn.size1_out(i) * fn.size2_out(i))) for i in range(fn.n_out())]
     fm = _rows_map(fn, n)
