@@ -24,6 +24,15 @@ EXPRESSIONS = {
     "twice": [X + X, 2 * (X * Y), (X + X) / (Y + Y)],
     "underflow": [1e-200 * X * Y, X * Y * 1e-300, 1e300 * X / Y, X / (1e308 * Y)],
     "constants": [X + 1e308 + 1e308, X * 0.0 + Y, cs.SX(np.inf) * X, X - cs.SX(np.inf)],
+    "saturations": [cs.fmin(X, Y), cs.fmax(X * Y, 1.0) - cs.fabs(Z), cs.sqrt(X * X + Y * Y),
+                    cs.fmin(1, 1 / (0.5 * cs.sqrt(X ** 2 + Y ** 2) + 1e-12)) * X,
+                    cs.fmax(cs.fmin(X, 2.0), -2.0) * cs.sqrt(Z), cs.fmax(X, Y), cs.fmin(Y, Z)],
+    "jumps": [cs.sign(X) * Y, cs.floor(X) + cs.ceil(Y), cs.if_else(X < Y, X * Y, Z),
+              cs.logic_and(X > 0, Y <= Z) + cs.logic_or(X == Y, cs.logic_not(Z != 1.0)),
+              cs.if_else(Z >= 0, 1 / Z, 0.0), cs.fabs(X) / cs.if_else(X != 0, X, 1.0),
+              # the taken side's flags: a kink in the value, an undefined value not taken
+              cs.if_else(X > 0, cs.fabs(Y), Z), cs.if_else(Z > 2, 1 / (Z * Z - 1), Y),
+              cs.if_else(X > 0, cs.floor(Y) + cs.fabs(Y), Z)],
     "lbcs-like": [1 / ((X - 1) ** 2 + (Y - 2) ** 2 - 0.25) + 1 / (X ** 2 + Y ** 2 - 1)
                   * ((X - 3) ** 2 + Y ** 2), (X * Y - Z) / ((X - 1) ** 2 + 1e-3)],
 }
@@ -85,6 +94,18 @@ def test_compiled_enclosures_equal_numpy(group, special, monkeypatch):
     for n in (1, 7, 600):
         lo, hi = _boxes(rng, n, special)
         _assert_same(*_both(F, lo, hi, None, monkeypatch))
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+@pytest.mark.parametrize("group", ["saturations", "jumps"])
+def test_ties_of_selections_and_comparisons_equal_numpy(group, monkeypatch):
+    """Boxes with small integer ends, so that ends coincide: a selection or comparison decided
+    (or not) by a tie takes the same side in both paths."""
+    F = IntervalFunction(x, EXPRESSIONS[group])
+    rng = np.random.default_rng(11)
+    a, b = rng.integers(-2, 3, (2, 3000, 3)).astype(float)
+    _assert_same(*_both(F, np.minimum(a, b), np.maximum(a, b), None, monkeypatch))
 
 
 @pytest.mark.skipif(not native.enabled() or native_interval._library() is None,

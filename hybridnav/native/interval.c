@@ -2,14 +2,17 @@
 #include <math.h>
 
 /* The interval evaluation of hybridnav.analysis.interval.IntervalFunction for programs of
-   arithmetic only (input, output, const, add, sub, mul, div, inv, neg, twice, assign, sq):
+   arithmetic and exact operations only (input, output, const, add, sub, mul, div, inv, neg,
+   twice, assign, sq, sqrt, fabs, fmin, fmax, sign, floor, ceil, the comparisons, not, and, or,
+   if_else_zero; no transcendental function):
    box by box, instruction by instruction, the same IEEE operations in the same order as the
    NumPy path (compiled with -ffp-contract=off, no fast math), so the same enclosures and flags.
    Every NumPy operation there is elementwise; this is that element's scalar code. np.minimum /
    np.maximum propagate NaN and return the second operand on ties, as min2 / max2 here. */
 
 enum { I_INPUT, I_OUTPUT, I_CONST, I_ADD, I_SUB, I_MUL, I_DIV, I_INV, I_NEG, I_TWICE, I_ASSIGN,
-       I_SQ };
+       I_SQ, I_SQRT, I_FABS, I_FMIN, I_FMAX, I_SIGN, I_FLOOR, I_CEIL, I_LT, I_LE, I_EQ, I_NE,
+       I_NOT, I_AND, I_OR, I_IF_ELSE_ZERO };
 
 #define HN_EPS (4 * DBL_EPSILON)
 #define HN_TINY 1e-300
@@ -89,6 +92,15 @@ static inline void inv(double a, double b, double *lo, double *hi)
     *hi = pn ? ra : ((b == 0 && a < 0) ? ra : INFINITY);
 }
 
+/* _truth: surely nonzero, surely zero */
+static inline int sure_yes(double a, double b) { return (a > 0) | (b < 0); }
+static inline int sure_no(double a, double b) { return (a == 0) & (b == 0); }
+
+static inline double sign1(double x)
+{
+    return x > 0 ? 1.0 : (x < 0 ? -1.0 : (x == 0 ? 0.0 : x));
+}
+
 static inline int positive(double a, unsigned char pos)
 {
     return (a > 0) | ((a == 0) & (pos != 0));
@@ -114,6 +126,7 @@ void hn_interval(long long n_ins, const long long *restrict op, const long long 
             const long long o = out[k], u = in0[k], v = in1[k];
             double rl, rh, a, b, c = 0, d = 0;
             int ok = 1, def, s, cf, binary = 0, exact_zero = 0, zero_exact = 1, exact = 0;
+            int jumps = 0, pick = 0, left = 0, right = 0;
             switch (op[k]) {
             case I_INPUT:
                 rl = lo[i * nx + u];
@@ -226,6 +239,126 @@ void hn_interval(long long n_ins, const long long *restrict op, const long long 
                 rh = max2(ua ? HN_TINY : pa, ub ? HN_TINY : pb);
                 break;
             }
+            case I_SQRT:
+                rl = sqrt(max2(a, 0.0));
+                rh = sqrt(max2(b, 0.0));
+                if (b < 0) {
+                    rl = -INFINITY;
+                    rh = INFINITY;
+                }
+                ok = a > 0;
+                def &= a >= 0;
+                jumps = 1;
+                zero_exact = 0;
+                break;
+            case I_FABS:
+                rl = (a <= 0 && b >= 0) ? 0.0 : min2(fabs(a), fabs(b));
+                rh = max2(fabs(a), fabs(b));
+                ok = (a > 0) | (b < 0);
+                exact = 1;
+                break;
+            case I_FMIN:
+            case I_FMAX:
+                binary = 1;
+                c = wl[v]; d = wh[v];
+                if (op[k] == I_FMIN) {
+                    rl = min2(a, c);
+                    rh = min2(b, d);
+                    left = b < c;
+                    right = d < a;
+                } else {
+                    rl = max2(a, c);
+                    rh = max2(b, d);
+                    left = a > d;
+                    right = c > b;
+                }
+                ok = (b < c) | (d < a);
+                exact = 1;
+                pick = 1;
+                break;
+            case I_SIGN:
+                rl = sign1(a);
+                rh = sign1(b);
+                ok = (a > 0) | (b < 0);
+                exact = 1;
+                jumps = 1;
+                break;
+            case I_FLOOR:
+            case I_CEIL:
+                rl = op[k] == I_FLOOR ? floor(a) : ceil(a);
+                rh = op[k] == I_FLOOR ? floor(b) : ceil(b);
+                ok = rl == rh;
+                exact = 1;
+                jumps = 1;
+                break;
+            case I_LT:
+            case I_LE:
+            case I_EQ:
+            case I_NE: {
+                int yes, no;
+                binary = 1;
+                c = wl[v]; d = wh[v];
+                if (op[k] == I_LT) {
+                    yes = b < c;
+                    no = a >= d;
+                } else if (op[k] == I_LE) {
+                    yes = b <= c;
+                    no = a > d;
+                } else {
+                    int same = (a == b) & (c == d) & (a == c), apart = (b < c) | (d < a);
+                    yes = op[k] == I_EQ ? same : apart;
+                    no = op[k] == I_EQ ? apart : same;
+                }
+                rl = yes ? 1.0 : 0.0;
+                rh = no ? 0.0 : 1.0;
+                ok = yes | no;
+                exact = 1;
+                jumps = 1;
+                break;
+            }
+            case I_NOT: {
+                int yes = sure_yes(a, b), no = sure_no(a, b);
+                rl = yes ? 0.0 : (no ? 1.0 : 0.0);
+                rh = yes ? 0.0 : 1.0;
+                ok = yes | no;
+                exact = 1;
+                jumps = 1;
+                break;
+            }
+            case I_AND:
+            case I_OR: {
+                int y1, n1, y2, n2, one, zero;
+                binary = 1;
+                c = wl[v]; d = wh[v];
+                y1 = sure_yes(a, b); n1 = sure_no(a, b);
+                y2 = sure_yes(c, d); n2 = sure_no(c, d);
+                if (op[k] == I_AND) {
+                    one = y1 & y2;
+                    zero = n1 | n2;
+                } else {
+                    one = y1 | y2;
+                    zero = n1 & n2;
+                }
+                rl = one ? 1.0 : 0.0;
+                rh = zero ? 0.0 : 1.0;
+                ok = one | zero;
+                exact = 1;
+                jumps = 1;
+                break;
+            }
+            case I_IF_ELSE_ZERO: {
+                binary = 1;
+                c = wl[v]; d = wh[v];
+                left = sure_yes(a, b);
+                right = sure_no(a, b);
+                rl = left ? c : (right ? 0.0 : min2(c, 0.0));
+                rh = left ? d : (right ? 0.0 : max2(d, 0.0));
+                ok = left | right;
+                exact = 1;
+                jumps = 1;
+                pick = 2;
+                break;
+            }
             default:
                 return;                                  /* not reached: filtered in Python */
             }
@@ -236,9 +369,21 @@ void hn_interval(long long n_ins, const long long *restrict op, const long long 
             }
             finite_ends(&rl, &rh);
             if (binary) {
-                def &= wd[v];
+                /* a surely false condition gives 0 whatever the value (defined where the
+                   condition is) */
+                def = (pick == 2 && right && wd[u]) ? 1 : def & wd[v];
                 s &= ws[v];
                 cf &= wc[v];
+            }
+            s &= ok;
+            if (jumps)
+                cf &= ok;
+            if (pick == 1) {                             /* fmin / fmax: the side it takes */
+                s = left ? ws[u] : (right ? ws[v] : s);
+                cf = left ? wc[u] : (right ? wc[v] : cf);
+            } else if (pick == 2) {                      /* if_else_zero: the value, or 0 */
+                s = left ? ws[v] : (right ? 1 : s);
+                cf = left ? wc[v] : (right ? 1 : cf);
             }
             if (!exact) {                                /* _round_out */
                 rl = widen_lo(rl);
@@ -256,7 +401,7 @@ void hn_interval(long long n_ins, const long long *restrict op, const long long 
             }
             wl[o] = rl;
             wh[o] = rh;
-            ws[o] = (unsigned char)(s & ok);
+            ws[o] = (unsigned char)s;
             wc[o] = (unsigned char)cf;
             wd[o] = (unsigned char)def;
         }

@@ -27,8 +27,10 @@ __all__ = ["Program", "evaluate", "program"]
 #: operation codes of interval.c
 CODES = {name: k for k, name in enumerate(
     ("input", "output", "const", "add", "sub", "mul", "div", "inv", "neg", "twice", "assign",
-     "sq"))}
-_BINARY = {"add", "sub", "mul", "div"}
+     "sq", "sqrt", "fabs", "fmin", "fmax", "sign", "floor", "ceil", "lt", "le", "eq", "ne", "not",
+     "and", "or", "if_else_zero"))}
+_BINARY = {"add", "sub", "mul", "div", "fmin", "fmax", "lt", "le", "eq", "ne", "and", "or",
+           "if_else_zero"}
 
 _SIGNATURES = {"hn_interval": ([c_int64] + [c_void_p] * 5 + [c_int64] * 4 + [c_void_p] * 13,
                                None)}
