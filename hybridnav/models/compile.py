@@ -47,10 +47,24 @@ def _jit_function(name: str, fn: cs.Function) -> cs.Function:
         raise RuntimeError(f"C compiler {compiler!r} not found")
     gen = cs.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
     gen.add(fn)
-    path = native.build_path(f"casadi-{name}", gen.dump())
+    path = native.build_path(f"casadi-{name}", _vm_min_max(gen.dump()))
     if path is None:
         raise RuntimeError("compiling the generated code failed")
     return cs.external(fn.name(), str(path))
+
+
+#: C99's fmin/fmax (glibc's) and the virtual machine's differ at equal arguments of opposite
+#: signs of zero (fmin(0, -0) is -0 compiled, 0 in the virtual machine): the generated helpers
+#: are replaced by the virtual machine's rule (the first argument when they compare equal, the
+#: other one where one is NaN)
+_MIN_MAX = {"  return fmin(x, y);\n": "  return y != y ? x : x != x ? y : y < x ? y : x;\n",
+            "  return fmax(x, y);\n": "  return y != y ? x : x != x ? y : x < y ? y : x;\n"}
+
+
+def _vm_min_max(code: str) -> str:
+    for c99, vm in _MIN_MAX.items():
+        code = code.replace(c99, vm)
+    return code
 
 
 def jit_allowed() -> bool:
@@ -134,9 +148,13 @@ def _rows_function(fn: cs.Function) -> cs.Function:
     form), or ``fn`` itself where it is too large to compile or compiling is off or fails. The
     generated C performs the virtual machine's operations in its order (built without
     floating-point contraction): the same values bit for bit (the tests compare them)."""
-    if fn.n_instructions() > ROWS_JIT_MAX_INSTRUCTIONS or not jit_available():
+    try:
+        too_big = fn.n_instructions() > ROWS_JIT_MAX_INSTRUCTIONS
+        key = fn.serialize()
+    except RuntimeError:            # a Callback or an external library: nothing to compile
         return fn
-    key = fn.serialize()
+    if too_big or not jit_available():
+        return fn
     with _cache_lock:
         found = _ROWS.get(key)
         if found is not None:
@@ -169,7 +187,7 @@ def _rows_map(fn: cs.Function, n: int) -> cs.Function:
         if found is not None and found[0] is fn:
             _ROW_MAPS.move_to_end(key)
             return found[1]
-    f = _dense_outputs(fn)
+    f = _dense(fn)
     f = _rows_function(f) if key[2] else f
     mapped = f.map(f"{fn.name()}_rows", "serial", n, list(range(1, fn.n_in())), [])
     with _cache_lock:
@@ -179,33 +197,49 @@ def _rows_map(fn: cs.Function, n: int) -> cs.Function:
     return mapped
 
 
-def _dense_outputs(fn: cs.Function) -> cs.Function:
-    """``fn`` with every output dense: a buffer holds only an output's structural nonzeros (an
-    identically zero ``Vdot`` has none), the caller's arrays every entry."""
-    if all(fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
+def _dense(fn: cs.Function) -> cs.Function:
+    """``fn`` with dense inputs and outputs (the buffers hold every entry, CasADi's read and
+    write the nonzeros only): structural zeros read as 0 as ``np.asarray`` of the virtual
+    machine's result gives them; entries of an input outside its sparsity are dropped as a call
+    does."""
+    if all(fn.sparsity_in(i).is_dense() for i in range(fn.n_in())) and \
+            all(fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
         return fn
-    args = fn.mx_in()
-    return cs.Function(fn.name(), args, [cs.densify(o) for o in fn.call(args)])
+    sym = cs.SX.sym if fn.is_a("SXFunction") else cs.MX.sym
+    ins = [sym(fn.name_in(i), fn.size1_in(i), fn.size2_in(i)) for i in range(fn.n_in())]
+    outs = fn.call(ins)
+    return cs.Function(fn.name(), ins, [cs.densify(o) for o in outs])
 
 
 def evaluate_rows(fn: cs.Function, X: np.ndarray, *shared: Any) -> list[np.ndarray]:
     """``fn`` at every row of ``X`` ``(N, nx)`` (its first input), the other inputs ``shared``
-    by every row: one ``(N, numel)`` array per output.
+    by every row: one ``(N, numel)`` array per output (a matrix output's entries in CasADi's
+    column-major order, structural zeros as 0).
 
     Large batches run the compiled function (:func:`_rows_function`), and every batch writes into
     NumPy arrays through ``Function.buffer()`` instead of converting CasADi matrices (whose
     conversion to NumPy goes through a Python list of floats). The values are those of calling
     ``fn.map(N)`` in the virtual machine."""
     X = np.ascontiguousarray(X, dtype=float)
+    nx = fn.numel_in(0)
+    if X.ndim != 2 or X.shape[1] != nx:
+        raise ValueError(f"evaluate_rows: {fn.name()}: expected states of shape (N, {nx}), got "
+                         f"{X.shape}")
+    if len(shared) != fn.n_in() - 1:
+        raise ValueError(f"evaluate_rows: {fn.name()}: expected {fn.n_in() - 1} shared inputs, "
+                         f"got {len(shared)}")
+    ins = [X]
+    for i, s in enumerate(shared, 1):
+        a = np.ascontiguousarray(np.asarray(s, dtype=float).reshape(-1, order="F"))
+        if a.size != fn.numel_in(i):
+            raise ValueError(f"evaluate_rows: {fn.name()}: input {fn.name_in(i)}: expected "
+                             f"{fn.numel_in(i)} values, got {a.size}")
+        ins.append(a)
     n = X.shape[0]
-    if X.ndim != 2 or not all(fn.sparsity_in(i).is_dense() for i in range(fn.n_in())):
-        raise ValueError("evaluate_rows: expected X of shape (N, nx) and dense inputs")
     if n == 0:
-        return [np.empty((0, fn.size1_out(i) * fn.size2_out(i))) for i in range(fn.n_out())]
-    fm = _rows_map(fn, n)
-    ins = [X] + [np.ascontiguousarray(np.asarray(s, dtype=float).reshape(-1, order="F"))
-                 for s in shared]
-    outs = [np.empty((n, fn.size1_out(i) * fn.size2_out(i))) for i in range(fn.n_out())]
+        return [np.empty((0, fn.numel_out(i))) for i in range(fn.n_out())]
+    fm = _rows_map(fn, n)                 # (dense inputs and outputs: :func:`_dense`)
+    outs = [np.empty((n, fn.numel_out(i))) for i in range(fn.n_out())]
     buf, trigger = fm.buffer()
     for i, a in enumerate(ins):
         buf.set_arg(i, memoryview(a))

@@ -118,8 +118,12 @@ def build_path(name: str, code: str) -> Path | None:
     than :mod:`ctypes` (CasADi's ``external``); ``None`` where it cannot be built. Unlike
     :func:`build_file` this does not look at ``HYBRIDNAV_NATIVE``: CasADi's compiled functions
     have their own switch (``HYBRIDNAV_JIT``)."""
+    # -z defs: a symbol the code uses that no library defines (CasADi's generated code calls
+    # an erfinv that glibc lacks) fails the build instead of the process at the first call
+    # ("symbol lookup error": the library is loaded lazily)
+    options = ("-Wl,-z,defs",)
     with _LOCK:
-        return _build(_key(name, code, (), ".so"), code)
+        return _build(_key(name, code, options, ".so"), code, options)
 
 
 def _key(name: str, code: str, options: tuple[str, ...], suffix: str) -> str:

@@ -21,6 +21,7 @@ import json
 import logging
 import math
 import re
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -338,17 +339,29 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         if cfg["budget"] and not serial:
             # the searches run on the workers: this process draws the figures meanwhile (this
             # thread; the searches' thread waits for the workers), the same files
+            # A figure that fails is reported where the figures were drawn before (after the
+            # search and result.save: the tuned system is written); an interrupt stops the
+            # search's thread from writing its files once the workers are done.
+            stop = threading.Event()
             with ThreadPoolExecutor(1, thread_name_prefix="hybridnav-falsify") as pool:
-                searching = pool.submit(_falsify, job, job.cost("train"), result, backend, out)
+                searching = pool.submit(_falsify, job, job.cost("train"), result, backend, out,
+                                        stop)
                 try:
-                    drawn = figures()
-                finally:
+                    try:
+                        drawn = figures()
+                    except Exception as exc:    # noqa: BLE001 - raised again below
+                        drawn = exc
                     falsified = searching.result()
+                except BaseException:           # Ctrl-C: the pool's exit waits for the thread
+                    stop.set()
+                    raise
         else:
             falsified = _falsify(job, job.cost("train"), result, backend, out)
         _reweigh(job, result, falsified)
     say("writing the tuned system, tables and figures")
     files = result.save(out)
+    if isinstance(drawn, Exception):
+        raise drawn
     first, later = drawn or figures()
     files += first
     summary = None
@@ -548,7 +561,7 @@ def _reweigh(job: Job, result: TuningResult, falsified: dict[str, Any] | None) -
 
 
 def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Backend,
-             out: Path) -> dict[str, Any] | None:
+             out: Path, stop: threading.Event | None = None) -> dict[str, Any] | None:
     """The falsification search against the tuned system, its start and ``apf`` (the same
     budget, swarm and seed): their rates, and the tuned system's worst worlds as TOML files with
     how start and ``apf`` do there."""
@@ -567,12 +580,14 @@ def _falsify(job: Job, cost: NavigationCost, result: TuningResult, backend: Back
                                obstacles=cfg["obstacles"], keep=cfg["keep"],
                                optimizer=cfg["optimizer"], seed=seed, backend=backend,
                                structures={k: cfg[k] for k in ("cups", "corridors", "gaps")})
+    if stop is not None and stop.is_set():      # interrupted meanwhile: no files
+        return None
     res = searched["tuned"]
     table = rates(searched)
     rows, files = [], []
     atomic_write_text(out / "falsification.csv", table.to_csv(index=False))
     files.append("falsification.csv")
-    if res.worlds:
+    if res.worlds and not (stop is not None and stop.is_set()):
         folder = out / "falsified"
         folder.mkdir(exist_ok=True)
         fam = SystemFamily(result.start)
