@@ -218,3 +218,61 @@ def test_a_program_with_an_output_out_of_range_is_not_compiled():
                 ("output", [F.sz_w + 5], outs, const, same)):
         assert native_interval.program(prog[:-1] + [bad], F.sz_w, F.nx, F.n_out,
                                        F._out_slot) is None
+
+
+_UNARY = ("neg", "twice", "assign", "sq", "sqrt", "fabs", "sign", "floor", "ceil", "not", "inv")
+_BINARY_OPS = ("add", "sub", "mul", "div", "fmin", "fmax", "lt", "le", "eq", "ne", "and", "or",
+               "if_else_zero")
+_CONSTS = (0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 3.0, np.inf, -np.inf, np.nan, 1e308, 5e-324, 1e-300)
+
+
+def _random_program(rng, n_ops: int):
+    """Instructions written by hand (CasADi would fold NaN, -0.0 and infinite constants away):
+    every operation of the kernel on inputs, constants and earlier results, and outputs read from
+    intermediate slots (so that clamps narrow intermediate values)."""
+    prog, slots = [], []
+    for i in range(3):
+        prog.append(("input", [0, i], [len(slots)], None, None))
+        slots.append(len(slots))
+    for _ in range(n_ops):
+        s = len(slots)
+        if rng.random() < 0.1:
+            prog.append(("const", [], [s], float(rng.choice(_CONSTS)), None))
+        else:
+            near = [slots[max(0, s - 1 - int(rng.geometric(0.3)) + 1)], slots[rng.integers(s)]]
+            args = [near[int(rng.random() < 0.3)] for _ in range(2)]
+            if rng.random() < 0.4:
+                prog.append((str(rng.choice(_UNARY)), args[:1], [s], None, None))
+            else:
+                prog.append((str(rng.choice(_BINARY_OPS)), args, [s], None, None))
+        slots.append(s)
+    outs = sorted({int(rng.choice(slots[3:])) for _ in range(3)} | {slots[-1]})
+    prog += [("output", [sl], [0, k], None, None) for k, sl in enumerate(outs)]
+    return prog, len(slots), len(outs), dict(enumerate(outs))
+
+
+@pytest.mark.skipif(not native.enabled() or native_interval._library() is None,
+                    reason="no compiled kernels on this machine")
+def test_random_programs_of_every_operation_equal_numpy(monkeypatch):
+    """Review (exact operations): random programs over all the kernel's operations, with NaN,
+    signed-zero and infinite constants, on boxes with integer ends (ties), special ends, points
+    and reversed boxes, clamped intermediate outputs; both flag sets, with and without
+    ``continuity``."""
+    rng = np.random.default_rng(20261204)
+    clamps = [(0.0, np.inf), (0.0, 1.0), (-1.0, 2.0), (1.0, 1.0), (0.5, -0.5), (-0.0, 3.0)]
+    for it in range(150):
+        prog, sz, n_out, out_slot = _random_program(rng, int(rng.integers(1, 12)))
+        F = IntervalFunction(x, [X])
+        F._program, F.sz_w, F.n_out, F._out_slot, F._kernel = prog, sz, n_out, out_slot, False
+        assert F._compiled() is not None
+        clamp = {k: clamps[rng.integers(len(clamps))] for k in range(n_out) if rng.random() < 0.3}
+        if it % 3 == 0:
+            a, b = rng.integers(-2, 3, (2, 40, 3)).astype(float)
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+        else:
+            lo, hi = _boxes(rng, 40, it % 3 == 2)
+        _assert_same(*_both(F, lo, hi, clamp, monkeypatch))
+        compiled = F(lo, hi, clamp)
+        with monkeypatch.context() as mp:
+            mp.setenv(native.ENV, "0")
+            _assert_same(compiled, F(lo, hi, clamp))

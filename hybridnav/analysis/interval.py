@@ -295,7 +295,8 @@ class IntervalFunction:
                       if k in self._out_slot}
         if (_record is None and lo.ndim == 2 and lo.shape == hi.shape and lo.shape[1] == self.nx
                 and self._compiled() is not None):
-            # arithmetic only: the compiled kernel, the same operations per box
+            # arithmetic and exact operations only: the compiled kernel, the same operations
+            # per box
             done = native_interval.evaluate(self._kernel, lo, hi, clamp_slot)
             if done is not None:
                 return done if continuity else done[:3]

@@ -1,7 +1,10 @@
 """The interval evaluation of :class:`hybridnav.analysis.interval.IntervalFunction` in C
-(``interval.c``) for programs of arithmetic only: ``input``, ``output``, ``const``, ``add``,
-``sub``, ``mul``, ``div``, ``inv``, ``neg``, ``twice``, ``assign`` and ``sq`` (rational
-functions such as the LbCS closed loop, polynomial candidates and their derivatives).
+(``interval.c``) for programs of arithmetic and exact operations only: ``input``, ``output``,
+``const``, ``add``, ``sub``, ``mul``, ``div``, ``inv``, ``neg``, ``twice``, ``assign``, ``sq``,
+``sqrt``, ``fabs``, ``fmin``, ``fmax``, ``sign``, ``floor``, ``ceil``, the comparisons ``lt``,
+``le``, ``eq``, ``ne``, ``not``, ``and``, ``or`` and ``if_else_zero`` (rational functions such as
+the LbCS closed loop, polynomial candidates and their derivatives, saturated and switched
+controllers).
 
 The NumPy path evaluates one instruction over every box with about twenty array operations, which
 costs 70-100 us per instruction whatever the batch (the certificate's branch and bound evaluates
