@@ -96,6 +96,14 @@ static inline void inv(double a, double b, double *lo, double *hi)
 static inline int sure_yes(double a, double b) { return (a > 0) | (b < 0); }
 static inline int sure_no(double a, double b) { return (a == 0) & (b == 0); }
 
+/* _compare's result: [1, 1] surely true, [0, 0] surely false, else [0, 1]; whether decided */
+static inline int truth_interval(int yes, int no, double *rl, double *rh)
+{
+    *rl = yes ? 1.0 : 0.0;
+    *rh = no ? 0.0 : 1.0;
+    return yes | no;
+}
+
 static inline double sign1(double x)
 {
     return x > 0 ? 1.0 : (x < 0 ? -1.0 : (x == 0 ? 0.0 : x));
@@ -309,9 +317,7 @@ void hn_interval(long long n_ins, const long long *restrict op, const long long 
                     yes = op[k] == I_EQ ? same : apart;
                     no = op[k] == I_EQ ? apart : same;
                 }
-                rl = yes ? 1.0 : 0.0;
-                rh = no ? 0.0 : 1.0;
-                ok = yes | no;
+                ok = truth_interval(yes, no, &rl, &rh);
                 exact = 1;
                 jumps = 1;
                 break;
@@ -339,9 +345,7 @@ void hn_interval(long long n_ins, const long long *restrict op, const long long 
                     one = y1 | y2;
                     zero = n1 & n2;
                 }
-                rl = one ? 1.0 : 0.0;
-                rh = zero ? 0.0 : 1.0;
-                ok = one | zero;
+                ok = truth_interval(one, zero, &rl, &rh);
                 exact = 1;
                 jumps = 1;
                 break;
