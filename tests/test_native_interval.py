@@ -211,13 +211,12 @@ def test_a_program_with_an_output_out_of_range_is_not_compiled():
     n_out, or of a slot never written) takes the NumPy path, which raises (review)."""
     F = IntervalFunction(x, [X * Y])
     prog = list(F._program)
-    assert native_interval.program(prog, F.sz_w, F.nx, F.n_out, F._out_slot) is not None
+    assert native_interval.program(prog, F.sz_w, F.nx, F.n_out) is not None
     name, ins, outs, const, same = prog[-1]
     assert name == "output"
     for bad in (("output", ins, [outs[0], F.n_out], const, same),
                 ("output", [F.sz_w + 5], outs, const, same)):
-        assert native_interval.program(prog[:-1] + [bad], F.sz_w, F.nx, F.n_out,
-                                       F._out_slot) is None
+        assert native_interval.program(prog[:-1] + [bad], F.sz_w, F.nx, F.n_out) is None
 
 
 _UNARY = ("neg", "twice", "assign", "sq", "sqrt", "fabs", "sign", "floor", "ceil", "not", "inv")

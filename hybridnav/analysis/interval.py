@@ -247,7 +247,7 @@ class IntervalFunction:
         lacks)."""
         if self._kernel is False:
             self._kernel = native_interval.program(self._program, self.sz_w, self.nx,
-                                                   self.n_out, self._out_slot)
+                                                   self.n_out)
         return self._kernel
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray, clamp: Mapping[int, tuple[float, float]]

@@ -148,12 +148,13 @@ def _rows_function(fn: cs.Function) -> cs.Function:
     form), or ``fn`` itself where it is too large to compile or compiling is off or fails. The
     generated C performs the virtual machine's operations in its order (built without
     floating-point contraction): the same values bit for bit (the tests compare them)."""
+    if not jit_available():
+        return fn
     try:
-        too_big = fn.n_instructions() > ROWS_JIT_MAX_INSTRUCTIONS
+        if fn.n_instructions() > ROWS_JIT_MAX_INSTRUCTIONS:
+            return fn
         key = fn.serialize()
     except RuntimeError:            # a Callback or an external library: nothing to compile
-        return fn
-    if too_big or not jit_available():
         return fn
     with _cache_lock:
         found = _ROWS.get(key)

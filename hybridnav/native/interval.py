@@ -50,16 +50,14 @@ class Program:
     arrays."""
 
     def __init__(self, op, in0, in1, out, konst, sz_w: int, nx: int, n_out: int,
-                 out_slot: Mapping[int, int], const_slots: frozenset[int] = frozenset()) -> None:
+                 const_slots: frozenset[int] = frozenset()) -> None:
         self.op, self.in0, self.in1, self.out, self.konst = op, in0, in1, out, konst
         self.sz_w, self.nx, self.n_out = sz_w, nx, n_out
-        self.out_slot = dict(out_slot)
         #: slots written by ``const``: the NumPy path neither clamps them nor marks them > 0
         self.const_slots = const_slots
 
 
-def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
-            out_slot: Mapping[int, int]) -> Program | None:
+def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int) -> Program | None:
     """The kernel's form of ``IntervalFunction._program`` (``(name, ins, outs, const, same)``
     tuples), or ``None`` where the kernel does not apply: another operation, a work slot
     written twice (the kernel keeps one value per slot and box), or an index out of range."""
@@ -96,7 +94,7 @@ def program(instructions: Sequence[tuple], sz_w: int, nx: int, n_out: int,
         return None
     ints = np.array([r[:4] for r in rows], dtype=np.int64)
     return Program(*(np.ascontiguousarray(ints[:, j]) for j in range(4)),
-                   np.array([r[4] for r in rows], dtype=np.float64), sz_w, nx, n_out, out_slot,
+                   np.array([r[4] for r in rows], dtype=np.float64), sz_w, nx, n_out,
                    frozenset(consts))
 
 
