@@ -55,10 +55,15 @@ def find_equilibria(
     vector field is smallest, and from the end points of 200-second closed-loop runs (which
     settle in stable equilibria, however small their basin).
 
-    Each is classified by the eigenvalues of the exact Jacobian: ``"stable"`` (all real parts
-    negative: a local minimum of ``V`` for a gradient flow), ``"unstable"``, ``"saddle"`` or
-    ``"degenerate"`` (a zero real part). Only admissible states count (see
+    A Newton end point counts when interval arithmetic (outward rounded) cannot exclude a zero of
+    the field within ``1e-9 (1 + |z|)`` of it, the field being continuous there: a test in the
+    state's units, not the field's, so a slow field's small values are not taken for zeros and a
+    fast field's zeros are not refused. Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
+
+    Each is classified by the eigenvalues of the exact Jacobian: ``"degenerate"`` (a real part
+    zero to rounding, relative to the spectrum), else ``"stable"`` (all real parts negative: a
+    local minimum of ``V`` for a gradient flow), ``"unstable"`` or ``"saddle"``.
 
     Parameters
     ----------
@@ -134,32 +139,80 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
         jb()
         return jb.outs[0].reshape(nx, nx, order="F").copy()
 
-    found: list[Equilibrium] = []
+    cands = []
     for x0 in X0:
         with np.errstate(all="ignore"):
             sol = root(fun, x0, jac=jac, method="hybr", tol=1e-14)
         z = sol.x
         fz, jz, vz = (np.asarray(a) for a in F(z))
-        if not (np.all(np.isfinite(fz)) and np.linalg.norm(fz) < 1e-9 * max(1.0, span)):
+        if not np.all(np.isfinite(fz)):
             continue
         if not box.contains(z) or not model.admissible(z[None])[0]:
+            continue
+        cands.append((z, fz.ravel(), jz, vz))
+    zero = _zero_near(s.x, f, cands, span)
+    found: list[Equilibrium] = []
+    for (z, fz, jz, vz), ok in zip(cands, zero):
+        if not ok:
             continue
         if any(np.linalg.norm(z - e.state) < 1e-6 * span for e in found):
             continue
         eig = np.linalg.eigvals(jz)
         re = eig.real
-        if np.all(re < 0):
+        scale = float(np.max(np.abs(eig))) if len(eig) else 0.0
+        if np.any(np.abs(re) <= 1e-10 * scale) or scale == 0.0:
+            # a real part at rounding level of the spectrum (-x^3's Newton end point 1e-37 has
+            # the eigenvalue -3e-74): the linearization decides nothing
+            kind = "degenerate"
+        elif np.all(re < 0):
             kind = "stable"
         elif np.all(re > 0):
             kind = "unstable"
-        elif np.any(np.abs(re) < 1e-12 * max(1.0, np.max(np.abs(re)))):
-            kind = "degenerate"
         else:
             kind = "saddle"
         is_target = bool(np.linalg.norm(z[:len(tgt)] - tgt) < 1e-6 * span)
         found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
     found.sort(key=lambda e: (not e.is_target, e.V))
     return found
+
+
+#: half-width of the box around a Newton end point in which a zero must not be excluded,
+#: relative to ``1 + |z|`` (Newton ends within ~1e-15 of a simple zero)
+ZERO_BOX = 1e-9
+
+
+def _zero_near(x: cs.SX, f: cs.SX, cands: list, span: float) -> np.ndarray:
+    """Which Newton end points are equilibria: a zero of ``f`` cannot be excluded within
+    ``ZERO_BOX * (1 + |z|)`` of ``z``.
+
+    The test is scale-free: an absolute bound on ``|f(z)|`` takes a slow field's minimum of
+    ``|f|`` (or, in a large region, any small value) for a zero, and rejects a fast field's zero.
+    The interval enclosure of ``f`` on the box (outward rounded) must hold 0 in every component,
+    and ``f`` must be continuous there (the hull of a jump can hold 0) unless ``f(z)`` itself is
+    0 to rounding. Without an interval extension (an operation it lacks), the Newton step at
+    ``z`` must be that small and ``f(z)`` in the range of the Jacobian.
+    """
+    from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+
+    if not cands:
+        return np.zeros(0, dtype=bool)
+    Z = np.array([c[0] for c in cands], dtype=float)
+    r = ZERO_BOX * (1.0 + np.abs(Z))
+    try:
+        ifn = IntervalFunction(x, [f])
+    except UnsupportedOperation:
+        ok = np.zeros(len(cands), dtype=bool)
+        for i, (z, fz, jz, _) in enumerate(cands):
+            step, *_ = np.linalg.lstsq(jz, fz, rcond=None)
+            resid = np.linalg.norm(fz - jz @ step)
+            ok[i] = bool(np.all(np.abs(step) <= r[i]) and resid <= 1e-6 * np.linalg.norm(fz)
+                         and np.linalg.norm(fz) < 1e-9 * max(1.0, span))
+        return ok
+    lo, hi, _, cont = ifn(Z - r, Z + r, continuity=True)
+    holds = np.all((lo <= 0) & (hi >= 0), axis=1)
+    plo, phi, _ = ifn(Z, Z)
+    exact = np.all((plo <= 0) & (phi >= 0), axis=1)
+    return holds & (np.all(cont, axis=1) | exact)
 
 
 def _target(target, model: Model | None = None) -> np.ndarray:

@@ -572,7 +572,9 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
     """Simulate ``n`` starts sampled in ``{V <= level}``. Runs that do not converge give
     ``stuck_V``; a run whose ``V`` rises is checked at the state before its largest rise: where the
     continuous ``Vdot`` (``dfun``) is >= 0 there it is a counterexample the search missed
-    (``rise_V``, ``rise_state``), otherwise the rise is the RK4 step's (counted in details)."""
+    (``rise_V``, ``rise_state``), otherwise the rise is the RK4 step's (counted in details). Runs
+    that RK4 takes to non-finite states are integrated again by CVODES (counted in details); one
+    that fails there too is named by its start."""
     if n <= 0:
         return {}
     starts = []
@@ -594,11 +596,20 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
     ref = level if np.isfinite(level) else float(np.max(V[:, 0]))   # global: the largest start
     slack = 1e-9 * max(ref, 1e-300)
     monotone = np.all(np.diff(V, axis=1) <= slack, axis=1)
-    converged = V[:, -1] <= 1e-3 * ref
-    lowest = int(np.argmin(np.where(converged, np.inf, V[:, -1])))
+    end, end_V = traj[:, -1].copy(), V[:, -1].copy()
+    # a run that left the numbers (RK4 is unstable on a stiff or fast part of the field) says
+    # nothing about the continuous system: those starts are integrated again by CVODES
+    diverged = ~np.all(np.isfinite(V), axis=1)
+    if diverged.any():
+        end[diverged] = _integrate(model, target, X0[diverged], (traj.shape[1] - 1) * model.dt)
+        end_V[diverged] = evaluate_rows(vfun, end[diverged])[0].ravel()
+    # still not a number: the run's start is what the report can name
+    end = np.where(np.all(np.isfinite(end), axis=1)[:, None], end, X0)
+    converged = end_V <= 1e-3 * ref
+    lowest = int(np.argmin(np.where(converged, np.inf, np.nan_to_num(end_V, nan=-np.inf))))
     rise_V, rise_state, step_rises = np.empty(0), None, 0
-    if dfun is not None and not monotone.all():
-        rows = np.flatnonzero(~monotone)
+    if dfun is not None and not (monotone | diverged).all():
+        rows = np.flatnonzero(~(monotone | diverged))
         k = np.argmax(np.diff(V[rows], axis=1), axis=1)
         states = traj[rows, k]
         d = evaluate_rows(dfun, states)[0].ravel()
@@ -607,13 +618,14 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
         if real.any():
             rise_V = V[rows[real], k[real]]
             rise_state = states[np.flatnonzero(real)[np.argmin(rise_V)]]
-    return {"stuck_V": V[~converged, -1], "stuck_state": traj[lowest, -1],
+    return {"stuck_V": end_V[~converged], "stuck_state": end[lowest],
             "rise_V": rise_V, "rise_state": rise_state,
             "simulated": len(X0), "converged": int(converged.sum()),
             "monotone": int(monotone.sum()),
             "details": {"simulated_time": float(traj.shape[1] - 1) * model.dt,
-                        "worst_final_V": float(np.max(V[:, -1])),
-                        "rises_of_the_rk4_step": step_rises}}
+                        "worst_final_V": float(np.max(end_V)),
+                        "rises_of_the_rk4_step": step_rises,
+                        "rk4_diverged_cvodes_rerun": int(diverged.sum())}}
 
 
 def basin_share(model: Model, V=None, level: float = np.inf, *,
