@@ -3,7 +3,9 @@ it replaced, exactly (cells, length, expanded), lengths equal to scipy.sparse.cs
 MovingAI optimum, legal paths, unreachable goals, start == goal, and a cache that never goes stale.
 
 The heap search is still there: ``astar(..., heuristic="zero")`` is the old Dijkstra loop (h = 0,
-the same heap keys), so it is the reference for the exact comparisons."""
+the same heap keys), so it is the reference for the exact comparisons. ``dijkstra`` runs that
+search compiled where a compiler is found and scipy's csgraph (with the rebuilt tie order)
+elsewhere: every test runs on both routes, the reference staying the Python loop."""
 
 from __future__ import annotations
 
@@ -16,9 +18,32 @@ import pytest
 from scipy.sparse.csgraph import connected_components
 from scipy.sparse.csgraph import dijkstra as csgraph_dijkstra
 
+from hybridnav.planners.path import gridsearch
 from hybridnav.planners.path.gridsearch import GridPath, astar, dijkstra, path_cost
 from hybridnav.world import builtin_data_path
 from hybridnav.world.grid import OccupancyGrid, load_movingai_map, load_movingai_scen
+
+@pytest.fixture(autouse=True, params=["compiled", "scipy"])
+def route(request, monkeypatch):
+    """dijkstra's two routes; the reference astar(..., "zero") is the Python loop in both."""
+    from hybridnav.native import gridheap
+
+    if request.param == "compiled" and not gridheap.available():
+        pytest.skip("no compiled kernels here")
+    if request.param == "scipy":
+        monkeypatch.setattr(gridheap, "available", lambda: False)
+    real = gridsearch._search
+
+    def reference_loop(grid, start, goal, diagonal, corner_cutting, heuristic, method):
+        if method == "astar":
+            with monkeypatch.context() as m:
+                m.setattr(gridheap, "_library", lambda: None)
+                return real(grid, start, goal, diagonal, corner_cutting, heuristic, method)
+        return real(grid, start, goal, diagonal, corner_cutting, heuristic, method)
+
+    monkeypatch.setattr(gridsearch, "_search", reference_loop)
+    return request.param
+
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "movingai"
 

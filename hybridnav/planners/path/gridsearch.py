@@ -9,17 +9,20 @@ The graph is the free-cell graph of an :class:`~hybridnav.world.grid.OccupancyGr
   when *both* orthogonal cells it passes between are free.
 
 Both return the optimal length (which of several equally short paths is returned is unspecified,
-but it is deterministic). A* is heap based (:mod:`heapq`). To keep Python work per neighbour small,
-its inner loop runs on flat indices of the grid padded with one ring of blocked cells, and a
-per-cell bitmask of legal moves (computed once with numpy, cached per grid while its ``occ`` is
-unchanged) selects a precomputed tuple of ``(offset, cost)`` pairs: no bounds, obstacle or corner
-tests in the loop. A* breaks ties between equal ``f = g + h`` in favour of the larger ``g`` (the
-node closer to the goal), with ``f`` quantized so that float rounding does not hide exact ties; on
-the MovingAI arena this expands ~3.5x fewer nodes than without tie-breaking. The heuristics offered
-are admissible and consistent for the connectivity they are allowed with, so every node is expanded
-at most once.
+but it is deterministic). Both run one heap search (:func:`_search`), compiled
+(``hybridnav/native/gridheap.c``: ~0.15 us per expanded node) where a compiler is found, else as a
+Python loop (:mod:`heapq`); the two give the same cells, length and ``expanded`` (the kernel runs
+the same keys, tie rule and updates). The search runs on flat indices of the grid padded with one
+ring of blocked cells, and a per-cell bitmask of legal moves (computed once with numpy, cached per
+grid while its ``occ`` is unchanged) selects the legal ``(offset, cost)`` pairs: no bounds,
+obstacle or corner tests in the loop. A* breaks ties between equal ``f = g + h`` in favour of the
+larger ``g`` (the node closer to the goal), with ``f`` quantized so that float rounding does not
+hide exact ties; on the MovingAI arena this expands ~3.5x fewer nodes than without tie-breaking.
+The heuristics offered are admissible and consistent for the connectivity they are allowed with,
+so every node is expanded at most once. Dijkstra is the same search with ``h = 0``.
 
-Dijkstra runs :func:`scipy.sparse.csgraph.dijkstra` (compiled) on the same padded graph, stored
+Without the compiled kernel, Dijkstra runs :func:`scipy.sparse.csgraph.dijkstra` (compiled) on the
+same padded graph, stored
 as a CSR matrix that is cached per grid like the move masks, with a distance ``limit``: first the
 obstacle-free distance to the goal (a lower bound, and the answer whenever some obstacle-free
 shortest path exists); when the goal lies beyond it, the search continues from the rim of the
@@ -60,6 +63,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hybridnav.errors import HybridnavError
+from hybridnav.native import gridheap
 from hybridnav.world.grid import OccupancyGrid, world_point
 
 __all__ = ["HEURISTICS", "GridPath", "astar", "dijkstra", "path_cost", "search_world"]
@@ -240,6 +244,17 @@ def _move_tables_by_kind(Wp: int, res: float) -> tuple[tuple, tuple]:
     return straight, diagonal
 
 
+def _kernel_heuristic(Hp: int, Wp: int, gx: int, gy: int, res: float, heuristic: str,
+                      diagonal: bool) -> tuple:
+    """The heuristic as :func:`hybridnav.native.gridheap.search` takes it: the name and the
+    numbers :func:`_heuristic_table` computes it from, or that table (Euclidean: NumPy's hypot)."""
+    if heuristic == "euclidean":
+        return ("table", _heuristic_table(Hp, Wp, gx, gy, res, heuristic, diagonal))
+    if heuristic == "octile" and not diagonal:
+        heuristic = "manhattan"
+    return (heuristic, Wp, float(gx), float(gy), _SQRT2 - 1.0, res * _H_SHRINK)
+
+
 def _heuristic_table(Hp: int, Wp: int, gx: int, gy: int, res: float, heuristic: str, diagonal: bool) -> array:
     """Heuristic of every padded cell, computed with numpy.
 
@@ -270,11 +285,10 @@ def _search(
     method: str,
 ) -> GridPath:
     masks, Wp = _cached_masks(grid, diagonal, corner_cutting)
-    table = _move_table(Wp, grid.resolution)
     n = len(masks)
     s = (start[1] + 1) * Wp + start[0] + 1
     t = (goal[1] + 1) * Wp + goal[0] + 1
-    h = _heuristic_table(grid.height + 2, Wp, goal[0] + 1, goal[1] + 1, grid.resolution, heuristic, diagonal)
+    hargs = (grid.height + 2, Wp, goal[0] + 1, goal[1] + 1, grid.resolution, heuristic, diagonal)
 
     # Heap keys use f quantized to q, so that float rounding does not hide exact ties (which the
     # larger-g rule then breaks). With octile, Manhattan or zero heuristics every f is an exact
@@ -283,6 +297,16 @@ def _search(
     # Euclidean heuristic it could reorder f values closer than q, costing at most q per step.)
     # The max() keeps f / q below 2**52 on very large grids.
     q = grid.resolution * max(1e-9, 1e-15 * n)
+    params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
+    if method == "astar":
+        params["heuristic"] = heuristic
+    offs, costs = _move_arrays(Wp, grid.resolution)
+    done = gridheap.search(masks, s, t, offs, costs, q, _kernel_heuristic(*hargs))  # compiled
+    if done is not None:
+        flat, length, expanded = done
+        return _grid_path(grid, start, goal, flat, length, expanded, Wp, method, params)
+    table = _move_table(Wp, grid.resolution)
+    h = _heuristic_table(*hargs)
     INF = math.inf
     g = array("d", [INF]) * n
     parent = array("q", [-1]) * n
@@ -312,18 +336,34 @@ def _search(
                 # larger g first (for Dijkstra, h = 0 and the -nv key changes nothing)
                 push(heap, ((nv + h[v]) // q, -nv, v))
 
-    params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
-    if method == "astar":
-        params["heuristic"] = heuristic
     if not found:
-        empty = np.zeros((0, 2), dtype=int)
-        return GridPath(False, empty, np.zeros((0, 2)), math.inf, expanded, start, goal, method, params)
+        return _grid_path(grid, start, goal, None, math.inf, expanded, Wp, method, params)
     idx = [t]
     while idx[-1] != s:
         idx.append(parent[idx[-1]])
     flat = np.array(idx[::-1], dtype=np.int64)
-    cells = np.column_stack([flat % Wp - 1, flat // Wp - 1]).astype(int)
-    return GridPath(True, cells, grid.to_world(cells), float(g[t]), expanded, start, goal, method, params)
+    return _grid_path(grid, start, goal, flat, float(g[t]), expanded, Wp, method, params)
+
+
+def _grid_path(grid: OccupancyGrid, start, goal, flat: NDArray[np.int64] | None, length: float,
+               expanded: int, Wp: int, method: str, params: dict) -> GridPath:
+    """The :class:`GridPath` of a search's padded flat path (None: not found)."""
+    if flat is None:
+        empty = np.zeros((0, 2), dtype=int)
+        return GridPath(False, empty, np.zeros((0, 2)), math.inf, expanded, start, goal, method, params)
+    cells = np.empty((len(flat), 2), dtype=int)
+    np.divmod(flat, Wp, out=(cells[:, 1], cells[:, 0]))
+    cells -= 1
+    return GridPath(True, cells, grid.to_world(cells), length, expanded, start, goal, method, params)
+
+
+@functools.lru_cache(maxsize=64)
+def _move_arrays(Wp: int, res: float) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The 8 moves' flat offsets and costs (bit ``k`` of a mask), as :func:`_move_table` has them."""
+    offs = np.array([dc + dr * Wp for dc, dr in _MOVES], dtype=np.int64)
+    costs = np.array([res * (_SQRT2 if dc and dr else 1.0) for dc, dr in _MOVES])
+    offs.flags.writeable = costs.flags.writeable = False
+    return offs, costs
 
 
 # --------------------------------------------------------------------------------------------
@@ -498,7 +538,10 @@ class _HeapOrder:
 
 def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int], diagonal: bool,
               corner_cutting: bool) -> GridPath:
-    """The result of ``_search(..., "zero", "dijkstra")``, computed with scipy (module docstring)."""
+    """The result of ``_search(..., "zero", "dijkstra")``: that search compiled, else computed
+    with scipy (module docstring)."""
+    if gridheap.available():
+        return _search(grid, start, goal, diagonal, corner_cutting, "zero", "dijkstra")
     G = _cached_graph(grid, diagonal, corner_cutting)
     res, Wp, n = grid.resolution, G.Wp, G.n
     sc, sr, tc, tr = start[0] + 1, start[1] + 1, goal[0] + 1, goal[1] + 1  # padded
@@ -673,10 +716,11 @@ def dijkstra(
 ) -> GridPath:
     """Shortest path between two cells by Dijkstra's algorithm (stops when the goal is closed).
 
-    The search runs in :func:`scipy.sparse.csgraph.dijkstra` on a graph cached per grid (rebuilt
-    when ``occ`` or ``resolution`` changes), with a distance limit instead of a stop at the goal;
-    the result is that of a heap search closing nodes in order of distance (ties as
-    ``astar(..., heuristic="zero")`` breaks them), which it reproduces exactly.
+    The search is :func:`astar`'s with ``h = 0`` (compiled where a compiler is found). Without
+    the compiled kernel it runs in :func:`scipy.sparse.csgraph.dijkstra` on a graph cached per
+    grid (rebuilt when ``occ`` or ``resolution`` changes), with a distance limit instead of a stop
+    at the goal, and reproduces that heap search's result exactly (ties as
+    ``astar(..., heuristic="zero")`` breaks them).
 
     Parameters
     ----------
