@@ -55,15 +55,22 @@ def find_equilibria(
     vector field is smallest, and from the end points of 200-second closed-loop runs (which
     settle in stable equilibria, however small their basin).
 
-    A Newton end point counts when interval arithmetic (outward rounded) cannot exclude a zero of
-    the field within ``1e-9 (1 + |z|)`` of it, the field being continuous there: a test in the
-    state's units, not the field's, so a slow field's small values are not taken for zeros and a
-    fast field's zeros are not refused. Only admissible states count (see
-    :meth:`hybridnav.models.Model.state_constraints`).
+    A Newton end point ``z`` counts when interval arithmetic (outward rounded) on the box
+    ``z +- 1e-9 (1 + |z|)`` proves a zero there (the Krawczyk test), or cannot exclude one and
+    the field is continuous there -- tests in the state's units, not the field's, so a slow
+    field's small values are not taken for zeros and a fast field's zeros are not refused. A zero
+    is excluded by the field's enclosure, or by its centred form preconditioned with the inverse
+    and the singular vectors of the Jacobian (no dependency blow-up, and two components that
+    vanish on parallel curves but never together are seen). For a field the interval flags do
+    not show continuous (``if_else``, ``sqrt`` at 0) a point nothing excludes also counts when
+    ``|f(z)| < 1e-9 max(1, span)``. Points whose boxes overlap are one equilibrium. Only
+    admissible states count (see :meth:`hybridnav.models.Model.state_constraints`).
 
-    Each is classified by the eigenvalues of the exact Jacobian: ``"degenerate"`` (a real part
-    zero to rounding, relative to the spectrum), else ``"stable"`` (all real parts negative: a
-    local minimum of ``V`` for a gradient flow), ``"unstable"`` or ``"saddle"``.
+    Each is classified by the eigenvalues of the exact Jacobian at ``z``: ``"degenerate"`` where
+    a real part is within their uncertainty of 0 (the eigenvector matrix's condition number times
+    how far the Jacobian can move over the zero's box, plus rounding; a non-finite Jacobian), else
+    ``"stable"`` (all real parts negative: a local minimum of ``V`` for a gradient flow),
+    ``"unstable"`` or ``"saddle"``.
 
     Parameters
     ----------
@@ -150,69 +157,162 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
         if not box.contains(z) or not model.admissible(z[None])[0]:
             continue
         cands.append((z, fz.ravel(), jz, vz))
-    zero = _zero_near(s.x, f, cands, span)
+    tests = _ZeroTests(s.x, f, cands, span)
     found: list[Equilibrium] = []
-    for (z, fz, jz, vz), ok in zip(cands, zero):
-        if not ok:
+    radii: list[np.ndarray] = []
+    for i, (z, fz, jz, vz) in enumerate(cands):
+        if tests.excluded_fast(i):
             continue
-        if any(np.linalg.norm(z - e.state) < 1e-6 * span for e in found):
+        r = tests.radius[i]
+        # the same equilibrium again: within the larger of the old distance and the two boxes
+        if any(np.all(np.abs(z - e.state) <= np.maximum(1e-6 * span, r + re))
+               for e, re in zip(found, radii)):
             continue
-        eig = np.linalg.eigvals(jz)
-        re = eig.real
-        scale = float(np.max(np.abs(eig))) if len(eig) else 0.0
-        if np.any(np.abs(re) <= 1e-10 * scale) or scale == 0.0:
-            # a real part at rounding level of the spectrum (-x^3's Newton end point 1e-37 has
-            # the eigenvalue -3e-74): the linearization decides nothing
-            kind = "degenerate"
-        elif np.all(re < 0):
-            kind = "stable"
-        elif np.all(re > 0):
-            kind = "unstable"
-        else:
-            kind = "saddle"
+        if not tests.accepted(i):
+            continue
+        eig, kind = _classify(jz, tests.jacobian_spread(i))
         is_target = bool(np.linalg.norm(z[:len(tgt)] - tgt) < 1e-6 * span)
         found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
+        radii.append(r)
     found.sort(key=lambda e: (not e.is_target, e.V))
     return found
 
 
-#: half-width of the box around a Newton end point in which a zero must not be excluded,
-#: relative to ``1 + |z|`` (Newton ends within ~1e-15 of a simple zero)
+#: half-width of the box around a Newton end point that is tested for a zero, relative to
+#: ``1 + |z|`` (Newton ends within ~1e-15 of a simple zero)
 ZERO_BOX = 1e-9
 
 
-def _zero_near(x: cs.SX, f: cs.SX, cands: list, span: float) -> np.ndarray:
-    """Which Newton end points are equilibria: a zero of ``f`` cannot be excluded within
-    ``ZERO_BOX * (1 + |z|)`` of ``z``.
+class _ZeroTests:
+    """Whether each Newton end point ``z`` is an equilibrium, tested on ``X = z +- r``,
+    ``r = ZERO_BOX (1 + |z|)``, with outward-rounded interval arithmetic.
 
-    The test is scale-free: an absolute bound on ``|f(z)|`` takes a slow field's minimum of
-    ``|f|`` (or, in a large region, any small value) for a zero, and rejects a fast field's zero.
-    The interval enclosure of ``f`` on the box (outward rounded) must hold 0 in every component,
-    and ``f`` must be continuous there (the hull of a jump can hold 0) unless ``f(z)`` itself is
-    0 to rounding. Without an interval extension (an operation it lacks), the Newton step at
-    ``z`` must be that small and ``f(z)`` in the range of the Jacobian.
+    Refused when a zero in ``X`` is excluded: by the enclosure of ``f`` on ``X``, or, where ``f``
+    is smooth on ``X``, by the centred form ``P f(z) + P J(X) (X - z)``, which holds ``P f(x)``
+    for every ``x`` in ``X`` (the mean value theorem, row by row) for any matrix ``P``: the
+    inverse of ``J(z)`` (a scale-free test, free of the dependency that widens ``f``'s own
+    enclosure), and the left singular vectors of ``J(z)`` (its near-null rows see
+    ``f1 - f2 = 1e-10`` through a singular Jacobian). Accepted when the Krawczyk operator proves
+    a zero in ``X``; otherwise (a degenerate or non-smooth zero) when nothing excludes one and
+    ``f`` is continuous on ``X``, or ``f(z)`` is 0 to rounding, or -- where the field is not
+    continuous on ``X`` by the interval flags (an ``if_else``, ``sqrt`` at 0: the flags are
+    conservative) -- ``|f(z)| < 1e-9 max(1, span)``.
+    Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
+    be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)|`` that small.
     """
-    from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
 
-    if not cands:
-        return np.zeros(0, dtype=bool)
-    Z = np.array([c[0] for c in cands], dtype=float)
-    r = ZERO_BOX * (1.0 + np.abs(Z))
-    try:
-        ifn = IntervalFunction(x, [f])
-    except UnsupportedOperation:
-        ok = np.zeros(len(cands), dtype=bool)
-        for i, (z, fz, jz, _) in enumerate(cands):
-            step, *_ = np.linalg.lstsq(jz, fz, rcond=None)
+    def __init__(self, x: cs.SX, f: cs.SX, cands: list, span: float) -> None:
+        from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+
+        self.cands, self.span = cands, span
+        self.n = n = int(x.numel())
+        Z = np.array([c[0] for c in cands], dtype=float).reshape(len(cands), n)
+        self.radius = ZERO_BOX * (1.0 + np.abs(Z))
+        self.ifn = None
+        if not len(cands):
+            return
+        try:
+            self.ifn = IntervalFunction(x, [f, cs.jacobian(f, x)])
+        except UnsupportedOperation:
+            return
+        self.lo, self.hi, self.smooth, self.cont = self.ifn(Z - self.radius, Z + self.radius,
+                                                            continuity=True)
+        self.plo, self.phi, _ = self.ifn(Z, Z)
+
+    def _small(self, i: int) -> bool:
+        return bool(np.linalg.norm(self.cands[i][1]) < 1e-9 * max(1.0, self.span))
+
+    def excluded_fast(self, i: int) -> bool:
+        """The enclosure of ``f`` on the box leaves out 0 in some component."""
+        if self.ifn is None:
+            return False
+        n = self.n
+        return bool(np.any(self.lo[i, :n] > 0) or np.any(self.hi[i, :n] < 0))
+
+    def accepted(self, i: int) -> bool:
+        z, fz, jz, _ = self.cands[i]
+        r, n = self.radius[i], self.n
+        if self.ifn is None:
+            try:
+                step = np.linalg.lstsq(jz, fz, rcond=None)[0]
+            except np.linalg.LinAlgError:
+                return False
             resid = np.linalg.norm(fz - jz @ step)
-            ok[i] = bool(np.all(np.abs(step) <= r[i]) and resid <= 1e-6 * np.linalg.norm(fz)
-                         and np.linalg.norm(fz) < 1e-9 * max(1.0, span))
-        return ok
-    lo, hi, _, cont = ifn(Z - r, Z + r, continuity=True)
-    holds = np.all((lo <= 0) & (hi >= 0), axis=1)
-    plo, phi, _ = ifn(Z, Z)
-    exact = np.all((plo <= 0) & (phi >= 0), axis=1)
-    return holds & (np.all(cont, axis=1) | exact)
+            return bool(np.all(np.abs(step) <= r) and resid <= 1e-6 * np.linalg.norm(fz)
+                        and self._small(i))
+        if self.excluded_fast(i):
+            return False
+        fl, fh = self.plo[i, :n], self.phi[i, :n]
+        exact = bool(np.all((fl <= 0) & (fh >= 0)))
+        Jl = self.lo[i, n:].reshape(n, n, order="F")
+        Jh = self.hi[i, n:].reshape(n, n, order="F")
+        usable = (bool(self.smooth[i, :n].all()) and np.all(np.isfinite(Jl))
+                  and np.all(np.isfinite(Jh)) and np.all(np.isfinite(fl))
+                  and np.all(np.isfinite(fh)) and np.all(np.isfinite(jz)))
+        if usable:
+            fm, fr = (fl + fh) / 2, (fh - fl) / 2
+            Jm, Jr = (Jl + Jh) / 2, (Jh - Jl) / 2
+            pre = []
+            try:
+                Y = np.linalg.inv(jz)
+                if np.all(np.isfinite(Y)):
+                    pre.append(Y)
+            except np.linalg.LinAlgError:
+                Y = None
+            try:
+                pre.append(np.linalg.svd(jz)[0].T)
+            except np.linalg.LinAlgError:
+                pass
+            for P in pre:
+                aP = np.abs(P)
+                center = P @ fm
+                # the products and sums rounded up: a relative 1e-12 of every term, and 1e-300
+                width = aP @ fr + (np.abs(P @ Jm) + aP @ Jr) @ r
+                width += 1e-12 * (aP @ np.abs(fm) + (np.abs(P) @ np.abs(Jm) + aP @ Jr) @ r)
+                if np.any(np.abs(center) > width * (1 + 1e-12) + 1e-300):
+                    return False                    # no zero in the box
+            if pre and Y is not None and pre[0] is Y:
+                aY = np.abs(Y)
+                reach = (np.abs(Y @ fm) + aY @ fr + (np.abs(np.eye(n) - Y @ Jm) + aY @ Jr) @ r)
+                if np.all(reach * (1 + 1e-12) + 1e-300 < r):
+                    return True                     # Krawczyk: exactly one zero in the box
+        if bool(self.cont[i, :n].all()) or exact:
+            return True
+        return self._small(i)
+
+    def jacobian_spread(self, i: int) -> float:
+        """How far the Jacobian can be from ``J(z)`` at a zero in the box (its enclosure's
+        largest deviation, 2-norm bound); 0 without an interval extension."""
+        if self.ifn is None:
+            return 0.0
+        n, jz = self.n, self.cands[i][2]
+        Jl = self.lo[i, n:].reshape(n, n, order="F")
+        Jh = self.hi[i, n:].reshape(n, n, order="F")
+        dev = np.maximum(np.abs(Jh - jz), np.abs(jz - Jl))
+        if not np.all(np.isfinite(dev)):
+            return np.inf
+        return float(np.linalg.norm(dev, "fro"))
+
+
+def _classify(jz: np.ndarray, spread: float) -> tuple[np.ndarray, str]:
+    """The eigenvalues of ``J(z)`` and the kind of equilibrium: ``"degenerate"`` where a real part
+    is within the eigenvalues' uncertainty of 0 (Bauer-Fike: the eigenvector matrix's condition
+    number times the Jacobian's spread over the zero's box plus rounding), else by the signs."""
+    n = jz.shape[0]
+    if not np.all(np.isfinite(jz)):
+        return np.full(n, np.nan + 0j), "degenerate"
+    eig, vec = np.linalg.eig(jz)
+    with np.errstate(all="ignore"):
+        kappa = np.linalg.cond(vec)
+    tol = kappa * (spread + 1e-14 * np.linalg.norm(jz, 2))
+    re = eig.real
+    if not np.isfinite(tol) or np.any(np.abs(re) <= tol):
+        return eig, "degenerate"
+    if np.all(re < 0):
+        return eig, "stable"
+    if np.all(re > 0):
+        return eig, "unstable"
+    return eig, "saddle"
 
 
 def _target(target, model: Model | None = None) -> np.ndarray:

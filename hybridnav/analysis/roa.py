@@ -603,8 +603,10 @@ def _confirm(model, vfun, box: Box, target, level, n, rng, horizon, dfun=None
     if diverged.any():
         end[diverged] = _integrate(model, target, X0[diverged], (traj.shape[1] - 1) * model.dt)
         end_V[diverged] = evaluate_rows(vfun, end[diverged])[0].ravel()
-    # still not a number: the run's start is what the report can name
-    end = np.where(np.all(np.isfinite(end), axis=1)[:, None], end, X0)
+    # still not a number: the run's start is what the report can name, and V there what the
+    # level must stay below
+    lost = ~np.all(np.isfinite(end), axis=1)
+    end[lost], end_V[lost] = X0[lost], V[lost, 0]
     converged = end_V <= 1e-3 * ref
     lowest = int(np.argmin(np.where(converged, np.inf, np.nan_to_num(end_V, nan=-np.inf))))
     rise_V, rise_state, step_rises = np.empty(0), None, 0
