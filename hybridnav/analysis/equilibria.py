@@ -61,16 +61,19 @@ def find_equilibria(
     field's small values are not taken for zeros and a fast field's zeros are not refused. A zero
     is excluded by the field's enclosure, or by its centred form preconditioned with the inverse
     and the singular vectors of the Jacobian (no dependency blow-up, and two components that
-    vanish on parallel curves but never together are seen). For a field the interval flags do
-    not show continuous (``if_else``, ``sqrt`` at 0) a point nothing excludes also counts when
-    ``|f(z)| < 1e-9 max(1, span)``. Points whose boxes overlap are one equilibrium. Only
-    admissible states count (see :meth:`hybridnav.models.Model.state_constraints`).
+    vanish on parallel curves but never together are seen), row by row where only some rows are
+    smooth. For a field the interval flags do not show continuous (``if_else``, ``sqrt`` at 0) a
+    point nothing excludes counts when ``|f(z)|`` is within what the Jacobian's enclosure allows
+    at ``1e-12 (1 + |z|)`` from a zero (where that enclosure is unbounded, when
+    ``|f(z)| < 1e-9 max(1, span)``). Points within a millionth of the region's extent in every
+    state, or whose boxes overlap, are one equilibrium. Only admissible states count (see
+    :meth:`hybridnav.models.Model.state_constraints`).
 
     Each is classified by the eigenvalues of the exact Jacobian at ``z``: ``"degenerate"`` where
-    a real part is within their uncertainty of 0 (the eigenvector matrix's condition number times
-    how far the Jacobian can move over the zero's box, plus rounding; a non-finite Jacobian), else
-    ``"stable"`` (all real parts negative: a local minimum of ``V`` for a gradient flow),
-    ``"unstable"`` or ``"saddle"``.
+    a perturbation as large as the Jacobian's uncertainty (how far it can move over the zero's
+    box, plus rounding) can put an eigenvalue on the imaginary axis (the smallest singular value
+    of ``J - i w I`` over ``w``), or the Jacobian is not finite; else ``"stable"`` (all real parts
+    negative: a local minimum of ``V`` for a gradient flow), ``"unstable"`` or ``"saddle"``.
 
     Parameters
     ----------
@@ -158,20 +161,24 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
             continue
         cands.append((z, fz.ravel(), jz, vz))
     tests = _ZeroTests(s.x, f, cands, span)
+    widths = np.asarray(box.upper, dtype=float) - np.asarray(box.lower, dtype=float)
+    near = 1e-6 * np.where(widths > 0, widths, span)
     found: list[Equilibrium] = []
     radii: list[np.ndarray] = []
     for i, (z, fz, jz, vz) in enumerate(cands):
         if tests.excluded_fast(i):
             continue
         r = tests.radius[i]
-        # the same equilibrium again: within the larger of the old distance and the two boxes
-        if any(np.all(np.abs(z - e.state) <= np.maximum(1e-6 * span, r + re))
+        # the same equilibrium again: within a millionth of the region's extent in every state
+        # (each state's own: one long side must not merge points of a short one), or within
+        # the two zero boxes
+        if any(np.all(np.abs(z - e.state) <= np.maximum(near, r + re))
                for e, re in zip(found, radii)):
             continue
         if not tests.accepted(i):
             continue
         eig, kind = _classify(jz, tests.jacobian_spread(i))
-        is_target = bool(np.linalg.norm(z[:len(tgt)] - tgt) < 1e-6 * span)
+        is_target = bool(np.all(np.abs(z[:len(tgt)] - tgt) <= near[:len(tgt)]))
         found.append(Equilibrium(z, eig, kind, float(vz.item()), is_target))
         radii.append(r)
     found.sort(key=lambda e: (not e.is_target, e.V))
@@ -246,38 +253,52 @@ class _ZeroTests:
         exact = bool(np.all((fl <= 0) & (fh >= 0)))
         Jl = self.lo[i, n:].reshape(n, n, order="F")
         Jh = self.hi[i, n:].reshape(n, n, order="F")
-        usable = (bool(self.smooth[i, :n].all()) and np.all(np.isfinite(Jl))
-                  and np.all(np.isfinite(Jh)) and np.all(np.isfinite(fl))
-                  and np.all(np.isfinite(fh)) and np.all(np.isfinite(jz)))
-        if usable:
+        # rows of f smooth on the box, with a finite Jacobian row there and a finite f(z): the
+        # mean value theorem holds for them (and for combinations of them only)
+        ok_rows = (self.smooth[i, :n] & np.all(np.isfinite(Jl) & np.isfinite(Jh), axis=1)
+                   & np.isfinite(fl) & np.isfinite(fh))
+        Y = None
+        if ok_rows.any():
             fm, fr = (fl + fh) / 2, (fh - fl) / 2
-            Jm, Jr = (Jl + Jh) / 2, (Jh - Jl) / 2
-            pre = []
-            try:
-                Y = np.linalg.inv(jz)
-                if np.all(np.isfinite(Y)):
+            Jm = np.where(ok_rows[:, None], (Jl + Jh) / 2, 0.0)
+            Jr = np.where(ok_rows[:, None], (Jh - Jl) / 2, 0.0)
+            fm, fr = np.where(ok_rows, fm, 0.0), np.where(ok_rows, fr, 0.0)
+            pre = [np.eye(n)]
+            if np.all(np.isfinite(jz)):
+                try:
+                    Y = np.linalg.inv(jz)
                     pre.append(Y)
-            except np.linalg.LinAlgError:
-                Y = None
-            try:
+                except np.linalg.LinAlgError:
+                    Y = None
                 pre.append(np.linalg.svd(jz)[0].T)
-            except np.linalg.LinAlgError:
-                pass
             for P in pre:
+                # a row of P f is enclosed by the centred form where it combines smooth rows only
+                rows = np.all((P == 0) | ok_rows[None, :], axis=1) & np.all(np.isfinite(P), axis=1)
+                if not rows.any():
+                    continue
+                P = P[rows]
                 aP = np.abs(P)
                 center = P @ fm
                 # the products and sums rounded up: a relative 1e-12 of every term, and 1e-300
                 width = aP @ fr + (np.abs(P @ Jm) + aP @ Jr) @ r
-                width += 1e-12 * (aP @ np.abs(fm) + (np.abs(P) @ np.abs(Jm) + aP @ Jr) @ r)
+                width += 1e-12 * (aP @ np.abs(fm) + (aP @ np.abs(Jm) + aP @ Jr) @ r)
                 if np.any(np.abs(center) > width * (1 + 1e-12) + 1e-300):
                     return False                    # no zero in the box
-            if pre and Y is not None and pre[0] is Y:
+            if Y is not None and ok_rows.all() and np.all(np.isfinite(Y)):
                 aY = np.abs(Y)
                 reach = (np.abs(Y @ fm) + aY @ fr + (np.abs(np.eye(n) - Y @ Jm) + aY @ Jr) @ r)
                 if np.all(reach * (1 + 1e-12) + 1e-300 < r):
                     return True                     # Krawczyk: exactly one zero in the box
-        if bool(self.cont[i, :n].all()) or exact:
+        if exact or bool(self.cont[i, :n].all()):
             return True
+        # continuity not shown (an undecided if_else, sqrt at 0: the flags are conservative):
+        # a zero within 1e-12 (1 + |z|) of z, f Lipschitz with the Jacobian's enclosure on the
+        # box, would leave |f_i(z)| <= sum_j max|J_ij| 1e-12 (1 + |z_j|); where that enclosure
+        # is unbounded, the old residual test
+        L = np.maximum(np.abs(Jl), np.abs(Jh))
+        if np.all(np.isfinite(L)):
+            reach = L @ (1e-12 * (1.0 + np.abs(z)))
+            return bool(np.all(np.maximum(np.abs(fl), np.abs(fh)) <= reach * (1 + 1e-12)))
         return self._small(i)
 
     def jacobian_spread(self, i: int) -> float:
@@ -295,18 +316,37 @@ class _ZeroTests:
 
 
 def _classify(jz: np.ndarray, spread: float) -> tuple[np.ndarray, str]:
-    """The eigenvalues of ``J(z)`` and the kind of equilibrium: ``"degenerate"`` where a real part
-    is within the eigenvalues' uncertainty of 0 (Bauer-Fike: the eigenvector matrix's condition
-    number times the Jacobian's spread over the zero's box plus rounding), else by the signs."""
+    """The eigenvalues of ``J(z)`` and the kind of equilibrium: ``"degenerate"`` where a
+    perturbation of the Jacobian as large as its uncertainty (its spread over the zero's box,
+    plus rounding) can put an eigenvalue on the imaginary axis -- the smallest singular value of
+    ``J - i w I`` over ``w`` (the distance to the axis's pseudospectrum; right for Jordan blocks,
+    whose eigenvalues move like a root of the perturbation) is no larger -- else by the signs of
+    the real parts. A non-finite Jacobian is degenerate."""
+    from scipy.optimize import minimize_scalar
+
     n = jz.shape[0]
     if not np.all(np.isfinite(jz)):
         return np.full(n, np.nan + 0j), "degenerate"
-    eig, vec = np.linalg.eig(jz)
-    with np.errstate(all="ignore"):
-        kappa = np.linalg.cond(vec)
-    tol = kappa * (spread + 1e-14 * np.linalg.norm(jz, 2))
+    eig = np.linalg.eigvals(jz)
+    norm = float(np.linalg.norm(jz, 2))
+    delta = spread + 1e-13 * norm + 1e-300
+    eye = np.eye(n)
+
+    def smin(w: float) -> float:
+        return float(np.linalg.svd(jz - 1j * w * eye, compute_uv=False)[-1])
+
+    # the minimum over w lies near the imaginary parts of the eigenvalues nearest the axis:
+    # start there (and at 0), refine each locally
+    starts = sorted({0.0, *np.abs(eig.imag).tolist()})
+    dist = min(smin(w) for w in starts)
+    if dist > delta:
+        for w in starts:
+            step = max(abs(w), norm, 1e-300) * 0.5
+            res = minimize_scalar(smin, bounds=(max(0.0, w - step), w + step), method="bounded",
+                                  options={"xatol": 1e-12 * max(abs(w), norm, 1e-300)})
+            dist = min(dist, float(res.fun))
     re = eig.real
-    if not np.isfinite(tol) or np.any(np.abs(re) <= tol):
+    if not dist > delta:
         return eig, "degenerate"
     if np.all(re < 0):
         return eig, "stable"

@@ -191,6 +191,14 @@ def estimate_roa(
     bounded = "box" if c_box <= c_eq * (1 - rtol) else "equilibrium"
     cex = None if bounded == "box" else min(
         (e for e in eqs if not e.is_target), key=lambda e: _v_at(vfun, e.state)).state
+    if not top > 0:
+        # another equilibrium where V <= 0 (V is not positive definite there): every sublevel
+        # set {V <= c}, c > 0, holds it, so none is a region of attraction of the target
+        details["not_proved"] = (f"V = {float(c_eq):.6g} <= 0 at the equilibrium "
+                                 f"{np.asarray(cex).tolist()}, not the target: no level")
+        return RoaEstimate(level=0.0, status="counterexample", bounded_by="equilibrium",
+                           counterexample=cex, simulated=0, converged=0, monotone=0,
+                           details=details)
     first = check_lyapunov(model, V, level=top, certificate=False, **check)
     level, status = top, first.status
     if first.status == "counterexample":
