@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hybridnav.errors import HybridnavError
 from hybridnav.native import gridheap
 from hybridnav.planners.path import gridsearch
 from hybridnav.planners.path.gridsearch import HEURISTICS, astar, dijkstra
@@ -97,3 +98,20 @@ def test_the_kernel_refuses_nothing_it_was_given():
     # the compiled search's result object is the one the Python loop builds (a GridPath)
     p = astar(OccupancyGrid(np.zeros((3, 3), dtype=bool)), (0, 0), (2, 2))
     assert isinstance(p, gridsearch.GridPath) and p.cells.tolist() == [[0, 0], [1, 1], [2, 2]]
+
+
+@pytest.mark.parametrize("res", [1e-320, 1e307, float("inf")])
+def test_a_resolution_whose_keys_are_not_finite_is_refused_on_both_routes(monkeypatch, res):
+    grid = OccupancyGrid(np.zeros((2, 18), dtype=bool))
+    grid.resolution = res
+    msgs = []
+    for route in ("compiled", "loop"):
+        if route == "loop":
+            monkeypatch.setattr(gridheap, "_library", lambda: None)
+        for search in (lambda: astar(grid, (0, 0), (17, 1)), lambda: dijkstra(grid, (0, 0), (17, 1))):
+            with pytest.raises(HybridnavError) as err:
+                search()
+            msgs.append(str(err.value))
+    assert len(set(msgs)) == 1
+    assert msgs[0].startswith("resolution: expected a cell size between ")
+    assert "for a search on this 18 x 2 grid" in msgs[0] and msgs[0].endswith(f"got {res!r}")

@@ -5,8 +5,10 @@
  * cost costs[k]) is legal from u. A node is pushed with the key (f // q, -g, node), f = g + h,
  * `//` being Python's float floor division (reproduced below), and closed at its first pop; its
  * g and parent change only on a strict improvement, neighbours taken in bit order. Entries are
- * distinct (a node is pushed again only with a smaller g), so any correct priority queue pops
- * them in the order heapq does.
+ * distinct (a node is pushed again only with a smaller g) and their keys finite (the caller
+ * refuses resolutions whose path lengths or key quantum would overflow or underflow: a NaN key
+ * would leave the order partial), so any correct priority queue pops them in the order heapq
+ * does.
  */
 #include <math.h>
 #include <stdint.h>

@@ -52,6 +52,7 @@ import functools
 import heapq
 import logging
 import math
+import sys
 import threading
 import weakref
 from array import array
@@ -286,9 +287,10 @@ def _search(
 ) -> GridPath:
     masks, Wp = _cached_masks(grid, diagonal, corner_cutting)
     n = len(masks)
+    res = _resolution(grid, n)
     s = (start[1] + 1) * Wp + start[0] + 1
     t = (goal[1] + 1) * Wp + goal[0] + 1
-    hargs = (grid.height + 2, Wp, goal[0] + 1, goal[1] + 1, grid.resolution, heuristic, diagonal)
+    hargs = (grid.height + 2, Wp, goal[0] + 1, goal[1] + 1, res, heuristic, diagonal)
 
     # Heap keys use f quantized to q, so that float rounding does not hide exact ties (which the
     # larger-g rule then breaks). With octile, Manhattan or zero heuristics every f is an exact
@@ -296,16 +298,16 @@ def _search(
     # q: the quantization merges only values that are equal, and optimality is exact. (With the
     # Euclidean heuristic it could reorder f values closer than q, costing at most q per step.)
     # The max() keeps f / q below 2**52 on very large grids.
-    q = grid.resolution * max(1e-9, 1e-15 * n)
+    q = res * max(1e-9, 1e-15 * n)
     params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
     if method == "astar":
         params["heuristic"] = heuristic
-    offs, costs = _move_arrays(Wp, grid.resolution)
+    offs, costs = _move_arrays(Wp, res)
     done = gridheap.search(masks, s, t, offs, costs, q, _kernel_heuristic(*hargs))  # compiled
     if done is not None:
         flat, length, expanded = done
         return _grid_path(grid, start, goal, flat, length, expanded, Wp, method, params)
-    table = _move_table(Wp, grid.resolution)
+    table = _move_table(Wp, res)
     h = _heuristic_table(*hargs)
     INF = math.inf
     g = array("d", [INF]) * n
@@ -345,6 +347,22 @@ def _search(
     return _grid_path(grid, start, goal, flat, float(g[t]), expanded, Wp, method, params)
 
 
+def _resolution(grid: OccupancyGrid, n: int) -> float:
+    """The grid's resolution as a Python float, refused where the search's keys would not be
+    finite, ordered numbers: the quantum ``q`` of :func:`_search` must be a normal float and
+    every ``f = g + h <= 2 sqrt(2) n res`` finite (a float32 resolution is taken at its value)."""
+    res = float(grid.resolution)
+    q = res * max(1e-9, 1e-15 * n)
+    if not (math.isfinite(res) and q >= sys.float_info.min
+            and math.isfinite(2.0 * _SQRT2 * n * res)):
+        raise HybridnavError(
+            f"resolution: expected a cell size between {sys.float_info.min / max(1e-9, 1e-15 * n):.3g} "
+            f"and {sys.float_info.max / (2.0 * _SQRT2 * n):.3g} for a search on this "
+            f"{grid.width} x {grid.height} grid (path lengths and the search's keys must be finite "
+            f"normal floats), got {grid.resolution!r}")
+    return res
+
+
 def _grid_path(grid: OccupancyGrid, start, goal, flat: NDArray[np.int64] | None, length: float,
                expanded: int, Wp: int, method: str, params: dict) -> GridPath:
     """The :class:`GridPath` of a search's padded flat path (None: not found)."""
@@ -361,7 +379,7 @@ def _grid_path(grid: OccupancyGrid, start, goal, flat: NDArray[np.int64] | None,
 def _move_arrays(Wp: int, res: float) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The 8 moves' flat offsets and costs (bit ``k`` of a mask), as :func:`_move_table` has them."""
     offs = np.array([dc + dr * Wp for dc, dr in _MOVES], dtype=np.int64)
-    costs = np.array([res * (_SQRT2 if dc and dr else 1.0) for dc, dr in _MOVES])
+    costs = np.array([res * (_SQRT2 if dc and dr else 1.0) for dc, dr in _MOVES], dtype=np.float64)
     offs.flags.writeable = costs.flags.writeable = False
     return offs, costs
 
@@ -451,16 +469,16 @@ def _cached_graph(grid: OccupancyGrid, diagonal: bool, corner_cutting: bool) -> 
     and reassignment; the resolution (the edge lengths) is part of the key.
     """
     occ = np.ascontiguousarray(grid.occ, dtype=bool)
-    key = (occ.shape, diagonal, corner_cutting, grid.resolution)
+    key = (occ.shape, diagonal, corner_cutting, float(grid.resolution))
     raw = occ.tobytes()
     try:
         entry = _GRAPH_CACHE.setdefault(grid, {})
     except TypeError:  # not weak-referenceable (a subclass with __slots__): no cache
-        return _Graph(*_move_masks(occ, diagonal, corner_cutting), grid.resolution)
+        return _Graph(*_move_masks(occ, diagonal, corner_cutting), float(grid.resolution))
     hit = entry.get(key)
     if hit is not None and hit[0] == raw:
         return hit[1]
-    out = _Graph(*_move_masks(occ, diagonal, corner_cutting), grid.resolution)
+    out = _Graph(*_move_masks(occ, diagonal, corner_cutting), float(grid.resolution))
     if len(entry) >= 4:
         entry.clear()
     entry[key] = (raw, out)
@@ -543,7 +561,8 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
     if gridheap.available():
         return _search(grid, start, goal, diagonal, corner_cutting, "zero", "dijkstra")
     G = _cached_graph(grid, diagonal, corner_cutting)
-    res, Wp, n = grid.resolution, G.Wp, G.n
+    Wp, n = G.Wp, G.n
+    res = _resolution(grid, n)
     sc, sr, tc, tr = start[0] + 1, start[1] + 1, goal[0] + 1, goal[1] + 1  # padded
     s, t = sr * Wp + sc, tr * Wp + tc
     params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
