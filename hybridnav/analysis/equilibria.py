@@ -56,7 +56,8 @@ def find_equilibria(
     settle in stable equilibria, however small their basin).
 
     A Newton end point ``z`` counts when interval arithmetic (outward rounded) on the box
-    ``z +- 1e-9 (1 + |z|)`` proves a zero there (the Krawczyk test), or cannot exclude one and
+    ``z +- 1e-9 x`` (the region's extent in each state; at least 64 ulps of ``z``) proves a zero
+    there (the Krawczyk test), or cannot exclude one and
     the field is continuous there -- tests in the state's units, not the field's, so a slow
     field's small values are not taken for zeros and a fast field's zeros are not refused. A zero
     is excluded by the field's enclosure, or by its centred form preconditioned with the inverse
@@ -64,8 +65,8 @@ def find_equilibria(
     vanish on parallel curves but never together are seen), row by row where only some rows are
     smooth. For a field the interval flags do not show continuous (``if_else``, ``sqrt`` at 0) a
     point nothing excludes counts when ``|f(z)|`` is within what the Jacobian's enclosure allows
-    at ``1e-12 (1 + |z|)`` from a zero (where that enclosure is unbounded, when
-    ``|f(z)| < 1e-9 max(1, span)``). Points within a millionth of the region's extent in every
+    at ``1e-12 (1 + |z|)`` from a zero and ``|f(z)| < 1e-9 max(1, span)`` (the second alone where
+    that enclosure is unbounded). Points within a millionth of the region's extent in every
     state, or whose boxes overlap, are one equilibrium. Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
 
@@ -160,9 +161,10 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
         if not box.contains(z) or not model.admissible(z[None])[0]:
             continue
         cands.append((z, fz.ravel(), jz, vz))
-    tests = _ZeroTests(s.x, f, cands, span)
     widths = np.asarray(box.upper, dtype=float) - np.asarray(box.lower, dtype=float)
-    near = 1e-6 * np.where(widths > 0, widths, span)
+    extent = np.where(widths > 0, widths, span)
+    near = 1e-6 * extent
+    tests = _ZeroTests(s.x, f, cands, span, extent)
     found: list[Equilibrium] = []
     radii: list[np.ndarray] = []
     for i, (z, fz, jz, vz) in enumerate(cands):
@@ -185,14 +187,15 @@ def _find_equilibria(model: Model, tgt: np.ndarray, box: Box, seed: int, starts:
     return found
 
 
-#: half-width of the box around a Newton end point that is tested for a zero, relative to
-#: ``1 + |z|`` (Newton ends within ~1e-15 of a simple zero)
+#: half-width of the box around a Newton end point that is tested for a zero, relative to the
+#: region's extent in each state (and at least 64 ulps of the point)
 ZERO_BOX = 1e-9
 
 
 class _ZeroTests:
     """Whether each Newton end point ``z`` is an equilibrium, tested on ``X = z +- r``,
-    ``r = ZERO_BOX (1 + |z|)``, with outward-rounded interval arithmetic.
+    ``r = ZERO_BOX x`` the region's extent per state (at least 64 ulps of ``z``), with
+    outward-rounded interval arithmetic.
 
     Refused when a zero in ``X`` is excluded: by the enclosure of ``f`` on ``X``, or, where ``f``
     is smooth on ``X``, by the centred form ``P f(z) + P J(X) (X - z)``, which holds ``P f(x)``
@@ -203,18 +206,22 @@ class _ZeroTests:
     a zero in ``X``; otherwise (a degenerate or non-smooth zero) when nothing excludes one and
     ``f`` is continuous on ``X``, or ``f(z)`` is 0 to rounding, or -- where the field is not
     continuous on ``X`` by the interval flags (an ``if_else``, ``sqrt`` at 0: the flags are
-    conservative) -- ``|f(z)| < 1e-9 max(1, span)``.
+    conservative) -- ``|f(z)|`` within what the Jacobian's enclosure allows at ``1e-12 (1 + |z|)``
+    from a zero (necessary only) and ``|f(z)| < 1e-9 max(1, span)``.
     Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
     be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)|`` that small.
     """
 
-    def __init__(self, x: cs.SX, f: cs.SX, cands: list, span: float) -> None:
+    def __init__(self, x: cs.SX, f: cs.SX, cands: list, span: float,
+                 extent: np.ndarray) -> None:
         from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
 
         self.cands, self.span = cands, span
         self.n = n = int(x.numel())
         Z = np.array([c[0] for c in cands], dtype=float).reshape(len(cands), n)
-        self.radius = ZERO_BOX * (1.0 + np.abs(Z))
+        # a billionth of the region's extent per state (not of |z|: two zeros 0.15 apart at
+        # 1e8 have boxes of their own), and never below 64 ulps of z (where Newton ends)
+        self.radius = np.maximum(ZERO_BOX * extent[None, :], 64.0 * np.spacing(np.abs(Z)))
         self.ifn = None
         if not len(cands):
             return
@@ -295,18 +302,20 @@ class _ZeroTests:
         # a zero within 1e-12 (1 + |z|) of z, f Lipschitz with the Jacobian's enclosure on the
         # box, would leave |f_i(z)| <= sum_j max|J_ij| 1e-12 (1 + |z_j|); where that enclosure
         # is unbounded, the old residual test
+        # (necessary, not sufficient: the old residual test must hold as well)
         L = np.maximum(np.abs(Jl), np.abs(Jh))
         if np.all(np.isfinite(L)):
             reach = L @ (1e-12 * (1.0 + np.abs(z)))
-            return bool(np.all(np.maximum(np.abs(fl), np.abs(fh)) <= reach * (1 + 1e-12)))
+            if not np.all(np.maximum(np.abs(fl), np.abs(fh)) <= reach * (1 + 1e-12)):
+                return False
         return self._small(i)
 
     def jacobian_spread(self, i: int) -> float:
         """How far the Jacobian can be from ``J(z)`` at a zero in the box (its enclosure's
         largest deviation, 2-norm bound); 0 without an interval extension."""
-        if self.ifn is None:
-            return 0.0
         n, jz = self.n, self.cands[i][2]
+        if self.ifn is None:          # only J(z)'s evaluation: its rounding, generously
+            return 1e-12 * float(np.linalg.norm(jz, 2)) if np.all(np.isfinite(jz)) else np.inf
         Jl = self.lo[i, n:].reshape(n, n, order="F")
         Jh = self.hi[i, n:].reshape(n, n, order="F")
         dev = np.maximum(np.abs(Jh - jz), np.abs(jz - Jl))
@@ -329,7 +338,8 @@ def _classify(jz: np.ndarray, spread: float) -> tuple[np.ndarray, str]:
         return np.full(n, np.nan + 0j), "degenerate"
     eig = np.linalg.eigvals(jz)
     norm = float(np.linalg.norm(jz, 2))
-    delta = spread + 1e-13 * norm + 1e-300
+    # the spread encloses J(z)'s evaluation error; the SVD adds a few eps |J| of its own
+    delta = spread + 4 * n * np.finfo(float).eps * norm + 1e-300
     eye = np.eye(n)
 
     def smin(w: float) -> float:
