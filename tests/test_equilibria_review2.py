@@ -18,27 +18,15 @@ fast-rotating equilibria degenerate, and misses the 1-D -x^3 and a nilpotent Jac
 
 from __future__ import annotations
 
-import warnings
-
 import casadi as cs
 import numpy as np
 import pytest
 
-from hybridnav.analysis import estimate_roa, find_equilibria
-
-_X = cs.SX.sym("x", 2)
-_R = {"x_0": (-2, 2), "x_1": (-2, 2)}
-
-
-def _eqs(f, region=_R, x=_X, equilibrium=(0, 0)):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return find_equilibria((x, f), equilibrium=list(equilibrium), region=region)
-
-
-def _states(eqs):
-    return [np.asarray(e.state, dtype=float).tolist() for e in eqs]
-
+from equilibria_cases import R as _R
+from equilibria_cases import X as _X
+from equilibria_cases import eqs as _eqs
+from equilibria_cases import roa as _roa
+from equilibria_cases import states as _states
 
 # ---------------------------------------------------------------- over-claims (no zero exists)
 
@@ -65,9 +53,7 @@ def test_estimate_roa_is_not_bounded_by_a_non_equilibrium():
     # (0.9999981, 0) where f = (-1.0e-9, 0) and Vdot = -2.0e-9.
     X, Y = _X[0], _X[1]
     f = cs.vertcat(-(X ** 3 - 2 * X ** 2 + (1 + 1e-9) * X), -Y)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = estimate_roa((_X, f), X ** 2 + Y ** 2, equilibrium=[0, 0], region=_R)
+    r = _roa((_X, f), X ** 2 + Y ** 2, equilibrium=[0, 0], region=_R)
     assert r.bounded_by != "equilibrium", (r.level, r.counterexample)
 
 

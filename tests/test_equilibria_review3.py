@@ -19,27 +19,15 @@ Each test states the exact fact it checks (closed-form zeros, sympy eigenvalues)
 
 from __future__ import annotations
 
-import warnings
-
 import casadi as cs
 import numpy as np
 import pytest
 
-from hybridnav.analysis import estimate_roa, find_equilibria
-
-_X = cs.SX.sym("x", 2)
-_R = {"x_0": (-2, 2), "x_1": (-2, 2)}
-
-
-def _eqs(f, region=_R, x=_X, equilibrium=(0, 0), **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return find_equilibria((x, f), equilibrium=list(equilibrium), region=region, **kw)
-
-
-def _states(eqs):
-    return [np.asarray(e.state, dtype=float).tolist() for e in eqs]
-
+from equilibria_cases import R as _R
+from equilibria_cases import X as _X
+from equilibria_cases import eqs as _eqs
+from equilibria_cases import roa as _roa
+from equilibria_cases import states as _states
 
 # ---------------------------------------------------------------- classification: Jordan blocks
 
@@ -97,9 +85,7 @@ def test_estimate_roa_is_not_bounded_by_a_non_equilibrium_behind_a_kink():
     # where f1 = -1.0e-9
     X, Y = _X[0], _X[1]
     f = cs.vertcat(-(X ** 3 - 2 * X ** 2 + (1 + 1e-9) * X), -Y - 0.5 * cs.fabs(Y))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = estimate_roa((_X, f), X ** 2 + Y ** 2, equilibrium=[0, 0], region=_R)
+    r = _roa((_X, f), X ** 2 + Y ** 2, equilibrium=[0, 0], region=_R)
     assert r.bounded_by != "equilibrium", (r.level, r.counterexample)
 
 
@@ -141,7 +127,5 @@ def test_estimate_roa_does_not_cover_another_stable_equilibrium():
     # the stable equilibrium (0.02, 0), V = 0, which never reaches the origin). 838205f:
     # level 8081.95, status "no_counterexample", bounded_by "box"
     V, f = _double_well()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = estimate_roa((_X, f), V, equilibrium=[0, 0], region=_LONG)
+    r = _roa((_X, f), V, equilibrium=[0, 0], region=_LONG)
     assert r.level < 1.25e-5, (r.level, r.status, r.bounded_by)

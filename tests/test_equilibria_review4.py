@@ -15,27 +15,13 @@ pseudospectral classification). Each test states the exact fact it checks; all f
 
 from __future__ import annotations
 
-import warnings
-
 import casadi as cs
-import numpy as np
 import pytest
 
-from hybridnav.analysis import estimate_roa, find_equilibria
-
-_X = cs.SX.sym("x", 2)
-_R = {"x_0": (-2, 2), "x_1": (-2, 2)}
-
-
-def _eqs(f, region=_R, x=_X, equilibrium=(0, 0), **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return find_equilibria((x, f), equilibrium=list(equilibrium), region=region, **kw)
-
-
-def _states(eqs):
-    return [np.asarray(e.state, dtype=float).tolist() for e in eqs]
-
+from equilibria_cases import X as _X
+from equilibria_cases import eqs as _eqs
+from equilibria_cases import roa as _roa
+from equilibria_cases import states as _states
 
 # ---------------------------------------------------------------- zero box at large |z|
 
@@ -64,9 +50,7 @@ def test_estimate_roa_far_from_the_origin_is_not_zero():
     # 88a2b8e returns level 0 ("counterexample"), having lost the saddle and called the target
     # degenerate
     X, Y = _X[0], _X[1]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = estimate_roa((_X, _far_field()), (X - _B) ** 2 + Y ** 2, equilibrium=[_B, 0],
+    r = _roa((_X, _far_field()), (X - _B) ** 2 + Y ** 2, equilibrium=[_B, 0],
                          region=_FAR)
     assert 0.02 < r.level < 0.0225, (r.level, r.status, r.bounded_by)
 
