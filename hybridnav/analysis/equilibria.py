@@ -258,8 +258,7 @@ class _ZeroTests:
             return False
         fl, fh = self.plo[i, :n], self.phi[i, :n]
         exact = bool(np.all((fl <= 0) & (fh >= 0)))
-        Jl = self.lo[i, n:].reshape(n, n, order="F")
-        Jh = self.hi[i, n:].reshape(n, n, order="F")
+        Jl, Jh = self._jacobian_box(i)
         # rows of f smooth on the box, with a finite Jacobian row there and a finite f(z): the
         # mean value theorem holds for them (and for combinations of them only)
         ok_rows = (self.smooth[i, :n] & np.all(np.isfinite(Jl) & np.isfinite(Jh), axis=1)
@@ -291,18 +290,15 @@ class _ZeroTests:
                 width += 1e-12 * (aP @ np.abs(fm) + (aP @ np.abs(Jm) + aP @ Jr) @ r)
                 if np.any(np.abs(center) > width * (1 + 1e-12) + 1e-300):
                     return False                    # no zero in the box
-            if Y is not None and ok_rows.all() and np.all(np.isfinite(Y)):
-                aY = np.abs(Y)
-                reach = (np.abs(Y @ fm) + aY @ fr + (np.abs(np.eye(n) - Y @ Jm) + aY @ Jr) @ r)
-                if np.all(reach * (1 + 1e-12) + 1e-300 < r):
-                    return True                     # Krawczyk: exactly one zero in the box
+            if Y is not None and ok_rows.all() and np.all(np.isfinite(Y)) and _krawczyk(
+                    Y, fm, fr, Jm, Jr, r):
+                return True                         # exactly one zero in the box
         if exact or bool(self.cont[i, :n].all()):
             return True
         # continuity not shown (an undecided if_else, sqrt at 0: the flags are conservative):
         # a zero within 1e-12 (1 + |z|) of z, f Lipschitz with the Jacobian's enclosure on the
-        # box, would leave |f_i(z)| <= sum_j max|J_ij| 1e-12 (1 + |z_j|); where that enclosure
-        # is unbounded, the old residual test
-        # (necessary, not sufficient: the old residual test must hold as well)
+        # box, would leave |f_i(z)| <= sum_j max|J_ij| 1e-12 (1 + |z_j|) -- necessary only, so
+        # the old residual test must hold as well (it alone where that enclosure is unbounded)
         L = np.maximum(np.abs(Jl), np.abs(Jh))
         if np.all(np.isfinite(L)):
             reach = L @ (1e-12 * (1.0 + np.abs(z)))
@@ -310,14 +306,20 @@ class _ZeroTests:
                 return False
         return self._small(i)
 
+    def _jacobian_box(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """The enclosure of the Jacobian on box ``i``: its lower and upper bound matrices."""
+        n = self.n
+        return (self.lo[i, n:].reshape(n, n, order="F"),
+                self.hi[i, n:].reshape(n, n, order="F"))
+
     def jacobian_spread(self, i: int) -> float:
         """How far the Jacobian can be from ``J(z)`` at a zero in the box (its enclosure's
-        largest deviation, 2-norm bound); 0 without an interval extension."""
+        largest deviation, 2-norm bound); without an interval extension, ``1e-12 |J(z)|`` for
+        its evaluation's rounding."""
         n, jz = self.n, self.cands[i][2]
         if self.ifn is None:          # only J(z)'s evaluation: its rounding, generously
             return 1e-12 * float(np.linalg.norm(jz, 2)) if np.all(np.isfinite(jz)) else np.inf
-        Jl = self.lo[i, n:].reshape(n, n, order="F")
-        Jh = self.hi[i, n:].reshape(n, n, order="F")
+        Jl, Jh = self._jacobian_box(i)
         dev = np.maximum(np.abs(Jh - jz), np.abs(jz - Jl))
         if not np.all(np.isfinite(dev)):
             return np.inf
@@ -355,6 +357,8 @@ def _classify(jz: np.ndarray, spread: float) -> tuple[np.ndarray, str]:
             res = minimize_scalar(smin, bounds=(max(0.0, w - step), w + step), method="bounded",
                                   options={"xatol": 1e-12 * max(abs(w), norm, 1e-300)})
             dist = min(dist, float(res.fun))
+            if not dist > delta:
+                break
     re = eig.real
     if not dist > delta:
         return eig, "degenerate"
@@ -447,7 +451,6 @@ def verify_zero(x, f, c, radii=(1e-10, 1e-8, 1e-6, 1e-4)) -> dict[str, Any] | No
     if not np.all(np.isfinite(Y)):
         return None
     fm, fr = (pl[0, :n] + ph[0, :n]) / 2, (ph[0, :n] - pl[0, :n]) / 2
-    aY = np.abs(Y)
     for rel in radii:
         r = rel * (1.0 + np.abs(c))
         ol, oh, sm = F((c - r)[None], (c + r)[None])
@@ -457,11 +460,15 @@ def verify_zero(x, f, c, radii=(1e-10, 1e-8, 1e-6, 1e-4)) -> dict[str, Any] | No
             continue
         Jl = ol[0, n:].reshape(n, n, order="F")
         Jh = oh[0, n:].reshape(n, n, order="F")
-        Jm, Jr = (Jl + Jh) / 2, (Jh - Jl) / 2
-        M = np.eye(n) - Y @ Jm
-        R = aY @ Jr
-        reach = np.abs(Y @ fm) + aY @ fr + (np.abs(M) + R) @ r
-        reach = reach * (1 + 1e-12) + 1e-300      # the float sums and products rounded up
-        if np.all(reach < r):
+        if _krawczyk(Y, fm, fr, (Jl + Jh) / 2, (Jh - Jl) / 2, r):
             return {"center": c.tolist(), "radius": r.tolist()}
     return None
+
+
+def _krawczyk(Y, fm, fr, Jm, Jr, r) -> bool:
+    """Whether ``K(X) = c - Y f(c) + (I - Y J(X)) (X - c)`` lies inside ``X = c +- r``: exactly
+    one zero of ``f`` in ``X`` (Krawczyk 1969, Moore 1977). ``f(c)`` is ``fm +- fr`` and
+    ``J(X)`` is ``Jm +- Jr``, enclosures; the float sums and products are rounded up."""
+    aY = np.abs(Y)
+    reach = np.abs(Y @ fm) + aY @ fr + (np.abs(np.eye(len(r)) - Y @ Jm) + aY @ Jr) @ r
+    return bool(np.all(reach * (1 + 1e-12) + 1e-300 < r))
