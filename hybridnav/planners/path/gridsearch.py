@@ -413,8 +413,7 @@ class _Graph:
         n = self.n
         m = np.frombuffer(masks, dtype=np.uint8)
         legal = (m[:, None] >> np.arange(8, dtype=np.uint8)) & 1 == 1  # (n, 8), row-major CSR order
-        offs = np.array([dc + dr * Wp for dc, dr in _MOVES], dtype=np.int32)
-        cost = np.array([res * (_SQRT2 if dc and dr else 1.0) for dc, dr in _MOVES])
+        offs, cost = _move_arrays(Wp, res)
         rows, ks = np.nonzero(legal)
         E = rows.size
         self.E = E
@@ -567,12 +566,11 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
     s, t = sr * Wp + sc, tr * Wp + tc
     params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
     if s == t:
-        cells = np.array([start], dtype=int)
-        return GridPath(True, cells, grid.to_world(cells), 0.0, 1, start, goal, "dijkstra", params)
+        return _grid_path(grid, start, goal, np.array([s], dtype=np.int64), 0.0, 1, Wp,
+                          "dijkstra", params)
     if G.label[s] != G.label[t]:  # the heap search closes all of the start's component, in vain
-        empty = np.zeros((0, 2), dtype=int)
-        return GridPath(False, empty, np.zeros((0, 2)), math.inf, G.sizes[G.label[s]], start, goal,
-                        "dijkstra", params)
+        return _grid_path(grid, start, goal, None, math.inf, G.sizes[G.label[s]], Wp, "dijkstra",
+                          params)
 
     q = res * max(1e-9, 1e-15 * n)  # _search's quantum
     dx, dy = abs(sc - tc), abs(sr - tr)
@@ -645,10 +643,8 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
         v = u
         idx.append(v)
     idx.reverse()
-    cells = np.empty((len(idx), 2), dtype=int)
-    np.divmod(np.array(idx), Wp, out=(cells[:, 1], cells[:, 0]))
-    cells -= 1
-    return GridPath(True, cells, grid.to_world(cells), gt, expanded, start, goal, "dijkstra", params)
+    return _grid_path(grid, start, goal, np.array(idx, dtype=np.int64), gt, expanded, Wp,
+                      "dijkstra", params)
 
 
 def _prepare(grid: Any, start: Any, goal: Any, diagonal: Any, corner_cutting: Any):
