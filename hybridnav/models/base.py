@@ -258,18 +258,30 @@ class Model(ABC):
         if "one" not in cache:              # (None, for a model without rates, is kept too)
             s = self.sym
             rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
-            cache["one"] = (None if rates is None
-                            else cs.Function("rates", [s.x, s.target, s.p], [rates]))
+            # the parameter values folded in, as the step's function (_step_single) has them
+            cache["one"] = (None if rates is None else cs.Function(
+                "rates", [s.x, s.target], [cs.substitute(rates, s.p, cs.DM(self.p_value()))]))
         fn = cache["one"]
         if fn is None:
             return None
         n = len(X)
         if n == 0:
             return np.zeros((0, 2))
-        batch = cache.get(n)
-        if batch is None:
-            batch = cache[n] = fn.map(n)
-        return np.asarray(batch(X.T, targets.T, self.p_value())).reshape(2, n).T
+        # bound to NumPy buffers (per thread: a buffer is not re-entrant): a CasADi call with
+        # its argument conversions costs some 300 us, more than the planners' whole cycle
+        buffers = getattr(self._local, "rates", None)
+        if buffers is None:
+            buffers = self._local.rates = {}
+        b = buffers.get(n)
+        if b is None:
+            if len(buffers) > 16:
+                buffers.pop(next(iter(buffers)))
+            b = buffers[n] = _Buffered(fn.map(n), [(n, self.nx), (n, self.target_size)],
+                                       [(n, 2)])
+        b.ins[0][...] = X
+        b.ins[1][...] = targets
+        b()
+        return b.outs[0].copy()
 
     def _validate_params(self) -> None:
         """Check what one declaration cannot say, e.g. relations between values (subclasses
