@@ -91,10 +91,8 @@ def _recordable(X: np.ndarray) -> np.ndarray:
     """Rows of states ``X`` a result can hold (:func:`hybridnav.results.read_result` reads them
     back): finite, ``x`` and ``y`` within ``MAX_POSITION``, every component within
     ``MAX_MAGNITUDE``."""
-    X = np.asarray(X, dtype=float)
-    with np.errstate(invalid="ignore"):
-        return (np.all(np.abs(X) <= MAX_MAGNITUDE, axis=1)
-                & np.all(np.abs(X[:, :2]) <= MAX_POSITION, axis=1))
+    A = np.abs(np.asarray(X, dtype=float))        # (NaN compares False, without a warning)
+    return np.all(A <= MAX_MAGNITUDE, axis=1) & np.all(A[:, :2] <= MAX_POSITION, axis=1)
 
 
 def model_groups(models) -> list[tuple[Any, np.ndarray]]:
@@ -167,6 +165,10 @@ def simulate(
     window = int(round(stuck_window / dt)) if stuck_window > 0 else 0
     hist_t = [[0.0] for _ in range(n)]
     hist_x = [[x.copy()] for x in X]
+    # the positions of hist_x as one array per robot (the no-progress test reads its last
+    # window + 1 rows: a view, no list of arrays made into one every cycle)
+    hist_p = np.empty((n, (steps + 1) if window else 1, 2))
+    hist_p[:, 0] = [x[:2] for x in X]
     min_clear = np.full(n, np.inf)
     min_robot = np.full(n, np.inf)
     compute = np.zeros(n)
@@ -204,6 +206,8 @@ def simulate(
         for i in np.flatnonzero(moved):
             hist_t[i].append(sim.t)
             hist_x[i].append(sim.X[i].copy())
+            if window:
+                hist_p[i, len(hist_x[i]) - 1] = sim.X[i][:2]
         # outcomes at the new time
         hit, outside = _update_clearance(sim, world, sim.t, min_clear, moved, min_robot)
         goals = sim.goals()
@@ -217,7 +221,8 @@ def simulate(
                 sim.stop(i, "reached")
                 sim.time_to_goal[i] = sim.t
             elif window and len(hist_x[i]) > window:
-                recent = np.array([x[:2] for x in hist_x[i][-window - 1:]])
+                m = len(hist_x[i])
+                recent = hist_p[i, m - window - 1:m]
                 span = np.max(np.hypot(*(recent - recent.mean(axis=0)).T))
                 if span < stuck_radius[i]:
                     sim.stop(i, "stuck")
