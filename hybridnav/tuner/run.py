@@ -372,23 +372,34 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         if falsified is not None:
             files += falsified["files"]
         files += later
-        say("path figure: start, tuned and apf on the paper's and some test worlds")
-        files += _paths(job, result, out, backend, save)
-        files += write_generations(job, result, out)
     effc = nav and job["cost"]["planner"] == "effc"
     say("exports (FLL, FIS, FCL, C)")
-    files += _exports(result.system, out, C_BASENAME if effc else "fis")
+    exported = _exports(result.system, out, C_BASENAME if effc else "fis")
     if nav:                                   # the settings (and filter) it was judged with
         from hybridnav.planners.field.deploy import write_deployment
 
         first = job.scenarios("train")[0]
-        files += write_deployment(out, C_BASENAME if effc else "fis", job["cost"]["planner"],
-                                  dict(job["planner"]), dt=first.dt,
-                                  radius=float(first.robots[0].radius))
-    sil = []
-    if effc and f"{C_BASENAME}.c" in files:
-        say("software-in-the-loop check: the exported C compiled and run against evaluate")
-        sil = _sil_lines(job, result.system, out)
+        exported += write_deployment(out, C_BASENAME if effc else "fis", job["cost"]["planner"],
+                                     dict(job["planner"]), dt=first.dt,
+                                     radius=float(first.robots[0].radius))
+    sil: list[str] = []
+    check = None
+    if effc and f"{C_BASENAME}.c" in exported:
+        check = (result.system, out / f"{C_BASENAME}.c",
+                 job.scenarios("train")[:1] + job.scenarios("test")[:2], dict(job["planner"]))
+    # the software-in-the-loop check runs in a process of its own while this one draws the path
+    # figure, where the job may use more than one process (local workers: the same files)
+    with _SideProcess(check is not None and _local_workers(backend)) as side:
+        pending = side.submit(_sil_lines, *check) if check is not None else None
+        if nav:
+            say("path figure: start, tuned and apf on the paper's and some test worlds")
+            files += _paths(job, result, out, backend, save)
+            files += write_generations(job, result, out)
+        files += exported
+        if check is not None:
+            say("software-in-the-loop check: the exported C compiled and run against evaluate"
+                + (" (run meanwhile)" if side.used else ""))
+            sil = side.result(pending, _sil_lines, *check)
     # and what the optimizer keeps there (checkpoint.json, evaluations.jsonl, the folders of a
     # robust or two-stage run): the list is every file the job leaves
     files += [f for f in output_files(out) if f not in files and f != "report.md"]
@@ -723,24 +734,66 @@ def _fmt(v: float, spec: str = ".3f") -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
 
 
-def _sil_lines(job: Job, system, out: Path) -> list[str]:
-    """The report's software-in-the-loop check of the C export: the compiled C controller against
-    the Python evaluator in closed loop on the first training and (up to) two test worlds."""
+def _local_workers(backend: Backend) -> bool:
+    """Whether ``backend`` runs local worker processes (so the job may use more than this
+    process, and every process sees the output folder)."""
+    from hybridnav.backends import ProcessBackend, _Kept
+
+    return isinstance(backend, (ProcessBackend, _Kept))
+
+
+class _SideProcess:
+    """One process of its own for a task that runs while this process does something else
+    (``used``: when asked for; otherwise :meth:`result` runs the task here). A process that
+    dies runs the task here again; leaving the block (an error, Ctrl-C) does not wait for it."""
+
+    def __init__(self, used: bool) -> None:
+        self.used = used
+        self._pool = None
+
+    def __enter__(self) -> _SideProcess:
+        if self.used:
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(1)
+        return self
+
+    def submit(self, fn: Callable, *args):
+        return self._pool.submit(fn, *args) if self._pool is not None else None
+
+    def result(self, future, fn: Callable, *args):
+        from concurrent.futures.process import BrokenProcessPool
+
+        if future is not None:
+            try:
+                return future.result()
+            except BrokenProcessPool:
+                log.warning("the process of %s died; running it here", fn.__name__)
+        return fn(*args)
+
+    def __exit__(self, *exc) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=exc[0] is None, cancel_futures=True)
+
+
+def _sil_lines(system, c_file: Path, worlds: list, planner: dict[str, Any]) -> list[str]:
+    """The report's software-in-the-loop check of the C export ``c_file``: the compiled C
+    controller against the Python evaluator in closed loop on ``worlds`` (the first training
+    and up to two test worlds) with the job's ``planner`` settings."""
     from hybridnav.fuzzy.export.closedloop import verify
     from hybridnav.fuzzy.export.sil import CompiledFIS
 
     head = ["", "## Software in the loop: the exported C controller", ""]
     try:
-        compiled = CompiledFIS(out / f"{C_BASENAME}.c")
+        compiled = CompiledFIS(c_file)
     except HybridnavError as exc:
         return head + [f"Not checked: {exc}"]
-    worlds = job.scenarios("train")[:1] + job.scenarios("test")[:2]
-    rows = verify(system, compiled, worlds, **job["planner"])
+    rows = verify(system, compiled, worlds, **planner)
     exact = max(r["same_inputs_w_diff"] for r in rows)
     worst = max(max(r["max_state_diff"], r["max_w_diff"]) for r in rows)
     same = all(r["same_outcome"] for r in rows)
     parted = [r["scenario"] for r in rows if not r["max_state_diff"] <= 1e-9]
-    margin = job["planner"].get("safety_margin", 0.0)
+    margin = planner.get("safety_margin", 0.0)
     lines = head + [
         f"`{C_BASENAME}.c`, compiled with the system C compiler and run in a child process, "
         f"gives the Python evaluator's w on the same inputs to {exact:.1e} "
