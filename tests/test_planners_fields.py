@@ -410,3 +410,33 @@ def test_apf_reaches_on_a_centimetre_scenario_and_set_values_are_kept():
     planner = planners.get("apf")
     assert planner.run(load_scenario("effc-env-b")).params["speed"] == 0.1
     assert planner.run(s).params["speed"] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("window_s, wander", [(0.5, 300), (1.0, 57), (2.0, 41), (0.3, 0)])
+def test_simulate_stuck_test_reads_the_last_window_of_the_path(window_s, wander):
+    """A robot that wanders for ``wander`` cycles (round a circle), then trembles
+    in place, stops as "stuck" at the first cycle whose last ``window + 1`` positions fit in the
+    stuck radius about their mean -- computed here from the recorded path itself, over histories
+    many windows long (the loop keeps them in a buffer it shifts)."""
+    s = small_scenario(goal=(3.5, 1.5), max_time=100.0)
+    rng = np.random.default_rng(int(window_s * 10) + wander)
+
+    def wobble(sim):
+        P = sim.positions
+        if sim.k < wander:
+            return P + 2.0 * np.array([[np.cos(sim.k / 10), np.sin(sim.k / 10)]])
+        return P + rng.normal(scale=1e-3, size=P.shape)
+
+    radius = 0.02
+    (r,), _ = simulate(s, [s.model(s.robots[0])], wobble, stuck_window=window_s,
+                       stuck_radius=radius)
+    window = int(round(window_s / s.dt))
+    P = r.states[:, :2]
+    first = None
+    for j in range(window, len(P)):
+        recent = P[j - window:j + 1]
+        if np.max(np.hypot(*(recent - recent.mean(axis=0)).T)) < radius:
+            first = j
+            break
+    assert first is not None and first > 2 * (window + 1) or wander == 0
+    assert r.outcome == "stuck" and len(P) - 1 == first

@@ -165,10 +165,13 @@ def simulate(
     window = int(round(stuck_window / dt)) if stuck_window > 0 else 0
     hist_t = [[0.0] for _ in range(n)]
     hist_x = [[x.copy()] for x in X]
-    # the positions of hist_x as one array per robot (the no-progress test reads its last
-    # window + 1 rows: a view, no list of arrays made into one every cycle)
-    hist_p = np.empty((n, (steps + 1) if window else 1, 2))
+    # the last positions of hist_x, in order, as one array per robot (the no-progress test reads
+    # its last window + 1 rows as a view instead of stacking them every cycle): a buffer of twice
+    # that, whose last window rows move to its front when it is full
+    cap = 2 * (window + 1)
+    hist_p = np.empty((n, cap if window else 1, 2))
     hist_p[:, 0] = [x[:2] for x in X]
+    fill = np.ones(n, dtype=int)
     min_clear = np.full(n, np.inf)
     min_robot = np.full(n, np.inf)
     compute = np.zeros(n)
@@ -207,7 +210,11 @@ def simulate(
             hist_t[i].append(sim.t)
             hist_x[i].append(sim.X[i].copy())
             if window:
-                hist_p[i, len(hist_x[i]) - 1] = sim.X[i][:2]
+                if fill[i] == cap:
+                    hist_p[i, :window] = hist_p[i, cap - window:]
+                    fill[i] = window
+                hist_p[i, fill[i]] = sim.X[i][:2]
+                fill[i] += 1
         # outcomes at the new time
         hit, outside = _update_clearance(sim, world, sim.t, min_clear, moved, min_robot)
         goals = sim.goals()
@@ -221,8 +228,7 @@ def simulate(
                 sim.stop(i, "reached")
                 sim.time_to_goal[i] = sim.t
             elif window and len(hist_x[i]) > window:
-                m = len(hist_x[i])
-                recent = hist_p[i, m - window - 1:m]
+                recent = hist_p[i, fill[i] - window - 1:fill[i]]
                 span = np.max(np.hypot(*(recent - recent.mean(axis=0)).T))
                 if span < stuck_radius[i]:
                     sim.stop(i, "stuck")
