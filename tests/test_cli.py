@@ -275,6 +275,7 @@ def test_phase_log_names_each_phase_and_its_time():
     assert "slow ... " in text.rsplit("\r", 1)[1]
 
 
+@pytest.mark.long
 def test_analyze_names_its_phases_with_their_times(tmp_path, capsys):
     from hybridnav.cli import main
 

@@ -245,6 +245,7 @@ def test_fis_figures(name):
         assert ax.get_xlabel() == f"{v.name} ({want})"
 
 
+@pytest.mark.long
 def test_compare_figures(tmp_path, captured):
     from hybridnav.experiments.compare import compare, write_comparison
 
@@ -292,6 +293,7 @@ def test_analyze_figures(tmp_path, captured):
     assert vt.axes[0].get_legend() is None and len(vt.axes[0].lines) > 1
 
 
+@pytest.mark.long
 def test_analysis_figures_of_the_other_models():
     """The slices of models with headings (their held states in rad) and the LbCS field, drawn
     directly on coarse grids (``analyze`` itself takes tens of seconds on these)."""
@@ -322,6 +324,7 @@ def test_analysis_figures_of_the_other_models():
     check_figure(fig, s.units, "lbcs_field")
 
 
+@pytest.mark.long
 def test_tune_figures(tmp_path, captured):
     from test_tuner import SMALL
 
@@ -355,6 +358,7 @@ def png_size(path: Path) -> tuple[int, int]:
     return struct.unpack(">II", data[16:24])
 
 
+@pytest.mark.long
 def test_format_and_dpi_on_the_command_line(tmp_path, capsys):
     from hybridnav.cli import main
 

@@ -434,7 +434,8 @@ def _exact_centroid(fs: FuzzySystem, cuts: list[float]) -> float:
     return float(mom / area)
 
 
-@pytest.mark.parametrize("n_terms", [2, 4, 5])
+@pytest.mark.parametrize("n_terms", [2, pytest.param(4, marks=pytest.mark.long),
+                                     pytest.param(5, marks=pytest.mark.long)])
 def test_an_output_range_far_from_zero_keeps_its_digits(tmp_path, n_terms):
     """Moments about the range's midpoint: on [1e6, 1e6 + 1] with 5001 points the C result is
     within 1e-9 of the exact centroid (absolute moments were 6e-8 off with four or more terms)."""

@@ -128,6 +128,7 @@ def test_reaches_the_goal_of_rfd_pso_700_with_the_differential_drive(cls):
     assert r.metrics["planned_length"] > math.hypot(520, 350)
 
 
+@pytest.mark.long
 def test_pso_alone_on_rfd_pso_700():
     s = load_scenario("rfd-pso-700")
     # seed 8 finds a collision-free path in its first run
@@ -195,7 +196,8 @@ def test_astar_length_is_networkx_optimal_on_the_inflated_grid(scenario):
     assert d.metrics["grid_length"] == pytest.approx(ref, rel=1e-12)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.long),
+                                  pytest.param(2, marks=pytest.mark.long)])
 def test_rfd_pso_is_never_longer_than_its_rfd_path(seed):
     s = load_scenario("rfd-pso-700")
     rfd, hybrid = RFDPlanner(), RFDPSOPlanner()

@@ -126,7 +126,7 @@ def test_aco_kinematic_paper_profile_is_stuck_in_the_local_minimum_trap():
     assert np.hypot(*(paper.states[-1, :2] - (27.0, 25.0))) < 6.0
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_pso_ba_paper_profile_has_eq_9s_pso_and_the_swarm_barely_matters():
     """eq. 9 has no inertia factor; the PSO tunes the bats, but the best bat is a full step
     towards the goal whatever they are: two seeds give paths 5e-4 (of 50) apart."""

@@ -77,16 +77,17 @@ def test_list_from_the_cli(capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, scenario", [("fastep-table2", "fastep-s1"),
-                                            ("aco-table5", "aco-scenario-4"),
-                                            ("rfdpso-table3", "rfd-pso-700"),
-                                            ("effc-table3", "effc-env-b"),
-                                            ("psoba-fig15", "pso-ba-dynamic"),
-                                            # effc-turtlebot: the same run and checks in
-                                            # test_turtlebot.py (with its own report's checks)
-                                            ("fastep-case-studies", "fastep-case-study-2"),
-                                            ("aco-case-studies", "aco-case-study-2"),
-                                            ("aco-tractor-trailers", "tractor-trailer-3")])
+@pytest.mark.parametrize("name, scenario", [
+    ("fastep-table2", "fastep-s1"),
+    ("aco-table5", "aco-scenario-4"),
+    ("effc-table3", "effc-env-b"),
+    # the protocols whose runs take 10-30 s each: with -m long (their planners' own tests run
+    # by default; effc-turtlebot: the same run and checks in test_turtlebot.py)
+    pytest.param("rfdpso-table3", "rfd-pso-700", marks=pytest.mark.long),
+    pytest.param("psoba-fig15", "pso-ba-dynamic", marks=pytest.mark.long),
+    pytest.param("fastep-case-studies", "fastep-case-study-2", marks=pytest.mark.long),
+    pytest.param("aco-case-studies", "aco-case-study-2", marks=pytest.mark.long),
+    pytest.param("aco-tractor-trailers", "tractor-trailer-3", marks=pytest.mark.long)])
 def test_every_protocol_runs_end_to_end(tmp_path, capsys, name, scenario):
     out = tmp_path / name
     assert main(["reproduce", name, "--runs", "1", "--scenarios", scenario, "--layouts", "0",

@@ -31,7 +31,7 @@ def test_the_paper_grid_is_20_cells_across_and_a_movingai_map_keeps_its_own():
         assert ctx.grid(0.0, 0).resolution == s.grid.resolution     # grid = 0: the scenario's
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_flat_rfd_on_the_paper_grid_reaches_near_the_papers_length():
     """Flat RFD (profile paper) on the 1 m grid of rfd-pso-20m plans a path in every seed, and
     the mean planned length of 6 seeds is within 10 % of the paper's 32.68 m. The band: our map
@@ -49,7 +49,7 @@ def test_flat_rfd_on_the_paper_grid_reaches_near_the_papers_length():
     assert not any(fine.plans(s, seed=seed)[0].found for seed in range(2))
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_rfd_pso_paper_profile_reaches_in_most_seeded_runs():
     """About 4 s a run: K = 28 seeds keep the RFD path's shape, so the PSO starts from a
     collision-free particle (K = 8 failed in 3 of the same 6 seeds on the paper grid)."""

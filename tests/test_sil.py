@@ -20,7 +20,8 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc
 WORLDS = ["effc-train-1", "effc-train-2", "effc-env-a", "effc-env-b"]
 
 
-@pytest.mark.parametrize("name", ["effc-2rule", "effc-5rule", "effc-tuned"])
+@pytest.mark.parametrize("name", [pytest.param("effc-2rule", marks=pytest.mark.long),
+                                  pytest.param("effc-5rule", marks=pytest.mark.long), "effc-tuned"])
 def test_compiled_c_trajectories_equal_python_to_1e9(tmp_path, name):
     fs = fuzzy.builtin(name)
     export(fs, "c", tmp_path / "effc")

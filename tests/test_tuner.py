@@ -666,7 +666,7 @@ def test_kfold_runs_one_stage_per_fold_and_resumes_exactly(tmp_path):
     assert _strip(resumed.logbook) == _strip(full.logbook)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
     from hybridnav.cli import main
 
@@ -745,7 +745,7 @@ def test_an_empty_table_or_an_unknown_clearance_is_no_verdict_to_act_on():
     assert not verdict(summarize(t), "test", 0.1, table=t)["safe"]
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_falsification_in_the_training_loop_adds_finds_to_training_only(tmp_path):
     """A round adds the worst finds (every failure here) to the training worlds and tunes on;
     validation and test stay the job's; a rerun resumes to the same system."""

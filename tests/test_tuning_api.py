@@ -497,7 +497,7 @@ def test_worldstack_nearest_each_is_the_worlds():
         assert np.all(np.isinf(D[:, k:]))
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_fuzzy_steer_lockstep_is_the_planner_and_tunes_on_the_same_worlds(tmp_path):
     from hybridnav import planners
     from hybridnav.world.generator import WorldGenerator
