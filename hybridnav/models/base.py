@@ -258,26 +258,31 @@ class Model(ABC):
         if "one" not in cache:              # (None, for a model without rates, is kept too)
             s = self.sym
             rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
-            # the parameter values folded in, as the step's function (_step_single) has them
-            cache["one"] = (None if rates is None else cs.Function(
-                "rates", [s.x, s.target], [cs.substitute(rates, s.p, cs.DM(self.p_value()))]))
-        fn = cache["one"]
-        if fn is None:
+            cache["one"] = (None if rates is None
+                            else cs.Function("rates", [s.x, s.target, s.p], [rates]))
+        if cache["one"] is None:
             return None
         n = len(X)
         if n == 0:
             return np.zeros((0, 2))
-        # bound to NumPy buffers (per thread: a buffer is not re-entrant): a CasADi call with
-        # its argument conversions costs some 300 us, more than the planners' whole cycle
+        # the parameter values folded in, as the step's function (_step_single) has them, and
+        # bound to NumPy buffers (per thread: a buffer is not re-entrant): a CasADi call with its
+        # argument conversions costs some 300 us, more than the planners' whole cycle. Keyed by
+        # the values, which are read at every call.
+        p = self.p_value()
+        key = (p.tobytes(), n)
         buffers = getattr(self._local, "rates", None)
         if buffers is None:
             buffers = self._local.rates = {}
-        b = buffers.get(n)
+        b = buffers.get(key)
         if b is None:
+            s = self.sym
+            folded = cs.Function("rates_p", [s.x, s.target],
+                                 [cache["one"](s.x, s.target, cs.DM(p))])
             if len(buffers) > 16:
                 buffers.pop(next(iter(buffers)))
-            b = buffers[n] = _Buffered(fn.map(n), [(n, self.nx), (n, self.target_size)],
-                                       [(n, 2)])
+            b = buffers[key] = _Buffered(folded.map(n), [(n, self.nx), (n, self.target_size)],
+                                         [(n, 2)])
         b.ins[0][...] = X
         b.ins[1][...] = targets
         b()
