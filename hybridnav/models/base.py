@@ -258,33 +258,33 @@ class Model(ABC):
         if "one" not in cache:              # (None, for a model without rates, is kept too)
             s = self.sym
             rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
+            # the parameters stay an input: folding their values in lets CasADi reassociate
+            # products of constants ((k_alpha*e)*L -> (k_alpha*L)*e), which changes the last
+            # bits for most values, and would keep values changed after the first call out
             cache["one"] = (None if rates is None
                             else cs.Function("rates", [s.x, s.target, s.p], [rates]))
-        if cache["one"] is None:
+        fn = cache["one"]
+        if fn is None:
             return None
         n = len(X)
         if n == 0:
             return np.zeros((0, 2))
-        # the parameter values folded in, as the step's function (_step_single) has them, and
-        # bound to NumPy buffers (per thread: a buffer is not re-entrant): a CasADi call with its
-        # argument conversions costs some 300 us, more than the planners' whole cycle. Keyed by
-        # the values, which are read at every call.
-        p = self.p_value()
-        key = (p.tobytes(), n)
+        # bound to NumPy buffers (per thread: a buffer is not re-entrant): a CasADi call with
+        # its argument conversions costs some 300 us, more than the planners' whole cycle
         buffers = getattr(self._local, "rates", None)
         if buffers is None:
             buffers = self._local.rates = {}
-        b = buffers.get(key)
+        b = buffers.get(n)
         if b is None:
-            s = self.sym
-            folded = cs.Function("rates_p", [s.x, s.target],
-                                 [cache["one"](s.x, s.target, cs.DM(p))])
             if len(buffers) > 16:
                 buffers.pop(next(iter(buffers)))
-            b = buffers[key] = _Buffered(folded.map(n), [(n, self.nx), (n, self.target_size)],
-                                         [(n, 2)])
+            # p is one column shared by the n robots (not repeated per robot)
+            b = buffers[n] = _Buffered(fn.map(f"rates_{n}", "serial", n, [2], []),
+                                       [(n, self.nx), (n, self.target_size),
+                                        (len(self.param_names),)], [(n, 2)])
         b.ins[0][...] = X
         b.ins[1][...] = targets
+        b.ins[2][...] = self.p_value()
         b()
         return b.outs[0].copy()
 
