@@ -64,3 +64,28 @@ def test_commanded_rates_match_old_path_every_model(name, params, n):
     assert (new is None) == (old is None)
     if new is not None:
         assert _same_bits(new, old)
+
+
+# ---- simulate: the no-progress window ------------------------------------------------------
+
+
+def _one_robot_scenario(max_time=2.0):
+    from hybridnav.world import scenario_from_dict
+    return scenario_from_dict({
+        "name": "t", "dt": 0.1, "max_time": max_time, "units": "m",
+        "workspace": {"xmin": -10.0, "xmax": 10.0, "ymin": -10.0, "ymax": 10.0},
+        "obstacles": [], "robots": [{"name": "R", "model": "point_mass", "start": [0.0, 0.0],
+                                     "goal": [5.0, 0.0], "goal_radius": 0.1, "radius": 0.1}]})
+
+
+@pytest.mark.parametrize("stuck_window", [1e8, 1e12])
+def test_simulate_window_far_longer_than_the_run_is_no_memory_error(stuck_window):
+    """stuck_window is only bounded below (planners' Param lo=0), so a huge value is a valid way
+    to say "never"; the buffer of 2 * (window + 1) positions per robot is allocated from the
+    window alone (2e9 rows for 1e8 s at dt 0.1) and numpy raises MemoryError, where the old loop
+    simply never tested it. lockstep already cuts the window to steps + 1 (stuck_cycles)."""
+    from hybridnav.planners.simulate import simulate
+    s = _one_robot_scenario()
+    (r,), _ = simulate(s, [s.model(s.robots[0])], lambda sim: sim.goals(),
+                       stuck_window=stuck_window)
+    assert r.outcome == "timeout" and len(r.t) == 21
