@@ -162,7 +162,9 @@ def simulate(
     if stuck_radius is None:
         stuck_radius = 2.0 * goal_r
     stuck_radius = np.broadcast_to(np.asarray(stuck_radius, dtype=float), (n,))
-    window = int(round(stuck_window / dt)) if stuck_window > 0 else 0
+    # a window longer than the run is never tested: cut to steps + 1 cycles (as lockstep's
+    # stuck_cycles), so the buffer below is sized by the run, not by any window one may set
+    window = int(round(min(stuck_window / dt, steps + 1))) if stuck_window > 0 else 0
     hist_t = [[0.0] for _ in range(n)]
     hist_x = [[x.copy()] for x in X]
     # the last positions of hist_x, in order, as one array per robot (the no-progress test reads
