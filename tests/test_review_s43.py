@@ -89,3 +89,40 @@ def test_simulate_window_far_longer_than_the_run_is_no_memory_error(stuck_window
     (r,), _ = simulate(s, [s.model(s.robots[0])], lambda sim: sim.goals(),
                        stuck_window=stuck_window)
     assert r.outcome == "timeout" and len(r.t) == 21
+
+
+# ---- tune: the side process of the SIL check --------------------------------------------------
+
+_LEAVE = """
+import sys, time
+import hybridnav.tuner.run as run
+t0 = time.time()
+try:
+    with run._SideProcess(True) as side:
+        side.submit(time.sleep, 30)          # a long SIL check, running in the side process
+        time.sleep(1)                        # (the path figure)
+        raise {exc}("in the path figure")
+except {exc}:
+    pass
+print("left the block after %.1f s" % (time.time() - t0), flush=True)
+"""
+
+
+@pytest.mark.parametrize("exc", ["KeyboardInterrupt", "RuntimeError"])
+def test_an_error_beside_the_side_process_does_not_wait_for_it_at_exit(exc):
+    """_SideProcess's docstring: "leaving the block (an error, Ctrl-C) does not wait for it".
+    The block is left at once, but ProcessPoolExecutor's atexit hook joins its manager thread,
+    which waits for the running task: `hybridnav tune` says "interrupted" (or prints the figure's
+    error) and then the process stays until the whole SIL check is done (30 s here; a job's
+    SIL takes seconds to minutes)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    t0 = time.time()
+    done = subprocess.run([sys.executable, "-c", _LEAVE.format(exc=exc)], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, "PYTHONPATH": os.getcwd()})
+    took = time.time() - t0
+    assert "left the block after" in done.stdout, done.stderr
+    assert took < 15, f"the process exited {took:.0f} s after it started (the task: 30 s)"
