@@ -773,6 +773,11 @@ class _SideProcess:
 
     def __exit__(self, *exc) -> None:
         if self._pool is not None:
+            if exc[0] is not None:
+                # the task is not wanted any more: end its process, or the executor's exit
+                # hook (at the interpreter's exit) would wait for the running task
+                for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
+                    proc.terminate()
             self._pool.shutdown(wait=exc[0] is None, cancel_futures=True)
 
 
