@@ -348,7 +348,6 @@ def test_the_help_has_an_example():
 # ---- tuning jobs --------------------------------------------------------------------------------
 
 
-@pytest.mark.long
 def test_a_tuning_job_animates_its_best_system_per_generation(tmp_path):
     sys.path.insert(0, str(Path(__file__).parent))
     from test_tuner import small_job, tune

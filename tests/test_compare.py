@@ -194,7 +194,6 @@ def test_bad_planner_items_fail_before_any_run(planners, message, monkeypatch):
         compare(planners, ["effc-train-1"], 1)
 
 
-@pytest.mark.long
 def test_cli_compares_two_variants_of_effc(tmp_path):
     import subprocess
     import sys
@@ -278,7 +277,7 @@ def test_summary_statistics_against_scipy(serial, tmp_path):
             "compare_compute_time.png"} <= set(files)
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_convergence_of_the_swarm_searches_is_recorded_per_run_and_plotted(tmp_path):
     """Every run's searches land in ``convergence.csv``: PSO's one search per run (its best
     never rises, and its last value is the cost the planner reports), a step planner's one

@@ -86,7 +86,7 @@ def test_bad_requests_are_refused(tmp_path):
         reproduce("effc-ga", tmp_path, runs=0)
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_effc_ga_runs_end_to_end_with_one_run(tmp_path, capsys, monkeypatch):
     """The whole target with --runs 1 and a small GA (the full run is stored)."""
     e = EXPERIMENTS["effc-ga"]

@@ -245,7 +245,6 @@ def test_fis_figures(name):
         assert ax.get_xlabel() == f"{v.name} ({want})"
 
 
-@pytest.mark.long
 def test_compare_figures(tmp_path, captured):
     from hybridnav.experiments.compare import compare, write_comparison
 
@@ -324,7 +323,6 @@ def test_analysis_figures_of_the_other_models():
     check_figure(fig, s.units, "lbcs_field")
 
 
-@pytest.mark.long
 def test_tune_figures(tmp_path, captured):
     from test_tuner import SMALL
 

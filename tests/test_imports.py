@@ -61,7 +61,7 @@ def test_the_cycle_check_finds_a_cycle(tmp_path):
     assert sorted(map(sorted, cycles)) == [["pkg.a", "pkg.sub", "pkg.sub.b"]]
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_every_module_imports_alone():
     """Each module imported first, in a process where no other hybridnav module is loaded yet."""
     names = sorted(import_graph(PACKAGE).nodes)

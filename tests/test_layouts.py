@@ -125,7 +125,7 @@ def test_failing_rows_and_the_table_use_the_main_tables_rule():
     assert sensitivity_section(protocol, verdicts.iloc[:0], own, runs=5) == []
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_reproduce_writes_the_layout_table_and_the_readme_renders_it(tmp_path, capsys):
     out = tmp_path / "effc"
     assert main(["reproduce", "effc-table3", "--runs", "1", "--layouts", "2",

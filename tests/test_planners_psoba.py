@@ -391,7 +391,7 @@ def test_robots_avoid_each_other_head_on():
     assert sum(r.metrics["wall_episodes"] for r in res.robots) >= 1
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_memory_of_visited_points_gets_out_of_a_u_trap():
     s = _scenario(U_TRAP, [_robot((9.0, 10.0), (18.0, 10.0))], max_time=150.0)
     r = PSOBAPlanner().run(s, seed=0).robots[0]
@@ -403,7 +403,6 @@ def test_memory_of_visited_points_gets_out_of_a_u_trap():
     assert r0.metrics["wall_episodes"] > r.metrics["wall_episodes"]
 
 
-@pytest.mark.long
 def test_room_boundary_makes_wall_following_change_direction():
     # a wall from just above the floor: the way below it is too narrow; the nearest free gap
     # is downwards, so the robot first turns right, meets the room's wall and turns back
@@ -424,7 +423,7 @@ def test_an_enclosed_robot_ends_without_hanging():
     assert r.min_clearance > 0
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_equal_seeds_reproduce_exactly():
     s = _scenario(U_TRAP, [_robot((9.0, 10.0), (18.0, 10.0), model="unicycle")], max_time=150.0)
     pl = PSOBAPlanner()                       # one instance: runs leave nothing behind

@@ -666,7 +666,7 @@ def test_kfold_runs_one_stage_per_fold_and_resumes_exactly(tmp_path):
     assert _strip(resumed.logbook) == _strip(full.logbook)
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_kfold_job_without_validation_set_writes_its_report(tmp_path):
     from hybridnav.cli import main
 

@@ -295,7 +295,7 @@ def test_the_office_is_solvable_through_its_doorways(office):
         assert lo < xy[k, 1] < hi
 
 
-@pytest.mark.long
+@pytest.mark.slow
 def test_the_turtlebot_protocol_runs_end_to_end(tmp_path, capsys):
     """The protocol's reduced run, as test_reproduce.py runs every other protocol (and with its
     checks: the protocol has one row; perturbed layouts are tested in test_layouts.py)."""
