@@ -98,8 +98,7 @@ import sys, time
 import hybridnav.tuner.run as run
 t0 = time.time()
 try:
-    with run._SideProcess(True) as side:
-        side.submit(time.sleep, 30)          # a long SIL check, running in the side process
+    with run._SideTask(time.sleep, 30, elsewhere=True):   # a long SIL check, elsewhere
         time.sleep(1)                        # (the path figure)
         raise {exc}("in the path figure")
 except {exc}:
@@ -110,7 +109,7 @@ print("left the block after %.1f s" % (time.time() - t0), flush=True)
 
 @pytest.mark.parametrize("exc", ["KeyboardInterrupt", "RuntimeError"])
 def test_an_error_beside_the_side_process_does_not_wait_for_it_at_exit(exc):
-    """_SideProcess's docstring: "leaving the block (an error, Ctrl-C) does not wait for it".
+    """_SideTask's docstring: "leaving the block (an error, Ctrl-C) ... does not wait for it".
     The block is left at once, but ProcessPoolExecutor's atexit hook joins its manager thread,
     which waits for the running task: `hybridnav tune` says "interrupted" (or prints the figure's
     error) and then the process stays until the whole SIL check is done (30 s here; a job's

@@ -1,5 +1,5 @@
 """The software-in-the-loop check of a tuning job with local workers runs in a process of its own
-while the path figure is drawn (``hybridnav.tuner.run._SideProcess``); one worker, or Dask, keeps
+while the path figure is drawn (``hybridnav.tuner.run._SideTask``); one worker, or Dask, keeps
 it in this process. A side process that dies leaves the check to this process."""
 
 from __future__ import annotations
@@ -27,17 +27,17 @@ def _dies_elsewhere() -> str:
 
 
 def test_the_side_process_runs_the_task_elsewhere_and_only_when_asked():
-    with run._SideProcess(True) as side:
-        assert side.used
-        assert side.result(side.submit(_pid), _pid) != os.getpid()
-    with run._SideProcess(False) as side:
-        assert not side.used and side.submit(_pid) is None
-        assert side.result(None, _pid) == os.getpid()
+    with run._SideTask(_pid, elsewhere=True) as side:
+        assert side.elsewhere
+        assert side.result() != os.getpid()
+    with run._SideTask(_pid, elsewhere=False) as side:
+        assert not side.elsewhere and side._future is None
+        assert side.result() == os.getpid()
 
 
 def test_a_side_process_that_dies_leaves_the_task_to_this_one(caplog):
-    with run._SideProcess(True) as side:
-        assert side.result(side.submit(_dies_elsewhere), _dies_elsewhere) == "here"
+    with run._SideTask(_dies_elsewhere, elsewhere=True) as side:
+        assert side.result() == "here"
     assert "the process of _dies_elsewhere died; running it here" in caplog.text
 
 

@@ -389,8 +389,8 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
                  job.scenarios("train")[:1] + job.scenarios("test")[:2], dict(job["planner"]))
     # the software-in-the-loop check runs in a process of its own while this one draws the path
     # figure, where the job may use more than one process (local workers: the same files)
-    with _SideProcess(check is not None and _local_workers(backend)) as side:
-        pending = side.submit(_sil_lines, *check) if check is not None else None
+    with _SideTask(_sil_lines, *(check or ()),
+                   elsewhere=check is not None and _local_workers(backend)) as side:
         if nav:
             say("path figure: start, tuned and apf on the paper's and some test worlds")
             files += _paths(job, result, out, backend, save)
@@ -398,8 +398,8 @@ def write_outputs(job: Job, result: TuningResult, out: Path,
         files += exported
         if check is not None:
             say("software-in-the-loop check: the exported C compiled and run against evaluate"
-                + (" (run meanwhile)" if side.used else ""))
-            sil = side.result(pending, _sil_lines, *check)
+                + (" (run meanwhile)" if side.elsewhere else ""))
+            sil = side.result()
     # and what the optimizer keeps there (checkpoint.json, evaluations.jsonl, the folders of a
     # robust or two-stage run): the list is every file the job leaves
     files += [f for f in output_files(out) if f not in files and f != "report.md"]
@@ -742,34 +742,32 @@ def _local_workers(backend: Backend) -> bool:
     return isinstance(backend, (ProcessBackend, _Kept))
 
 
-class _SideProcess:
-    """One process of its own for a task that runs while this process does something else
-    (``used``: when asked for; otherwise :meth:`result` runs the task here). A process that
-    dies runs the task here again; leaving the block (an error, Ctrl-C) does not wait for it."""
+class _SideTask:
+    """``fn(*args)``, in a process of its own while this process does something else
+    (``elsewhere``), or here when :meth:`result` is asked for. A process that dies runs the task
+    here again; leaving the block (an error, Ctrl-C) ends it and does not wait for it."""
 
-    def __init__(self, used: bool) -> None:
-        self.used = used
-        self._pool = None
+    def __init__(self, fn: Callable, *args: Any, elsewhere: bool) -> None:
+        self.fn, self.args, self.elsewhere = fn, args, elsewhere
+        self._pool = self._future = None
 
-    def __enter__(self) -> _SideProcess:
-        if self.used:
+    def __enter__(self) -> _SideTask:
+        if self.elsewhere:
             from concurrent.futures import ProcessPoolExecutor
 
             self._pool = ProcessPoolExecutor(1)
+            self._future = self._pool.submit(self.fn, *self.args)
         return self
 
-    def submit(self, fn: Callable, *args):
-        return self._pool.submit(fn, *args) if self._pool is not None else None
-
-    def result(self, future, fn: Callable, *args):
+    def result(self) -> Any:
         from concurrent.futures.process import BrokenProcessPool
 
-        if future is not None:
+        if self._future is not None:
             try:
-                return future.result()
+                return self._future.result()
             except BrokenProcessPool:
-                log.warning("the process of %s died; running it here", fn.__name__)
-        return fn(*args)
+                log.warning("the process of %s died; running it here", self.fn.__name__)
+        return self.fn(*self.args)
 
     def __exit__(self, *exc) -> None:
         if self._pool is not None:
