@@ -298,7 +298,7 @@ def _search(
     # q: the quantization merges only values that are equal, and optimality is exact. (With the
     # Euclidean heuristic it could reorder f values closer than q, costing at most q per step.)
     # The max() keeps f / q below 2**52 on very large grids.
-    q = res * max(1e-9, 1e-15 * n)
+    q = res * _quantum(n)
     params = {"diagonal": diagonal, "corner_cutting": corner_cutting}
     if method == "astar":
         params["heuristic"] = heuristic
@@ -352,15 +352,20 @@ def _resolution(grid: OccupancyGrid, n: int) -> float:
     finite, ordered numbers: the quantum ``q`` of :func:`_search` must be a normal float and
     every ``f = g + h <= 2 sqrt(2) n res`` finite (a float32 resolution is taken at its value)."""
     res = float(grid.resolution)
-    q = res * max(1e-9, 1e-15 * n)
-    if not (math.isfinite(res) and q >= sys.float_info.min
+    if not (math.isfinite(res) and res * _quantum(n) >= sys.float_info.min
             and math.isfinite(2.0 * _SQRT2 * n * res)):
         raise HybridnavError(
-            f"resolution: expected a cell size between {sys.float_info.min / max(1e-9, 1e-15 * n):.3g} "
+            f"resolution: expected a cell size between {sys.float_info.min / _quantum(n):.3g} "
             f"and {sys.float_info.max / (2.0 * _SQRT2 * n):.3g} for a search on this "
             f"{grid.width} x {grid.height} grid (path lengths and the search's keys must be finite "
             f"normal floats), got {grid.resolution!r}")
     return res
+
+
+def _quantum(n: int) -> float:
+    """The heap keys' quantum of a search on ``n`` padded cells, in cells (times the resolution:
+    ``q`` of :func:`_search`)."""
+    return max(1e-9, 1e-15 * n)
 
 
 def _grid_path(grid: OccupancyGrid, start, goal, flat: NDArray[np.int64] | None, length: float,
@@ -572,7 +577,7 @@ def _dijkstra(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]
         return _grid_path(grid, start, goal, None, math.inf, G.sizes[G.label[s]], Wp, "dijkstra",
                           params)
 
-    q = res * max(1e-9, 1e-15 * n)  # _search's quantum
+    q = res * _quantum(n)
     dx, dy = abs(sc - tc), abs(sr - tr)
     free_dist = (max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy)) if diagonal else float(dx + dy)
     # Every node whose distance is within 3 q of the goal's must be in (their order decides
