@@ -32,7 +32,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from hybridnav.backends import Backend, SerialBackend, make_backend
+from hybridnav.backends import Backend, ProcessBackend, SerialBackend, _Kept, make_backend
 from hybridnav.errors import HybridnavError
 from hybridnav.fileio import atomic_write_text, clean_temporaries, locked_folder
 from hybridnav.params import DEFAULT_DPI, FIGURE_FORMATS
@@ -737,8 +737,6 @@ def _fmt(v: float, spec: str = ".3f") -> str:
 def _local_workers(backend: Backend) -> bool:
     """Whether ``backend`` runs local worker processes (so the job may use more than this
     process, and every process sees the output folder)."""
-    from hybridnav.backends import ProcessBackend, _Kept
-
     return isinstance(backend, (ProcessBackend, _Kept))
 
 
