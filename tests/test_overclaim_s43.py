@@ -61,3 +61,51 @@ def test_estimate_roa_names_no_decreasing_state_as_the_equilibrium_bound():
         vdot = 2 * x0 * f1 - 2 * y0 * y0
         assert vdot > 0 or (f1 == 0 and y0 == 0), (r.bounded_by, r.counterexample, float(vdot))
     assert r.bounded_by != "equilibrium", (r.level, r.counterexample)
+
+
+# ---------------------------------------------------------------- jumps over zero (if_else, floor)
+
+RB = {"x_0": (-1e4, 1e4), "x_1": (-1e4, 1e4)}
+
+
+def _exact_jump_field(s, c, floor=False):
+    """f1 = 1e8 * (x + c) for x >= 0 and 1e8 * (x - c) for -1 <= x < 0, in exact arithmetic."""
+    x0 = Fraction(s[0])
+    if floor:       # x + c (2 floor(x) + 1): floor(x) = 0 on [0, 1), -1 on [-1, 0)
+        k = 0 if 0 <= x0 < 1 else -1
+        assert -1 <= x0 < 1
+        return Fraction(1e8) * (x0 + Fraction(c) * (2 * k + 1))
+    return Fraction(1e8) * (x0 + Fraction(c) if x0 >= 0 else x0 - Fraction(c))
+
+
+@pytest.mark.xfail(strict=True, reason="find_equilibria accepts the jump of an if_else field "
+                   "across 0 (|f1| >= 1e-5 everywhere) by its residual fallback")
+def test_an_if_else_jump_across_zero_is_no_equilibrium():
+    # f1 = 1e8 if_else(x >= 0, x + c, x - c), c = float 1e-13: f1 >= 1e8 c = 1e-5 for x >= 0 and
+    # f1 <= -1e-5 for x < 0, exactly; no zero anywhere. The fallback for fields the interval
+    # flags do not show continuous asks |f(z)| <= max|J| 1e-12 (1 + |z|) = 1e-4 and
+    # |f(z)| < 1e-9 span = 2e-5: 1e974a7 reports (0, 0) "degenerate", where f1 = 1e-5.
+    X, Y = _X[0], _X[1]
+    c = 1e-13
+    eqs = _eqs(cs.vertcat(1e8 * cs.if_else(X >= 0, X + c, X - c), -Y), region=RB)
+    for s in _states(eqs):
+        f1 = _exact_jump_field(s, c)
+        assert f1 == 0, (s, float(f1))
+    assert eqs == [], _states(eqs)
+
+
+@pytest.mark.xfail(strict=True, reason="find_equilibria reports a 'saddle' where a floor field "
+                   "jumps across 0 (|f1| >= 1e-5 on (-1, 1)): no zero, so no kind")
+def test_a_floor_jump_across_zero_is_no_saddle():
+    # f1 = 1e8 (x + c (2 floor(x) + 1)), c = float 1e-13: 1e8 (x + c) >= 1e-5 on [0, 1) and
+    # 1e8 (x - c) <= -1e-5 on [-1, 0): no zero in (-1, 1). 1e974a7 reports (1.8e-17, 0) as the
+    # target, kind "saddle" (f1 = 1.00002e-5 there).
+    X, Y = _X[0], _X[1]
+    c = 1e-13
+    eqs = _eqs(cs.vertcat(1e8 * (X + c * (2 * cs.floor(X) + 1)), -Y), region=RB)
+    for s in _states(eqs):
+        if -1 <= s[0] < 1:
+            f1 = _exact_jump_field(s, c, floor=True)
+            assert f1 == 0, (s, float(f1))
+    assert [s for s in _states(eqs) if -1 <= s[0] < 1] == [], [
+        (e.state.tolist(), e.kind) for e in eqs]
