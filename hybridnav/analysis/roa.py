@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -409,12 +410,21 @@ def lyapunov_equation_candidate(model: Model, target: Sequence[float] | None = N
     if Q.shape != A.shape or not np.allclose(Q, Q.T) or np.linalg.eigvalsh(Q).min() <= 0:
         raise HybridnavError(f"Q: expected a symmetric positive definite {A.shape} matrix")
     eig = np.linalg.eigvals(A)
+    not_hurwitz = HybridnavError(
+        f"model {model.name}: the linearization at the target is not Hurwitz (eigenvalues "
+        f"{np.round(eig, 6).tolist()}): A' P + P A = -Q has no positive definite solution")
     if not np.all(eig.real < 0):
-        raise HybridnavError(
-            f"model {model.name}: the linearization at the target is not Hurwitz (eigenvalues "
-            f"{np.round(eig, 6).tolist()}): A' P + P A = -Q has no positive definite solution")
-    P = np.asarray(control.lyap(A.T, Q), dtype=float)
+        raise not_hurwitz
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")         # scipy on a (near) zero eigenvalue pair
+        P = np.asarray(control.lyap(A.T, Q), dtype=float)
     P = (P + P.T) / 2
+    # an eigenvalue computed a rounding below 0 (an exact zero: a singular A) passes the test
+    # above; the solution then is no positive definite solution of the equation (Lyapunov's
+    # theorem: one exists exactly when A is Hurwitz), and that is what is checked
+    resid = np.abs(A.T @ P + P @ A + Q).max() if np.all(np.isfinite(P)) else np.inf
+    if not (resid <= 1e-8 * np.abs(Q).max() and np.linalg.eigvalsh(P).min() > 0):
+        raise not_hurwitz
     dx = model.sym.x - cs.DM(x0)
     return cs.mtimes([dx.T, cs.DM(P), dx]), P
 
