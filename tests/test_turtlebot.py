@@ -226,7 +226,9 @@ def test_with_the_sensor_off_runs_are_the_runs_from_before(scenario, planner):
         if n is not None:
             assert len(r.states) == n
             assert r.path_length == pytest.approx(length, rel=1e-6)
-            np.testing.assert_allclose(r.states[-1], final, rtol=1e-6, atol=1e-9)
+            # (hapf's arrival heading moves 1.2e-6 relative on an AVX-512 Xeon: the rounding
+            # of 289 closed-loop steps)
+            np.testing.assert_allclose(r.states[-1], final, rtol=1e-5, atol=1e-9)
     for r in runs[1:]:
         np.testing.assert_array_equal(r.states, runs[0].states)
 
