@@ -1,12 +1,17 @@
-"""Adversarial review s43: over-claims of hybridnav.analysis on inputs the suite lacks, each checked
-against an exact computation (fractions.Fraction on the float constants the CasADi expression
-holds, so the field is the one the analysis saw).
+"""Adversarial review s43: over-claims of hybridnav.analysis on inputs the suite lacked, each
+checked against an exact computation (fractions.Fraction on the float constants the CasADi
+expression holds, so the field is the one the analysis saw). Each was a strict xfail at 1e974a7
+and is a plain test since the fix.
 
-find_equilibria accepts a Newton end point ``z`` whose ``z +- 1e-9 * extent`` box the interval
-tests cannot clear of a zero, when the field is continuous there. A field whose components never
-vanish but come within ``~ |J| r + r^2`` of 0 (``r`` the box's half-width: 4e-9 in (-2, 2), 2e-7
-in (-100, 100)) is not refused -- the refusal works only when the gap exceeds the enclosure's
-width, which the review tests so far chose (d = 1e-9, 1e-12, 1e-3 against r^2 ~ 1e-17 .. 4e-4).
+find_equilibria accepted a Newton end point ``z`` whose ``z +- 1e-9 * extent`` box the interval
+tests could not clear of a zero, when the field was continuous there: a field whose components
+never vanish but come within ``~ |J| r + r^2`` of 0 (``r`` the box's half-width: 4e-9 in (-2, 2),
+2e-7 in (-100, 100)) was not refused, nor a jump across 0 (``if_else``, ``floor``). The box is now
+bisected until its parts exclude a zero, and a part where the field may jump needs a point where
+the jumping components are 0 to rounding. A Newton end where ``1 - cos x`` rounds to 0 far from
+the true (double) zero was classified from its own Jacobian; the spread now covers where the zero
+may be. estimate_roa's final certificate loop crept down a hair per try and gave up as
+"counterexample" at level 0; its steps now grow.
 """
 
 from __future__ import annotations
@@ -26,8 +31,6 @@ from equilibria_cases import states as _states
 R100 = {"x_0": (-100, 100), "x_1": (-100, 100)}
 
 
-@pytest.mark.xfail(strict=True, reason="find_equilibria accepts a non-zero of a field with "
-                   "|f1| >= 1 everywhere: the 1e-9-extent box's enclosure cannot exclude 0")
 def test_a_field_bounded_away_from_zero_has_no_equilibrium():
     # f1 = 1e14 (-(x^2 - 2x + 1) - 1e-14) = -1e14 ((x - 1)^2 + d), d = the float 1e-14 > 0:
     # f1 <= -1e14 d ~ -1 for every real x, exactly. 1e974a7 reports (0.99999999339, 0)
@@ -43,8 +46,6 @@ def test_a_field_bounded_away_from_zero_has_no_equilibrium():
     assert eqs == [], _states(eqs)
 
 
-@pytest.mark.xfail(strict=True, reason="estimate_roa's level is bounded by a non-equilibrium "
-                   "that find_equilibria accepted; V decreases strictly there")
 def test_estimate_roa_names_no_decreasing_state_as_the_equilibrium_bound():
     # f1 = -(x^3 - 2x^2 + c x) with c = float(1 + 1e-13) > 1, i.e. -x ((x - 1)^2 + (c - 1)):
     # the only zero is the origin, and V = x^2 + y^2 has Vdot = 2 x f1 - 2 y^2 < 0 off it.
@@ -79,8 +80,6 @@ def _exact_jump_field(s, c, floor=False):
     return Fraction(1e8) * (x0 + Fraction(c) if x0 >= 0 else x0 - Fraction(c))
 
 
-@pytest.mark.xfail(strict=True, reason="find_equilibria accepts the jump of an if_else field "
-                   "across 0 (|f1| >= 1e-5 everywhere) by its residual fallback")
 def test_an_if_else_jump_across_zero_is_no_equilibrium():
     # f1 = 1e8 if_else(x >= 0, x + c, x - c), c = float 1e-13: f1 >= 1e8 c = 1e-5 for x >= 0 and
     # f1 <= -1e-5 for x < 0, exactly; no zero anywhere. The fallback for fields the interval
@@ -95,8 +94,6 @@ def test_an_if_else_jump_across_zero_is_no_equilibrium():
     assert eqs == [], _states(eqs)
 
 
-@pytest.mark.xfail(strict=True, reason="find_equilibria reports a 'saddle' where a floor field "
-                   "jumps across 0 (|f1| >= 1e-5 on (-1, 1)): no zero, so no kind")
 def test_a_floor_jump_across_zero_is_no_saddle():
     # f1 = 1e8 (x + c (2 floor(x) + 1)), c = float 1e-13: 1e8 (x + c) >= 1e-5 on [0, 1) and
     # 1e8 (x - c) <= -1e-5 on [-1, 0): no zero in (-1, 1). 1e974a7 reports (1.8e-17, 0) as the
@@ -112,11 +109,8 @@ def test_a_floor_jump_across_zero_is_no_saddle():
         (e.state.tolist(), e.kind) for e in eqs]
 
 
-# ---------------------------------------------------------------- estimate_roa gives up as "counterexample"
+# ---------------------------------------------------------------- estimate_roa's final certificate loop
 
-@pytest.mark.xfail(strict=True, reason="estimate_roa reports level 0, status 'counterexample', "
-                   "with a counterexample outside {V <= 0} after its 10 certificate steps creep "
-                   "down, while {V <= 0.01} is a provable region of attraction")
 def test_estimate_roa_does_not_call_a_valid_local_candidate_a_counterexample():
     # A saturated PD loop xdot = y, ydot = -sat(4x + 2y) + 0.4 x^3 (sat: fmin/fmax to [-1, 1]),
     # V = x' P x with P = [[3/2, 1/8], [1/8, 5/16]], which solves A'P + PA = -I exactly for the
@@ -146,9 +140,6 @@ def test_estimate_roa_does_not_call_a_valid_local_candidate_a_counterexample():
 
 # ---------------------------------------------------------------- classification off the zero's box
 
-@pytest.mark.xfail(strict=True, reason="find_equilibria calls a non-hyperbolic, unstable double "
-                   "zero 'stable': Newton stops where 1 - cos(x) rounds to 0, 9e-9 from the zero, "
-                   "4.5 zero-box radii away, and J there is classified")
 def test_a_double_zero_behind_rounding_is_not_stable():
     # f = (-2 (1 - cos x), -y): the only zero with |x| < 2 pi is the origin, where
     # J = diag(-2 sin 0, -1) = diag(0, -1): not hyperbolic (the docstring's "degenerate"), and
@@ -188,3 +179,22 @@ def test_a_singular_linearization_is_not_hurwitz():
     f = cs.vertcat(-a + 0.5 * b, -b + c, 2 * a - c)
     with pytest.raises(HybridnavError, match="the linearization at the target is not Hurwitz"):
         lyapunov_equation_candidate((x3, f), equilibrium=[0, 0, 0])
+
+
+def test_may_step_tells_jumps_from_continuous_operations():
+    from hybridnav.analysis.interval import may_step
+
+    x = _X[0]
+    assert not may_step(_X, cs.vertcat(cs.sqrt(x ** 2 + 1e-300), cs.fmin(x, 1), cs.fabs(x),
+                                       cs.constpow(x ** 2, 1.0 / 3)))
+    for f in (cs.if_else(x >= 0, x, -x), cs.floor(x), cs.sign(x), cs.atan2(x, _X[1])):
+        assert may_step(_X, f), f
+
+
+def test_a_jump_across_zero_is_refused_and_a_kink_through_zero_kept():
+    # the same if_else, once jumping across 0 (no zero) and once continuous through 0 (a zero)
+    X, Y = _X[0], _X[1]
+    jump = _eqs(cs.vertcat(cs.if_else(X >= 0, X + 1e-3, X - 1e-3), -Y))
+    kink = _eqs(cs.vertcat(cs.if_else(X >= 0, -X, -3 * X), -Y))
+    assert jump == [], _states(jump)
+    assert [e.state.tolist() for e in kink] == [[0.0, 0.0]], _states(kink)

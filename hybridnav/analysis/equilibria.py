@@ -57,24 +57,28 @@ def find_equilibria(
 
     A Newton end point ``z`` counts when interval arithmetic (outward rounded) on the box
     ``z +- 1e-9 x`` (the region's extent in each state; at least 64 ulps of ``z``) proves a zero
-    there (the Krawczyk test), or cannot exclude one and
-    the field is continuous there -- tests in the state's units, not the field's, so a slow
-    field's small values are not taken for zeros and a fast field's zeros are not refused. A zero
-    is excluded by the field's enclosure, or by its centred form preconditioned with the inverse
-    and the singular vectors of the Jacobian (no dependency blow-up, and two components that
-    vanish on parallel curves but never together are seen), row by row where only some rows are
-    smooth. For a field the interval flags do not show continuous (``if_else``, ``sqrt`` at 0) a
-    point nothing excludes counts when ``|f(z)|`` is within what the Jacobian's enclosure allows
-    at ``1e-12 (1 + |z|)`` from a zero and ``|f(z)| < 1e-9 max(1, span)`` (the second alone where
-    that enclosure is unbounded). Points within a millionth of the region's extent in every
-    state, or whose boxes overlap, are one equilibrium. Only admissible states count (see
+    there (the Krawczyk test), or ``f(z)`` is 0 to rounding, or the box cannot be cleared of a
+    zero -- tests in the state's units, not the field's, so a slow field's small values are not
+    taken for zeros and a fast field's zeros are not refused. A zero is excluded from a box by
+    the field's enclosure, or by its centred form preconditioned with the inverse and the
+    singular vectors of the Jacobian (no dependency blow-up, and two components that vanish on
+    parallel curves but never together are seen), row by row where only some rows are smooth.
+    Where neither decides, the box is bisected and the parts that exclude a zero dropped: the
+    point is refused when none is left (a field that only comes within rounding-sized distance
+    of 0), and counts when a part is left on which the field is continuous, or, where it may
+    jump (``if_else``, ``floor``, ``sign``, ``atan2`` across its cut), where the components that
+    may jump are 0 to rounding at a point of that part: a jump across 0 is no zero. Points
+    within a millionth of the region's extent in every state, or whose boxes overlap, are one
+    equilibrium. Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
 
     Each is classified by the eigenvalues of the exact Jacobian at ``z``: ``"degenerate"`` where
     a perturbation as large as the Jacobian's uncertainty (how far it can move over the zero's
-    box, plus rounding) can put an eigenvalue on the imaginary axis (the smallest singular value
-    of ``J - i w I`` over ``w``), or the Jacobian is not finite; else ``"stable"`` (all real parts
-    negative: a local minimum of ``V`` for a gradient flow), ``"unstable"`` or ``"saddle"``.
+    box -- where no zero was proved in it, over twice the Newton step ``|J(z)^-1| |f(z)|`` that
+    ``f(z)``'s rounding allows -- plus rounding) can put an eigenvalue on the imaginary axis
+    (the smallest singular value of ``J - i w I`` over ``w``), or the Jacobian is not finite;
+    else ``"stable"`` (all real parts negative: a local minimum of ``V`` for a gradient flow),
+    ``"unstable"`` or ``"saddle"``.
 
     Parameters
     ----------
@@ -197,24 +201,30 @@ class _ZeroTests:
     ``r = ZERO_BOX x`` the region's extent per state (at least 64 ulps of ``z``), with
     outward-rounded interval arithmetic.
 
-    Refused when a zero in ``X`` is excluded: by the enclosure of ``f`` on ``X``, or, where ``f``
-    is smooth on ``X``, by the centred form ``P f(z) + P J(X) (X - z)``, which holds ``P f(x)``
-    for every ``x`` in ``X`` (the mean value theorem, row by row) for any matrix ``P``: the
-    inverse of ``J(z)`` (a scale-free test, free of the dependency that widens ``f``'s own
-    enclosure), and the left singular vectors of ``J(z)`` (its near-null rows see
-    ``f1 - f2 = 1e-10`` through a singular Jacobian). Accepted when the Krawczyk operator proves
-    a zero in ``X``; otherwise (a degenerate or non-smooth zero) when nothing excludes one and
-    ``f`` is continuous on ``X``, or ``f(z)`` is 0 to rounding, or -- where the field is not
-    continuous on ``X`` by the interval flags (an ``if_else``, ``sqrt`` at 0: the flags are
-    conservative) -- ``|f(z)|`` within what the Jacobian's enclosure allows at ``1e-12 (1 + |z|)``
-    from a zero (necessary only) and ``|f(z)| < 1e-9 max(1, span)``.
+    A zero in a box is excluded by the enclosure of ``f`` on it, or, where ``f`` is smooth on
+    it, by the centred form ``P f(c) + P J(box) (box - c)``, which holds ``P f(x)`` for every
+    ``x`` in the box (the mean value theorem, row by row) for any matrix ``P``: the inverse of
+    ``J(z)`` (a scale-free test, free of the dependency that widens ``f``'s own enclosure), and
+    the left singular vectors of ``J(z)`` (its near-null rows see ``f1 - f2 = 1e-10`` through a
+    singular Jacobian).
+
+    ``z`` is refused when a zero in ``X`` is excluded, and accepted when the Krawczyk operator
+    proves one there, or ``f(z)`` is 0 to rounding. Otherwise (a degenerate or non-smooth zero,
+    or a field that only comes close to 0) ``X`` is bisected, each part along the state that
+    widens the enclosure most, and the parts that exclude a zero are dropped (up to
+    ``SUBDIVIDE_ROUNDS`` rounds of at most ``SUBDIVIDE_BOXES`` parts): ``z`` is refused when
+    none is left, and accepted when a part is left on which ``f`` is continuous (interval
+    flags), or, where it may jump (an undecided ``if_else``, ``floor``, ``sqrt`` at 0), where
+    the components that may jump are 0 to rounding at a point of the part (``z``, its centre or
+    a corner): a jump across 0 is no zero.
     Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
-    be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)|`` that small.
+    be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)| < 1e-9 max(1, span)``.
     """
 
     def __init__(self, x: cs.SX, f: cs.SX, cands: list, span: float,
                  extent: np.ndarray) -> None:
-        from hybridnav.analysis.interval import IntervalFunction, UnsupportedOperation
+        from hybridnav.analysis.interval import (IntervalFunction, UnsupportedOperation,
+                                                 may_step)
 
         self.cands, self.span = cands, span
         self.n = n = int(x.numel())
@@ -222,6 +232,7 @@ class _ZeroTests:
         # a billionth of the region's extent per state (not of |z|: two zeros 0.15 apart at
         # 1e8 have boxes of their own), and never below 64 ulps of z (where Newton ends)
         self.radius = np.maximum(ZERO_BOX * extent[None, :], 64.0 * np.spacing(np.abs(Z)))
+        self.proved: set[int] = set()
         self.ifn = None
         if not len(cands):
             return
@@ -232,6 +243,7 @@ class _ZeroTests:
         self.lo, self.hi, self.smooth, self.cont = self.ifn(Z - self.radius, Z + self.radius,
                                                             continuity=True)
         self.plo, self.phi, _ = self.ifn(Z, Z)
+        self.steps = may_step(x, f)
 
     def _small(self, i: int) -> bool:
         return bool(np.linalg.norm(self.cands[i][1]) < 1e-9 * max(1.0, self.span))
@@ -242,6 +254,20 @@ class _ZeroTests:
             return False
         n = self.n
         return bool(np.any(self.lo[i, :n] > 0) or np.any(self.hi[i, :n] < 0))
+
+    def _preconditioners(self, i: int) -> tuple[list[np.ndarray], np.ndarray | None]:
+        """The centred form's row combinations: the identity, ``J(z)``'s inverse (also
+        returned, for Krawczyk) and its left singular vectors."""
+        jz, n = self.cands[i][2], self.n
+        pre, Y = [np.eye(n)], None
+        if np.all(np.isfinite(jz)):
+            try:
+                Y = np.linalg.inv(jz)
+                pre.append(Y)
+            except np.linalg.LinAlgError:
+                Y = None
+            pre.append(np.linalg.svd(jz)[0].T)
+        return pre, Y
 
     def accepted(self, i: int) -> bool:
         z, fz, jz, _ = self.cands[i]
@@ -257,54 +283,80 @@ class _ZeroTests:
         if self.excluded_fast(i):
             return False
         fl, fh = self.plo[i, :n], self.phi[i, :n]
-        exact = bool(np.all((fl <= 0) & (fh >= 0)))
         Jl, Jh = self._jacobian_box(i)
-        # rows of f smooth on the box, with a finite Jacobian row there and a finite f(z): the
-        # mean value theorem holds for them (and for combinations of them only)
-        ok_rows = (self.smooth[i, :n] & np.all(np.isfinite(Jl) & np.isfinite(Jh), axis=1)
-                   & np.isfinite(fl) & np.isfinite(fh))
-        Y = None
-        if ok_rows.any():
-            fm, fr = (fl + fh) / 2, (fh - fl) / 2
-            Jm = np.where(ok_rows[:, None], (Jl + Jh) / 2, 0.0)
-            Jr = np.where(ok_rows[:, None], (Jh - Jl) / 2, 0.0)
-            fm, fr = np.where(ok_rows, fm, 0.0), np.where(ok_rows, fr, 0.0)
-            pre = [np.eye(n)]
-            if np.all(np.isfinite(jz)):
-                try:
-                    Y = np.linalg.inv(jz)
-                    pre.append(Y)
-                except np.linalg.LinAlgError:
-                    Y = None
-                pre.append(np.linalg.svd(jz)[0].T)
-            for P in pre:
-                # a row of P f is enclosed by the centred form where it combines smooth rows only
-                rows = np.all((P == 0) | ok_rows[None, :], axis=1) & np.all(np.isfinite(P), axis=1)
-                if not rows.any():
-                    continue
-                P = P[rows]
-                aP = np.abs(P)
-                center = P @ fm
-                # the products and sums rounded up: a relative 1e-12 of every term, and 1e-300
-                width = aP @ fr + (np.abs(P @ Jm) + aP @ Jr) @ r
-                width += 1e-12 * (aP @ np.abs(fm) + (aP @ np.abs(Jm) + aP @ Jr) @ r)
-                if np.any(np.abs(center) > width * (1 + 1e-12) + 1e-300):
-                    return False                    # no zero in the box
-            if Y is not None and ok_rows.all() and np.all(np.isfinite(Y)) and _krawczyk(
-                    Y, fm, fr, Jm, Jr, r):
-                return True                         # exactly one zero in the box
-        if exact or bool(self.cont[i, :n].all()):
-            return True
-        # continuity not shown (an undecided if_else, sqrt at 0: the flags are conservative):
-        # a zero within 1e-12 (1 + |z|) of z, f Lipschitz with the Jacobian's enclosure on the
-        # box, would leave |f_i(z)| <= sum_j max|J_ij| 1e-12 (1 + |z_j|) -- necessary only, so
-        # the old residual test must hold as well (it alone where that enclosure is unbounded)
-        L = np.maximum(np.abs(Jl), np.abs(Jh))
-        if np.all(np.isfinite(L)):
-            reach = L @ (1e-12 * (1.0 + np.abs(z)))
-            if not np.all(np.maximum(np.abs(fl), np.abs(fh)) <= reach * (1 + 1e-12)):
-                return False
-        return self._small(i)
+        pre, Y = self._preconditioners(i)
+        ok = _smooth_rows(self.smooth[i:i + 1, :n], Jl[None], Jh[None], fl[None], fh[None])[0]
+        if _centred_excludes(fl[None], fh[None], Jl[None], Jh[None], ok[None], r[None], pre)[0]:
+            return False                            # no zero in the box
+        if (Y is not None and ok.all() and np.all(np.isfinite(Y))
+                and _krawczyk(Y, (fl + fh) / 2, (fh - fl) / 2, (Jl + Jh) / 2, (Jh - Jl) / 2, r)):
+            self.proved.add(i)
+            return True                             # exactly one zero in the box
+        if np.all((fl <= 0) & (fh >= 0)):
+            return True                             # f(z) is 0 to rounding
+        return self._subdivided(i, pre)
+
+    def _subdivided(self, i: int, pre: list[np.ndarray]) -> bool:
+        """Bisect the zero box of ``i``, dropping the parts that exclude a zero: whether a part
+        is left where ``f`` is continuous, or where the components that may jump are 0 to
+        rounding at a point of it."""
+        z, n = self.cands[i][0], self.n
+        lo, hi = (z - self.radius[i])[None], (z + self.radius[i])[None]
+        blo, bhi, cont = self.lo[i:i + 1], self.hi[i:i + 1], self.cont[i:i + 1, :n]
+        for _ in range(SUBDIVIDE_ROUNDS):
+            # split each part along the state whose width, times the Jacobian's column,
+            # widens the enclosure most (a state f does not depend on is not split)
+            L = np.maximum(np.abs(blo[:, n:]), np.abs(bhi[:, n:])).reshape(-1, n, n, order="F")
+            w = hi - lo
+            with np.errstate(invalid="ignore"):
+                score = np.where(np.isfinite(L), L, np.inf).sum(axis=1) * w
+            score = np.where(np.isnan(score) | (score == 0), w / self.radius[i], score)
+            j = np.argmax(score, axis=1)
+            rows = np.arange(len(lo))
+            mid = (lo[rows, j] + hi[rows, j]) / 2
+            can = (mid > lo[rows, j]) & (mid < hi[rows, j])
+            if not can.any():
+                break
+            keep_lo, keep_hi = lo[~can], hi[~can]
+            lo, hi, rows, j, mid = lo[can], hi[can], rows[can], j[can], mid[can]
+            left_hi, right_lo = hi.copy(), lo.copy()
+            k = np.arange(len(lo))
+            left_hi[k, j], right_lo[k, j] = mid, mid
+            lo = np.vstack([keep_lo, lo, right_lo])
+            hi = np.vstack([keep_hi, left_hi, hi])
+            blo, bhi, smooth, cont = self.ifn(lo, hi, continuity=True)
+            c = (lo + hi) / 2
+            clo, chi, _ = self.ifn(c, c)
+            Jl = blo[:, n:].reshape(-1, n, n, order="F")
+            Jh = bhi[:, n:].reshape(-1, n, n, order="F")
+            ok = _smooth_rows(smooth[:, :n], Jl, Jh, clo[:, :n], chi[:, :n])
+            out = (np.any(blo[:, :n] > 0, axis=1) | np.any(bhi[:, :n] < 0, axis=1)
+                   | _centred_excludes(clo[:, :n], chi[:, :n], Jl, Jh, ok, (hi - lo) / 2, pre))
+            lo, hi, blo, bhi, cont = lo[~out], hi[~out], blo[~out], bhi[~out], cont[~out, :n]
+            if not len(lo):
+                return False                        # every part excludes a zero
+            if len(lo) > SUBDIVIDE_BOXES:
+                break
+        # without an operation that can jump, f is continuous wherever it is defined (a finite
+        # enclosure): sqrt at 0 is not Lipschitz, but continuous
+        jumps = ~cont
+        if not self.steps:
+            jumps &= ~(np.isfinite(blo[:, :n]) & np.isfinite(bhi[:, :n]))
+        for b in range(len(lo)):
+            if not jumps[b].any():
+                return True                         # a part where f is continuous is left
+            pts = [lo[b], hi[b], (lo[b] + hi[b]) / 2]
+            if np.all((lo[b] <= z) & (z <= hi[b])):
+                pts.append(z)
+            if n <= 4:
+                corners = np.array(np.meshgrid(*zip(lo[b], hi[b]), indexing="ij"))
+                pts.extend(corners.reshape(n, -1).T)
+            P = np.array(pts)
+            plo, phi, _ = self.ifn(P, P)
+            if np.any(np.all((plo[:, :n] <= 0) | ~jumps[b], axis=1)
+                      & np.all((phi[:, :n] >= 0) | ~jumps[b], axis=1)):
+                return True
+        return False
 
     def _jacobian_box(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """The enclosure of the Jacobian on box ``i``: its lower and upper bound matrices."""
@@ -313,17 +365,65 @@ class _ZeroTests:
                 self.hi[i, n:].reshape(n, n, order="F"))
 
     def jacobian_spread(self, i: int) -> float:
-        """How far the Jacobian can be from ``J(z)`` at a zero in the box (its enclosure's
-        largest deviation, 2-norm bound); without an interval extension, ``1e-12 |J(z)|`` for
-        its evaluation's rounding."""
-        n, jz = self.n, self.cands[i][2]
+        """How far the Jacobian can be from ``J(z)`` at a zero near ``z`` (its enclosure's
+        largest deviation, 2-norm bound): on the zero box where Krawczyk proved the zero in it;
+        otherwise also over where ``f(z)``'s uncertainty lets the zero be (twice the Newton
+        step ``|J(z)^-1| |f(z)|``: a zero ``1 - cos x`` hides by rounding to 0). Without an
+        interval extension, ``1e-12 |J(z)|`` for its evaluation's rounding."""
+        n, z, jz = self.n, self.cands[i][0], self.cands[i][2]
         if self.ifn is None:          # only J(z)'s evaluation: its rounding, generously
             return 1e-12 * float(np.linalg.norm(jz, 2)) if np.all(np.isfinite(jz)) else np.inf
         Jl, Jh = self._jacobian_box(i)
+        if i not in self.proved:
+            fa = np.maximum(np.abs(self.plo[i, :n]), np.abs(self.phi[i, :n]))
+            _, Y = self._preconditioners(i)
+            reach = 2.0 * (np.abs(Y) @ fa) if Y is not None else np.zeros(n)
+            R = np.where(np.isfinite(reach), np.maximum(self.radius[i], reach), np.inf)
+            blo, bhi, _ = self.ifn((z - R)[None], (z + R)[None])
+            Jl = blo[0, n:].reshape(n, n, order="F")
+            Jh = bhi[0, n:].reshape(n, n, order="F")
         dev = np.maximum(np.abs(Jh - jz), np.abs(jz - Jl))
         if not np.all(np.isfinite(dev)):
             return np.inf
         return float(np.linalg.norm(dev, "fro"))
+
+
+#: the zero box's bisection when no test decides it: rounds, and the most parts kept
+SUBDIVIDE_ROUNDS = 48
+SUBDIVIDE_BOXES = 256
+
+
+def _smooth_rows(smooth, Jl, Jh, fl, fh) -> np.ndarray:
+    """Per box, the rows of ``f`` smooth on it with a finite Jacobian row there and a finite
+    ``f(c)``: the mean value theorem holds for them (and for combinations of them only)."""
+    return (smooth & np.all(np.isfinite(Jl) & np.isfinite(Jh), axis=2)
+            & np.isfinite(fl) & np.isfinite(fh))
+
+
+def _centred_excludes(fl, fh, Jl, Jh, ok, r, pre) -> np.ndarray:
+    """Per box ``b`` (centre ``c``, half-widths ``r[b]``, ``f(c)`` in ``[fl, fh]``, ``J`` in
+    ``[Jl, Jh]`` on it, rows ``ok`` smooth): whether the centred form ``P f(c) + P J (x - c)``
+    leaves out 0 in a row for some ``P`` in ``pre`` -- rows combining smooth rows only, the
+    float products and sums rounded up (a relative 1e-12 of every term, and 1e-300)."""
+    fm, fr = np.where(ok, (fl + fh) / 2, 0.0), np.where(ok, (fh - fl) / 2, 0.0)
+    Jm = np.where(ok[:, :, None], (Jl + Jh) / 2, 0.0)
+    Jr = np.where(ok[:, :, None], (Jh - Jl) / 2, 0.0)
+    out = np.zeros(len(fm), dtype=bool)
+    for P in pre:
+        rows = (np.all((P[None] == 0) | ok[:, None, :], axis=2)
+                & np.all(np.isfinite(P), axis=1)[None])
+        if not rows.any():
+            continue
+        P = np.where(np.isfinite(P), P, 0.0)
+        aP = np.abs(P)
+        center = fm @ P.T
+        aPJr = np.einsum("kn,bnm->bkm", aP, Jr)
+        width = fr @ aP.T + np.einsum("bkm,bm->bk",
+                                      np.abs(np.einsum("kn,bnm->bkm", P, Jm)) + aPJr, r)
+        width += 1e-12 * (np.abs(fm) @ aP.T + np.einsum(
+            "bkm,bm->bk", np.einsum("kn,bnm->bkm", aP, np.abs(Jm)) + aPJr, r))
+        out |= np.any(rows & (np.abs(center) > width * (1 + 1e-12) + 1e-300), axis=1)
+    return out
 
 
 def _classify(jz: np.ndarray, spread: float) -> tuple[np.ndarray, str]:

@@ -437,8 +437,17 @@ class IntervalFunction:
 #: operations that may jump, or lose Lipschitz continuity (sqrt, fractional powers, asin, acos
 #: at the ends of their domains: solutions may not be unique there), where their flag is False;
 #: the others are Lipschitz continuous where defined (fmin, fmax, fabs: kinks)
-_JUMPS = {"floor", "ceil", "sign", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero",
-          "atan2", "sqrt", "pow", "constpow", "asin", "acos"}
+_STEPS = {"floor", "ceil", "sign", "lt", "le", "eq", "ne", "not", "and", "or", "if_else_zero",
+          "atan2"}
+_JUMPS = _STEPS | {"sqrt", "pow", "constpow", "asin", "acos"}
+
+
+def may_step(x: cs.SX, f: cs.SX) -> bool:
+    """Whether ``f`` uses an operation that can jump (a comparison, selection, ``floor``,
+    ``sign``, ``atan2`` across its cut): without one, ``f`` is continuous wherever it is defined
+    (``sqrt`` or a fractional power at 0 is continuous, only not Lipschitz)."""
+    fn = cs.Function("f", [x], [cs.densify(cs.SX(f))], {"live_variables": False})
+    return any(_OPS.get(fn.instruction_id(k)) in _STEPS for k in range(fn.n_instructions()))
 
 
 def _selected(name, a, b, c, d):

@@ -219,21 +219,32 @@ def estimate_roa(
             else:
                 lo, status = mid, rep.status
         level, bounded = lo, "counterexample"
-    final = None
-    for _ in range(10):
+    final, tried = None, []
+    for k in range(FINAL_TRIES):
         if not level > 0:
             break
         final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
         status = final.status
+        tried.append(float(level))
         if status != "counterexample":
             break
-        # the certificate found what the bisection's sampling missed: go below it
+        # the certificate found what the bisection's sampling missed: go below it, and ever
+        # faster (rtol, 4 rtol, 16 rtol ... of the level, at most half) where its
+        # counterexamples creep down a hair at a time along the set where Vdot = 0
         cex, bounded = final.counterexample, "counterexample"
-        level = min(level, final.details.get("counterexample_V", level)) * (1 - rtol)
+        below = final.details.get("counterexample_V", level) * (1 - rtol)
+        level = min(below, level * (1 - min(0.5, rtol * 4.0 ** k)))
     if status == "counterexample":
-        # every level tried holds a state with Vdot >= 0 (V's minimum is not where Vdot's is):
-        # no sublevel set is certified
+        # every level tried (down to tried[-1]) holds a state with Vdot >= 0: no sublevel set
+        # is certified. Where V's minimum is not where Vdot's is that is so at every level
+        # (the counterexample is then inside the last one); else lower levels are untried
         level = 0.0
+        cv = final.details.get("counterexample_V", np.inf) if final is not None else np.inf
+        if not cv <= tried[-1]:
+            status = "undecided"
+        details["not_proved"] = (f"the certificate found a state with Vdot >= 0 in {{V <= c}} "
+                                 f"at each of {len(tried)} levels c from {tried[0]:.6g} down to "
+                                 f"{tried[-1]:.6g}")
     if (final is not None and status in ("no_counterexample", "undecided") and level > 0
             and (certificate if certificate is not None else model.nx <= 3)):
         # the sampled level is not proved (it may sit a hair above the largest valid level,
@@ -290,6 +301,10 @@ def estimate_roa(
                        simulated=sim.get("simulated", 0), converged=sim.get("converged", 0),
                        monotone=sim.get("monotone", 0),
                        details={**details, **sim.get("details", {})})
+
+
+#: certificate checks of the final level, each below the last one's counterexample
+FINAL_TRIES = 12
 
 
 def _check_roa_settings(*, rtol, samples, confirm, grow, horizon) -> None:
