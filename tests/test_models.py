@@ -326,3 +326,19 @@ def test_commanded_rates_follow_the_parameter_values_and_equal_casadis_call():
     m.values["speed"] = 0.5
     assert m.commanded_rates(X, T)[0, 0] == 0.5
     assert models.get("point_mass").commanded_rates(X[:, :2], T) is None
+
+
+@pytest.mark.parametrize("jit", [None, False])
+def test_step_and_rollout_follow_parameter_values_changed_in_place(jit):
+    # the compiled cycle folds the parameter values in: a value changed after the first batch
+    # must give the cycle of a model built with it (it used to keep the old one, silently)
+    X, T = np.array([[0.0, 0.0, 0.3], [1.0, -1.0, 2.0]]), np.array([[2.0, 1.0], [0.0, 0.0]])
+    m = models.get("unicycle", jit=jit)
+    first = m.step(X, T)
+    m.rollout(X, T, 4)
+    m.values["k_alpha"] = 2.5
+    m.dt = 0.05
+    fresh = models.get("unicycle", jit=jit, k_alpha=2.5, dt=0.05)
+    assert np.array_equal(m.step(X, T), fresh.step(X, T))
+    assert np.array_equal(m.rollout(X, T, 4), fresh.rollout(X, T, 4))
+    assert not np.array_equal(m.step(X, T), first)

@@ -174,6 +174,15 @@ class System(Model):
                       dt=kw.get("dt", self.dt), name=self.name, jit=kw.get("jit", self.jit),
                       source=self.source)
 
+    def __reduce__(self):
+        # the right-hand side travels as a serialized CasADi function of the state and input
+        # symbols (SX expressions do not pickle); the rest as they are
+        fn = cs.Function("rhs", [self.sym.x, self.sym.u], [self._rhs])
+        return (_unpickled, (fn.serialize(), {
+            "states": self.state_names, "inputs": self.input_names, "u0": self.u0,
+            "equilibrium": self.equilibrium, "angles": self.angle_state_names, "dt": self.dt,
+            "name": self.name, "jit": self.jit, "source": self.source}))
+
     def _key(self) -> tuple:
         text = f"{self.state_names}|{self.input_names}|{self._rhs}|{self.u0.tolist()}"
         return ("System", self.name, self.dt, hashlib.sha256(text.encode()).hexdigest())
@@ -418,3 +427,10 @@ def _vector(v, key: str, n: int) -> np.ndarray:
     if a.size != n or not np.all(np.isfinite(a)):
         raise HybridnavError(f"{key}: expected {n} finite numbers, got {a.tolist()}")
     return a
+
+
+def _unpickled(rhs: str, settings: dict[str, Any]) -> System:
+    """The system :meth:`System.__reduce__` pickled."""
+    fn = cs.Function.deserialize(rhs)
+    x, u = fn.sx_in(0), fn.sx_in(1)
+    return System(x, u, fn(x, u), **settings)

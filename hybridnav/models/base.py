@@ -106,6 +106,10 @@ class Model(ABC):
     **params
         Numeric model parameters overriding :attr:`defaults`, and the model's options (see
         :attr:`option_defaults`), e.g. ``alpha1=0.2`` or ``controller="heading"``.
+
+    The parameters are kept in :attr:`values` (and :attr:`options`); :meth:`step` and
+    :meth:`rollout` follow values changed there in place (their compiled code is built again).
+    A model pickles as its class and settings (process pools, Dask workers).
     """
 
     name: ClassVar[str] = ""
@@ -227,6 +231,12 @@ class Model(ABC):
     def target_size(self) -> int:
         """Entries of a target: a robot's ``(x1, y1)``, the first two states' values."""
         return 2
+
+    def __reduce__(self):
+        # pickled as its class and its settings (process pools, Dask): the CasADi symbols, the
+        # compiled functions and the per-thread buffers are rebuilt where it is unpickled
+        return (_rebuild, (type(self), {"dt": self.dt, "jit": self.jit, "radius": self._radius},
+                           {**self.values, **self.options}))
 
     # ---- what subclasses provide -------------------------------------------------------------
 
@@ -415,14 +425,20 @@ class Model(ABC):
         """The model cycle compiled in C (:mod:`hybridnav.models.kernel`), or None: ``jit=False``,
         compiling switched off or impossible; then CasADi's ``map`` runs the batches. Chosen at
         the model's first batch from the environment (``HYBRIDNAV_SIMD``, ``HYBRIDNAV_NATIVE``,
-        ``HYBRIDNAV_JIT``) as it is then."""
-        try:
-            return self.__dict__["_kernel"]
-        except KeyError:
-            k = (None if self.jit is False or not _kernel.allowed()
-                 else _kernel.get(self, _kernel.wanted()))
-            self.__dict__["_kernel"] = k
-            return k
+        ``HYBRIDNAV_JIT``) as it is then; built again when :attr:`values` or :attr:`options`
+        were changed in place since (the parameters are folded into its code)."""
+        now = self._settings()
+        got = self.__dict__.get("_kernel")
+        if got is not None and got[0] == now:
+            return got[1]
+        k = (None if self.jit is False or not _kernel.allowed()
+             else _kernel.get(self, _kernel.wanted()))
+        self.__dict__["_kernel"] = (now, k)
+        return k
+
+    def _settings(self) -> tuple:
+        """What the compiled functions fold in, cheaply compared (a call costs ~0.3 us)."""
+        return (self.dt, tuple(self.values.values()), tuple(self.options.values()))
 
     def _step_single(self) -> cs.Function:
         """One control cycle of one robot with the numeric parameters folded in."""
@@ -434,7 +450,8 @@ class Model(ABC):
         cache = getattr(self._local, "buffers", None)
         if cache is None:
             cache = self._local.buffers = {}
-        bkey = (kind, n, steps)
+        # (the parameters are folded in: values changed in place need other functions)
+        bkey = (kind, n, steps, self._settings())
         b = cache.get(bkey)
         if b is not None:
             return b
@@ -704,6 +721,11 @@ class Model(ABC):
         params = ", ".join(f"{k}={v:g}" for k, v in self.values.items())
         opts = "".join(f", {k}={v!r}" for k, v in self.options.items())
         return f"{type(self).__name__}(dt={self.dt:g}, {params}{opts})"
+
+
+def _rebuild(cls, base: dict[str, Any], params: dict[str, Any]) -> Model:
+    """A model of class ``cls`` with these settings and parameters (:meth:`Model.__reduce__`)."""
+    return cls(**base, **params)
 
 
 def _named(names: Sequence[str]) -> cs.SX:
