@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -342,3 +343,20 @@ def test_step_and_rollout_follow_parameter_values_changed_in_place(jit):
     assert np.array_equal(m.step(X, T), fresh.step(X, T))
     assert np.array_equal(m.rollout(X, T, 4), fresh.rollout(X, T, 4))
     assert not np.array_equal(m.step(X, T), first)
+
+
+@pytest.mark.parametrize("jit", [None, False])
+@pytest.mark.parametrize("used", [False, True])
+@pytest.mark.parametrize("key, value, message", [
+    ("k_alpha", "abc", "model unicycle: k_alpha: expected a number, got 'abc'"),
+    ("k_alpha", float("nan"), "model unicycle: k_alpha: expected a finite number, got nan"),
+    ("controller", "bogus", "model unicycle: controller: expected one of go_to_point, heading, "
+                            "got 'bogus'")])
+def test_a_bad_value_set_in_place_gets_the_constructors_error(jit, used, key, value, message):
+    X, T = np.array([[0.0, 0.0, 0.3]]), np.array([[2.0, 1.0]])
+    m = models.get("unicycle", jit=jit)
+    if used:
+        m.step(X, T)
+    (m.values if key in m.values else m.options)[key] = value
+    with pytest.raises(HybridnavError, match=re.escape(message)):
+        m.step(X, T)

@@ -226,6 +226,7 @@ class Model(ABC):
             target=_named(("x1", "y1")),
         )
         self._local = threading.local()
+        self._checked = self._settings()
 
     @property
     def target_size(self) -> int:
@@ -431,10 +432,29 @@ class Model(ABC):
         got = self.__dict__.get("_kernel")
         if got is not None and got[0] == now:
             return got[1]
+        self._recheck(now)
         k = (None if self.jit is False or not _kernel.allowed()
              else _kernel.get(self, _kernel.wanted()))
         self.__dict__["_kernel"] = (now, k)
         return k
+
+    def _recheck(self, now: tuple) -> None:
+        """Validate :attr:`values`, :attr:`options` and ``dt`` when they differ from the settings
+        last checked (changed in place), as the constructor does (:class:`HybridnavError` naming
+        the key)."""
+        checked = self.__dict__.setdefault("_checked", now)
+        if checked == now:
+            return
+        where = f"model {self.name}: "
+        self.dt = _DT.check("dt", self.dt, where)
+        for key, value in list(self.values.items()) + list(self.options.items()):
+            if key not in self.parameters:
+                raise HybridnavError(f"{where}unknown parameter {key!r}; expected one of: "
+                                     + ", ".join(sorted(self.parameters)))
+            (self.values if key in self.values else self.options)[key] = \
+                self.parameters[key].check(key, value, where)
+        self._validate_params()
+        self.__dict__["_checked"] = self._settings()
 
     def _settings(self) -> tuple:
         """What the compiled functions fold in, cheaply compared (a call costs ~0.3 us)."""
@@ -451,7 +471,9 @@ class Model(ABC):
         if cache is None:
             cache = self._local.buffers = {}
         # (the parameters are folded in: values changed in place need other functions)
-        bkey = (kind, n, steps, self._settings())
+        now = self._settings()
+        self._recheck(now)
+        bkey = (kind, n, steps, now)
         b = cache.get(bkey)
         if b is not None:
             return b
