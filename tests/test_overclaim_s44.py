@@ -18,6 +18,10 @@ expression holds, so the field is the one the analysis saw).
    is not proved by Krawczyk, and the spread is then taken over z +- 2 |J^-1| |f(z)|, which
    reaches a kink 1e-8 away: "degenerate" for an equilibrium whose Jacobian is -I on a whole
    neighbourhood (the parent commit: "stable").
+5. Like 1, with a jump: a part where a component may jump counts when the jumping components
+   alone are 0 at a corner -- f1 = 0 on one side of x = y, f2's zero line 1e-12 beyond it.
+6. (Not from 5514bc1.) A hyperbolic saddle on atan2's branch cut, where sin(atan2(y, x)) is
+   analytic, is called "degenerate".
 """
 
 from __future__ import annotations
@@ -137,3 +141,50 @@ def test_a_hyperbolic_zero_near_a_kink_is_stable():
     near = [e for e in eqs if abs(e.state[0]) < 1e-6 and abs(e.state[1]) < 1e-6]
     assert near, _states(eqs)
     assert [e.kind for e in near] == ["stable"], [(e.state.tolist(), e.kind) for e in near]
+
+
+# ---------------------------------------------------------------- 5. a jump to 0 beside a zero line
+
+@pytest.mark.xfail(strict=True, reason="5514bc1: where the parts pass 256 along a line, a part in "
+                   "which a component jumps counts when that component alone is 0 at a corner; "
+                   "the other component is 3e-9 from 0 there and never 0 where the first is")
+def test_a_jump_to_zero_beside_the_other_nullcline_is_no_equilibrium():
+    # f = (if_else(e > 0, e + c, 0), e - d), e = x - y, c = float(1e-3), d = float(1e-12).
+    # f1 = 0 exactly when e <= 0 (else f1 = e + c > 0), and there f2 = e - d <= -d < 0: no zero.
+    # 5514bc1 reports 214 points, e.g. (0.0017609251987432128, 0.001760928595542716), where
+    # e = -3.4e-9: f1 = 0 but f2 = -3.4e-9 (the parent commit: 73). The jumping f1 is 0 at a
+    # corner with e < 0 of a part that also holds e = d, and the point test looks at the
+    # jumping components only.
+    X, Y = _X[0], _X[1]
+    c, d = 1e-3, 1e-12
+    e = X - Y
+    eqs = _eqs(cs.vertcat(cs.if_else(e > 0, e + c, 0), e - d))
+    for s in _states(eqs):
+        ex = _q(s[0]) - _q(s[1])
+        f1 = ex + Fraction(c) if ex > 0 else Fraction(0)
+        f2 = ex - Fraction(d)
+        assert f1 == 0 and f2 == 0, (s, float(f1), float(f2))
+    assert eqs == [], (len(eqs), _states(eqs)[:3])
+
+
+# ---------------------------------------------------------------- 6. atan2's cut (before 5514bc1 too)
+
+@pytest.mark.xfail(strict=True, reason="a saddle on atan2's branch cut, where sin(atan2(y, x)) = "
+                   "y / |(x, y)| is analytic, is called 'degenerate' (also at 5e8cf3f)")
+def test_a_saddle_on_the_atan2_cut_is_a_saddle():
+    # f = (sin(atan2(y, x)), x + 1). For (x, y) != 0, sin(atan2(y, x)) = y / sqrt(x^2 + y^2)
+    # whichever branch atan2 takes (atan2 jumps by 2 pi across its cut, sin does not), so f is
+    # analytic near (-1, 0), f(-1, 0) = (0, 0) exactly, and
+    # J = [[-x y / r^3, x^2 / r^3], [1, 0]] = [[0, 1], [1, 0]] there: eigenvalues +-1, a
+    # hyperbolic saddle. hybridnav reports (-1.0, 4.3e-17) "degenerate" with eigenvalues
+    # (1, -1).
+    X, Y = _X[0], _X[1]
+    x0, y0 = Fraction(-1), Fraction(0)
+    r3 = (x0 * x0 + y0 * y0) ** 3                   # r^6; r = 1 here
+    assert r3 == 1
+    J = [[-x0 * y0, x0 * x0], [1, 0]]               # / r^3 = 1
+    assert J == [[0, 1], [1, 0]]                    # trace 0, det -1: eigenvalues +-1
+    eqs = _eqs(cs.vertcat(cs.sin(cs.atan2(Y, X)), X + 1))
+    near = [e for e in eqs if abs(e.state[0] + 1) < 1e-6 and abs(e.state[1]) < 1e-6]
+    assert near, _states(eqs)
+    assert [e.kind for e in near] == ["saddle"], [(e.state.tolist(), e.kind) for e in near]
