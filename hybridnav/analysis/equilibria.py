@@ -63,11 +63,14 @@ def find_equilibria(
     the field's enclosure, or by its centred form preconditioned with the inverse and the
     singular vectors of the Jacobian (no dependency blow-up, and two components that vanish on
     parallel curves but never together are seen), row by row where only some rows are smooth.
-    Where neither decides, the box is bisected and the parts that exclude a zero dropped: the
-    point is refused when none is left (a field that only comes within rounding-sized distance
-    of 0), and counts when a part is left on which the field is continuous, or, where it may
-    jump (``if_else``, ``floor``, ``sign``, ``atan2`` across its cut), where the components that
-    may jump are 0 to rounding at a point of that part: a jump across 0 is no zero. Points
+    Where neither decides, the box is bisected (each part along the state that widens the
+    enclosure most) and the parts that exclude a zero dropped: the point is refused when none is
+    left (a field that only comes within rounding-sized distance of 0), or when more than 4,096
+    parts are left (a curve nothing excludes yet: undecided, not claimed), and counts when a part
+    is left on which the field is continuous, or, where it may jump (``if_else``, ``floor``,
+    ``sign``, ``atan2`` across its cut), where the components that may jump are 0 to rounding at
+    a point of that part, or are bisected to adjacent floats with values there no larger than
+    the Jacobian's bound allows (a zero between two floats): a jump across 0 is no zero. Points
     within a millionth of the region's extent in every state, or whose boxes overlap, are one
     equilibrium. Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
@@ -211,12 +214,16 @@ class _ZeroTests:
     ``z`` is refused when a zero in ``X`` is excluded, and accepted when the Krawczyk operator
     proves one there, or ``f(z)`` is 0 to rounding. Otherwise (a degenerate or non-smooth zero,
     or a field that only comes close to 0) ``X`` is bisected, each part along the state that
-    widens the enclosure most, and the parts that exclude a zero are dropped (up to
-    ``SUBDIVIDE_ROUNDS`` rounds of at most ``SUBDIVIDE_BOXES`` parts): ``z`` is refused when
-    none is left, and accepted when a part is left on which ``f`` is continuous (interval
-    flags), or, where it may jump (an undecided ``if_else``, ``floor``, ``sqrt`` at 0), where
-    the components that may jump are 0 to rounding at a point of the part (``z``, its centre or
-    a corner): a jump across 0 is no zero.
+    widens the enclosure most (never a state ``f`` does not depend on), and the parts that
+    exclude a zero are dropped (up to ``SUBDIVIDE_ROUNDS`` rounds): ``z`` is refused when none
+    is left, or when more than ``SUBDIVIDE_BOXES`` are (undecided: a curve of parts, of zeros or
+    of near-zeros; the Newton ends whose boxes meet that box are refused too), and accepted when
+    a part is left on which ``f`` is continuous (interval flags), or, where it may jump (an
+    undecided ``if_else``, ``floor``, ``atan2`` across its cut), where the components that may
+    jump are 0 to rounding at a point of the part (``z``, its centre or a corner), or are
+    bisected to adjacent floats in the states they depend on with values at those points no
+    larger than the Jacobian's enclosure allows over the part (a zero between two floats): a
+    jump across 0 is no zero.
     Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
     be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)| < 1e-9 max(1, span)``.
     """
@@ -233,6 +240,7 @@ class _ZeroTests:
         # 1e8 have boxes of their own), and never below 64 ulps of z (where Newton ends)
         self.radius = np.maximum(ZERO_BOX * extent[None, :], 64.0 * np.spacing(np.abs(Z)))
         self.proved: set[int] = set()
+        self.undecided: list[tuple[np.ndarray, np.ndarray]] = []
         self.ifn = None
         if not len(cands):
             return
@@ -294,6 +302,9 @@ class _ZeroTests:
             return True                             # exactly one zero in the box
         if np.all((fl <= 0) & (fh >= 0)):
             return True                             # f(z) is 0 to rounding
+        lo, hi = z - r, z + r
+        if any(np.all((lo <= uh) & (ul <= hi)) for ul, uh in self.undecided):
+            return False            # on the curve of a box the bisection left undecided
         return self._subdivided(i, pre)
 
     def _subdivided(self, i: int, pre: list[np.ndarray]) -> bool:
@@ -310,7 +321,10 @@ class _ZeroTests:
             w = hi - lo
             with np.errstate(invalid="ignore"):
                 score = np.where(np.isfinite(L), L, np.inf).sum(axis=1) * w
-            score = np.where(np.isnan(score) | (score == 0), w / self.radius[i], score)
+            score = np.where(np.isnan(score), np.inf, score)
+            # (a part whose Jacobian vanishes: by its width relative to the zero box)
+            flat = np.all(score == 0, axis=1)
+            score[flat] = (w / self.radius[i])[flat]
             j = np.argmax(score, axis=1)
             rows = np.arange(len(lo))
             mid = (lo[rows, j] + hi[rows, j]) / 2
@@ -336,12 +350,17 @@ class _ZeroTests:
             if not len(lo):
                 return False                        # every part excludes a zero
             if len(lo) > SUBDIVIDE_BOXES:
-                break
+                # a curve of parts nothing excludes yet (of zeros, or of near-zeros a finer
+                # bisection would exclude): undecided within the budget, so not claimed (nor
+                # the other Newton ends whose boxes meet this one)
+                self.undecided.append((z - self.radius[i], z + self.radius[i]))
+                return False
         # without an operation that can jump, f is continuous wherever it is defined (a finite
         # enclosure): sqrt at 0 is not Lipschitz, but continuous
         jumps = ~cont
         if not self.steps:
             jumps &= ~(np.isfinite(blo[:, :n]) & np.isfinite(bhi[:, :n]))
+        L = np.maximum(np.abs(blo[:, n:]), np.abs(bhi[:, n:])).reshape(-1, n, n, order="F")
         for b in range(len(lo)):
             if not jumps[b].any():
                 return True                         # a part where f is continuous is left
@@ -355,6 +374,17 @@ class _ZeroTests:
             plo, phi, _ = self.ifn(P, P)
             if np.any(np.all((plo[:, :n] <= 0) | ~jumps[b], axis=1)
                       & np.all((phi[:, :n] >= 0) | ~jumps[b], axis=1)):
+                return True
+            # bisected down to adjacent floats in every state a jumping component depends on:
+            # a zero between them (1 + 1e-30) shows as values no larger than the Jacobian's
+            # bound allows over the part, a jump across 0 as larger ones
+            width = hi[b] - lo[b]
+            on = L[b] > 0
+            ulp = width <= 2.0 * np.spacing(np.maximum(np.abs(lo[b]), np.abs(hi[b])))
+            reach = (np.where(np.isfinite(L[b]), L[b], np.inf) @ width) * (1 + 1e-9)
+            size = np.maximum(np.abs(plo[:, :n]), np.abs(phi[:, :n])).max(axis=0)
+            if all((not on[r].any() or bool(np.all(ulp[on[r]]))) and size[r] <= reach[r]
+                   for r in np.nonzero(jumps[b])[0]):
                 return True
         return False
 
@@ -389,8 +419,8 @@ class _ZeroTests:
 
 
 #: the zero box's bisection when no test decides it: rounds, and the most parts kept
-SUBDIVIDE_ROUNDS = 48
-SUBDIVIDE_BOXES = 256
+SUBDIVIDE_ROUNDS = 64
+SUBDIVIDE_BOXES = 4096
 
 
 def _smooth_rows(smooth, Jl, Jh, fl, fh) -> np.ndarray:
@@ -417,11 +447,10 @@ def _centred_excludes(fl, fh, Jl, Jh, ok, r, pre) -> np.ndarray:
         P = np.where(np.isfinite(P), P, 0.0)
         aP = np.abs(P)
         center = fm @ P.T
-        aPJr = np.einsum("kn,bnm->bkm", aP, Jr)
-        width = fr @ aP.T + np.einsum("bkm,bm->bk",
-                                      np.abs(np.einsum("kn,bnm->bkm", P, Jm)) + aPJr, r)
-        width += 1e-12 * (np.abs(fm) @ aP.T + np.einsum(
-            "bkm,bm->bk", np.einsum("kn,bnm->bkm", aP, np.abs(Jm)) + aPJr, r))
+        aPJr = aP @ Jr                                  # (B, k, n): P times each box's matrix
+        rc = r[:, :, None]
+        width = fr @ aP.T + ((np.abs(P @ Jm) + aPJr) @ rc)[:, :, 0]
+        width += 1e-12 * (np.abs(fm) @ aP.T + ((aP @ np.abs(Jm) + aPJr) @ rc)[:, :, 0])
         out |= np.any(rows & (np.abs(center) > width * (1 + 1e-12) + 1e-300), axis=1)
     return out
 

@@ -228,12 +228,12 @@ def estimate_roa(
         tried.append(float(level))
         if status != "counterexample":
             break
-        # the certificate found what the bisection's sampling missed: go below it, and ever
-        # faster (rtol, 4 rtol, 16 rtol ... of the level, at most half) where its
+        # the certificate found what the bisection's sampling missed: go below it, and from the
+        # fourth try on ever faster (4 rtol, 16 rtol ... of the level, at most half) where its
         # counterexamples creep down a hair at a time along the set where Vdot = 0
         cex, bounded = final.counterexample, "counterexample"
         below = final.details.get("counterexample_V", level) * (1 - rtol)
-        level = min(below, level * (1 - min(0.5, rtol * 4.0 ** k)))
+        level = min(below, level * (1 - min(0.5, rtol * 4.0 ** max(0, k - 2))))
     if status == "counterexample":
         # every level tried (down to tried[-1]) holds a state with Vdot >= 0: no sublevel set
         # is certified. Where V's minimum is not where Vdot's is that is so at every level
