@@ -16,7 +16,6 @@ may be. estimate_roa's final certificate loop crept down a hair per try and gave
 
 from __future__ import annotations
 
-import warnings
 from fractions import Fraction
 
 import casadi as cs

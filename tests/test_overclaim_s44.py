@@ -76,7 +76,7 @@ def test_an_unused_state_does_not_spend_the_bisection():
     # one is refused too: y's column is 0, its score w / r = 2 beats x's |J| w ~ 1.6, and every
     # y split doubles the parts (none excluded), so the cap comes after ~8 x splits (w ~ 3e-11,
     # still above d).
-    X, Y = _X[0], _X[1]
+    X = _X[0]
     d = 1e-12
     eqs = _eqs(cs.vertcat(1e8 * (cs.fabs(X) - X + d), -X))
     for s in _states(eqs):

@@ -66,11 +66,12 @@ def find_equilibria(
     Where neither decides, the box is bisected (each part along the state that widens the
     enclosure most) and the parts that exclude a zero dropped: the point is refused when none is
     left (a field that only comes within rounding-sized distance of 0), or when more than 4,096
-    parts are left (a curve nothing excludes yet: undecided, not claimed), and counts when a part
-    is left on which the field is continuous, or, where it may jump (``if_else``, ``floor``,
-    ``sign``, ``atan2`` across its cut), where the components that may jump are 0 to rounding at
-    a point of that part, or are bisected to adjacent floats with values there no larger than
-    the Jacobian's bound allows (a zero between two floats): a jump across 0 is no zero. Points
+    parts are left or the call's bisection budget (400 rounds) is spent (undecided: not claimed),
+    and counts when a part is left on which the field is continuous, or, where it may jump
+    (``if_else``, ``floor``, ``sign``, ``atan2`` across its cut), where the components that may
+    jump are 0 to rounding at a point of that part where they are decided, or change sign
+    between adjacent floats by no more than the Jacobian's bound allows (a zero between two
+    floats): a jump across 0 is no zero. Points
     within a millionth of the region's extent in every state, or whose boxes overlap, are one
     equilibrium. Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
@@ -220,10 +221,12 @@ class _ZeroTests:
     of near-zeros; the Newton ends whose boxes meet that box are refused too), and accepted when
     a part is left on which ``f`` is continuous (interval flags), or, where it may jump (an
     undecided ``if_else``, ``floor``, ``atan2`` across its cut), where the components that may
-    jump are 0 to rounding at a point of the part (``z``, its centre or a corner), or are
-    bisected to adjacent floats in the states they depend on with values at those points no
-    larger than the Jacobian's enclosure allows over the part (a zero between two floats): a
-    jump across 0 is no zero.
+    jump are 0 to rounding at a point of the part (``z``, its centre or a corner) where they are
+    decided (an ``if_else`` condition the point's rounding leaves open gives both branches' hull,
+    no value), or are bisected to adjacent floats in the states they depend on and change sign
+    between two of those points by no more than the Jacobian's enclosure allows over the part
+    (a zero between two floats): a jump across 0 is no zero. The call spends at most
+    ``SUBDIVIDE_BUDGET`` rounds in all; the points left when it is spent are undecided.
     Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
     be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)| < 1e-9 max(1, span)``.
     """
@@ -241,6 +244,7 @@ class _ZeroTests:
         self.radius = np.maximum(ZERO_BOX * extent[None, :], 64.0 * np.spacing(np.abs(Z)))
         self.proved: set[int] = set()
         self.undecided: list[tuple[np.ndarray, np.ndarray]] = []
+        self.rounds_left = SUBDIVIDE_BUDGET
         self.ifn = None
         if not len(cands):
             return
@@ -315,6 +319,12 @@ class _ZeroTests:
         lo, hi = (z - self.radius[i])[None], (z + self.radius[i])[None]
         blo, bhi, cont = self.lo[i:i + 1], self.hi[i:i + 1], self.cont[i:i + 1, :n]
         for _ in range(SUBDIVIDE_ROUNDS):
+            if self.rounds_left <= 0:
+                # the call's bisection budget is spent (hundreds of Newton ends near a curve of
+                # near-zeros): undecided, not claimed
+                self.undecided.append((z - self.radius[i], z + self.radius[i]))
+                return False
+            self.rounds_left -= 1
             # split each part along the state whose width, times the Jacobian's column,
             # widens the enclosure most (a state f does not depend on is not split)
             L = np.maximum(np.abs(blo[:, n:]), np.abs(bhi[:, n:])).reshape(-1, n, n, order="F")
@@ -322,13 +332,22 @@ class _ZeroTests:
             with np.errstate(invalid="ignore"):
                 score = np.where(np.isfinite(L), L, np.inf).sum(axis=1) * w
             score = np.where(np.isnan(score), np.inf, score)
-            # (a part whose Jacobian vanishes: by its width relative to the zero box)
+            rel = w / self.radius[i]
+            # (a part whose Jacobian vanishes: by its width relative to the zero box; among
+            # unbounded columns, the widest relative to it)
             flat = np.all(score == 0, axis=1)
-            score[flat] = (w / self.radius[i])[flat]
+            score[flat] = rel[flat]
+            unbounded = np.isinf(score)
+            score = np.where(unbounded.any(axis=1)[:, None],
+                             np.where(unbounded, rel, -1.0), score)
+            # only states a part can still be split in (wider than adjacent floats)
+            middle = (lo + hi) / 2
+            splittable = (middle > lo) & (middle < hi)
+            score = np.where(splittable, score, -2.0)
             j = np.argmax(score, axis=1)
             rows = np.arange(len(lo))
-            mid = (lo[rows, j] + hi[rows, j]) / 2
-            can = (mid > lo[rows, j]) & (mid < hi[rows, j])
+            mid = middle[rows, j]
+            can = splittable[rows, j]
             if not can.any():
                 break
             keep_lo, keep_hi = lo[~can], hi[~can]
@@ -371,19 +390,25 @@ class _ZeroTests:
                 corners = np.array(np.meshgrid(*zip(lo[b], hi[b]), indexing="ij"))
                 pts.extend(corners.reshape(n, -1).T)
             P = np.array(pts)
-            plo, phi, _ = self.ifn(P, P)
-            if np.any(np.all((plo[:, :n] <= 0) | ~jumps[b], axis=1)
-                      & np.all((phi[:, :n] >= 0) | ~jumps[b], axis=1)):
+            plo, phi, _, pcont = self.ifn(P, P, continuity=True)
+            if not self.steps:          # (sqrt or a power at 0: continuous, only not Lipschitz)
+                pcont = np.isfinite(plo) & np.isfinite(phi)
+            # 0 to rounding at a point where the jumping components are decided (a condition
+            # the point's rounding leaves open gives the hull of both branches, no value)
+            if np.any(np.all(((plo[:, :n] <= 0) & (phi[:, :n] >= 0) & pcont[:, :n])
+                             | ~jumps[b], axis=1)):
                 return True
             # bisected down to adjacent floats in every state a jumping component depends on:
-            # a zero between them (1 + 1e-30) shows as values no larger than the Jacobian's
-            # bound allows over the part, a jump across 0 as larger ones
+            # a zero between two points p, q shows as a sign change no larger than the
+            # Jacobian's bound allows between them (sum_j L_ij |q_j - p_j|, rounded up); a jump
+            # across 0 as a larger one
             width = hi[b] - lo[b]
             on = L[b] > 0
             ulp = width <= 2.0 * np.spacing(np.maximum(np.abs(lo[b]), np.abs(hi[b])))
-            reach = (np.where(np.isfinite(L[b]), L[b], np.inf) @ width) * (1 + 1e-9)
-            size = np.maximum(np.abs(plo[:, :n]), np.abs(phi[:, :n])).max(axis=0)
-            if all((not on[r].any() or bool(np.all(ulp[on[r]]))) and size[r] <= reach[r]
+            Lb = np.where(np.isfinite(L[b]), L[b], np.inf)
+            dist = np.abs(P[:, None, :] - P[None, :, :])           # (points, points, n)
+            if all((not on[r].any() or bool(np.all(ulp[on[r]])))
+                   and _crossing(plo[:, r], phi[:, r], pcont[:, r], dist @ Lb[r])
                    for r in np.nonzero(jumps[b])[0]):
                 return True
         return False
@@ -418,9 +443,23 @@ class _ZeroTests:
         return float(np.linalg.norm(dev, "fro"))
 
 
+def _crossing(lo, hi, decided, reach) -> bool:
+    """Whether some points ``p``, ``q`` (values in ``[lo, hi]``, decided there) have
+    ``f(p) <= 0 <= f(q)`` with ``f(q) - f(p)`` at most ``reach[p, q]`` (rounded up): a
+    continuous crossing of 0 between them that the Jacobian's bound allows."""
+    neg = decided & (hi <= 0)
+    pos = decided & (lo >= 0)
+    rise = lo[None, :] - hi[:, None]                  # f(q) - f(p), its smallest value
+    ok = neg[:, None] & pos[None, :] & (rise <= reach * (1 + 8 * np.finfo(float).eps))
+    return bool(ok.any())
+
+
 #: the zero box's bisection when no test decides it: rounds, and the most parts kept
 SUBDIVIDE_ROUNDS = 64
 SUBDIVIDE_BOXES = 4096
+#: bisection rounds one find_equilibria call spends in all (each evaluates its parts' enclosures
+#: once, as a batch); the Newton ends left when it is spent are undecided and not reported
+SUBDIVIDE_BUDGET = 400
 
 
 def _smooth_rows(smooth, Jl, Jh, fl, fh) -> np.ndarray:
@@ -435,9 +474,10 @@ def _centred_excludes(fl, fh, Jl, Jh, ok, r, pre) -> np.ndarray:
     ``[Jl, Jh]`` on it, rows ``ok`` smooth): whether the centred form ``P f(c) + P J (x - c)``
     leaves out 0 in a row for some ``P`` in ``pre`` -- rows combining smooth rows only, the
     float products and sums rounded up (a relative 1e-12 of every term, and 1e-300)."""
-    fm, fr = np.where(ok, (fl + fh) / 2, 0.0), np.where(ok, (fh - fl) / 2, 0.0)
-    Jm = np.where(ok[:, :, None], (Jl + Jh) / 2, 0.0)
-    Jr = np.where(ok[:, :, None], (Jh - Jl) / 2, 0.0)
+    with np.errstate(invalid="ignore", over="ignore"):    # (rows not ok: masked out)
+        fm, fr = np.where(ok, (fl + fh) / 2, 0.0), np.where(ok, (fh - fl) / 2, 0.0)
+        Jm = np.where(ok[:, :, None], (Jl + Jh) / 2, 0.0)
+        Jr = np.where(ok[:, :, None], (Jh - Jl) / 2, 0.0)
     out = np.zeros(len(fm), dtype=bool)
     for P in pre:
         rows = (np.all((P[None] == 0) | ok[:, None, :], axis=2)

@@ -28,6 +28,7 @@ CasADi ``Function``) directly::
 from __future__ import annotations
 
 import hashlib
+import pickle
 import re
 import threading
 import warnings
@@ -178,10 +179,15 @@ class System(Model):
         # the right-hand side travels as a serialized CasADi function of the state and input
         # symbols (SX expressions do not pickle); the rest as they are
         fn = cs.Function("rhs", [self.sym.x, self.sym.u], [self._rhs])
+        source = self.source
+        try:                # (a python-control source with a lambda does not pickle: without it
+            pickle.dumps(source)    # the copy cannot be traced again with other params)
+        except Exception:
+            source = None
         return (_unpickled, (fn.serialize(), {
             "states": self.state_names, "inputs": self.input_names, "u0": self.u0,
             "equilibrium": self.equilibrium, "angles": self.angle_state_names, "dt": self.dt,
-            "name": self.name, "jit": self.jit, "source": self.source}))
+            "name": self.name, "jit": self.jit, "source": source}, list(self.aliases)))
 
     def _key(self) -> tuple:
         text = f"{self.state_names}|{self.input_names}|{self._rhs}|{self.u0.tolist()}"
@@ -429,8 +435,11 @@ def _vector(v, key: str, n: int) -> np.ndarray:
     return a
 
 
-def _unpickled(rhs: str, settings: dict[str, Any]) -> System:
-    """The system :meth:`System.__reduce__` pickled."""
+def _unpickled(rhs: str, settings: dict[str, Any], aliases: list[str]) -> System:
+    """The system :meth:`System.__reduce__` pickled (its states also known by the names of the
+    caller's symbols, as the original: candidates built from them are taken)."""
     fn = cs.Function.deserialize(rhs)
     x, u = fn.sx_in(0), fn.sx_in(1)
-    return System(x, u, fn(x, u), **settings)
+    system = System(x, u, fn(x, u), **settings)
+    system.aliases = {name: system.sym.x[i] for i, name in enumerate(aliases)}
+    return system

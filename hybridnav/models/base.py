@@ -236,6 +236,7 @@ class Model(ABC):
     def __reduce__(self):
         # pickled as its class and its settings (process pools, Dask): the CasADi symbols, the
         # compiled functions and the per-thread buffers are rebuilt where it is unpickled
+        self._recheck(self._settings())
         return (_rebuild, (type(self), {"dt": self.dt, "jit": self.jit, "radius": self._radius},
                            {**self.values, **self.options}))
 
@@ -265,16 +266,21 @@ class Model(ABC):
         cycle; for a continuous one its value at the cycle's start), through
         :meth:`body_rates`; None when the model has none."""
         X, targets = self._check_batch(X, targets)
-        cache = self.__dict__.setdefault("_rates_fn", {})
-        if "one" not in cache:              # (None, for a model without rates, is kept too)
+        now = self._settings()
+        self._recheck(now)
+        got = self.__dict__.get("_rates_fn")
+        if got is None or not _same(got[0], now):
+            # (None, for a model without rates, is kept too; options such as the controller
+            # shape the expression: built again when they change)
             s = self.sym
             rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
             # the parameters stay an input: folding their values in lets CasADi reassociate
             # products of constants ((k_alpha*e)*L -> (k_alpha*L)*e), which changes the last
-            # bits for most values, and would keep values changed after the first call out
-            cache["one"] = (None if rates is None
-                            else cs.Function("rates", [s.x, s.target, s.p], [rates]))
-        fn = cache["one"]
+            # bits for most values
+            got = (now, None if rates is None
+                   else cs.Function("rates", [s.x, s.target, s.p], [rates]))
+            self.__dict__["_rates_fn"] = got
+        fn = got[1]
         if fn is None:
             return None
         n = len(X)
@@ -285,12 +291,12 @@ class Model(ABC):
         buffers = getattr(self._local, "rates", None)
         if buffers is None:
             buffers = self._local.rates = {}
-        b = buffers.get(n)
+        b = buffers.get((n, now))
         if b is None:
             if len(buffers) > 16:
                 buffers.pop(next(iter(buffers)))
             # p is one column shared by the n robots (not repeated per robot)
-            b = buffers[n] = _Buffered(fn.map(f"rates_{n}", "serial", n, [2], []),
+            b = buffers[(n, now)] = _Buffered(fn.map(f"rates_{n}", "serial", n, [2], []),
                                        [(n, self.nx), (n, self.target_size),
                                         (len(self.param_names),)], [(n, 2)])
         b.ins[0][...] = X
@@ -352,11 +358,15 @@ class Model(ABC):
     def admissible(self, X) -> np.ndarray:
         """Whether each state of a batch ``(N, nx)`` satisfies :meth:`state_constraints`."""
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        fn = self.__dict__.get("_admissible_fn")
-        if fn is None:                       # built once per model: called in tight loops
-            g = self.state_constraints()
-            fn = False if g.numel() == 0 else cs.Function("g", [self.sym.x, self.sym.p], [g])
-            self.__dict__["_admissible_fn"] = fn
+        now = self._settings()
+        self._recheck(now)
+        got = self.__dict__.get("_admissible_fn")
+        if got is None or not _same(got[0], now):   # built once per model (called in tight
+            g = self.state_constraints()             # loops) and when its settings change
+            got = (now, False if g.numel() == 0
+                   else cs.Function("g", [self.sym.x, self.sym.p], [g]))
+            self.__dict__["_admissible_fn"] = got
+        fn = got[1]
         if fn is False:
             return np.ones(len(X), dtype=bool)
         (vals,) = evaluate_rows(fn, X, self.p_value())
@@ -430,7 +440,7 @@ class Model(ABC):
         were changed in place since (the parameters are folded into its code)."""
         now = self._settings()
         got = self.__dict__.get("_kernel")
-        if got is not None and got[0] == now:
+        if got is not None and _same(got[0], now):
             return got[1]
         self._recheck(now)
         k = (None if self.jit is False or not _kernel.allowed()
@@ -443,14 +453,23 @@ class Model(ABC):
         last checked (changed in place), as the constructor does (:class:`HybridnavError` naming
         the key)."""
         checked = self.__dict__.setdefault("_checked", now)
-        if checked == now:
+        if _same(checked, now):
             return
         where = f"model {self.name}: "
         self.dt = _DT.check("dt", self.dt, where)
+        for held, own, other in ((self.values, set(self.param_names), "options"),
+                                 (self.options, set(self.option_defaults), "values")):
+            for key in held:
+                if key not in own:
+                    raise HybridnavError(
+                        f"{where}{key}: " + (f"set in the wrong place; it belongs in "
+                                             f"model.{other}" if key in self.parameters else
+                                             "unknown parameter; expected one of: "
+                                             + ", ".join(sorted(self.parameters))))
+            for key in sorted(own - set(held)):
+                raise HybridnavError(f"{where}{key}: missing; expected "
+                                     f"{self.parameters[key].describe()}")
         for key, value in list(self.values.items()) + list(self.options.items()):
-            if key not in self.parameters:
-                raise HybridnavError(f"{where}unknown parameter {key!r}; expected one of: "
-                                     + ", ".join(sorted(self.parameters)))
             (self.values if key in self.values else self.options)[key] = \
                 self.parameters[key].check(key, value, where)
         self._validate_params()
@@ -458,7 +477,7 @@ class Model(ABC):
 
     def _settings(self) -> tuple:
         """What the compiled functions fold in, cheaply compared (a call costs ~0.3 us)."""
-        return (self.dt, tuple(self.values.values()), tuple(self.options.values()))
+        return (self.dt, tuple(self.values.items()), tuple(self.options.items()))
 
     def _step_single(self) -> cs.Function:
         """One control cycle of one robot with the numeric parameters folded in."""
@@ -743,6 +762,14 @@ class Model(ABC):
         params = ", ".join(f"{k}={v:g}" for k, v in self.values.items())
         opts = "".join(f", {k}={v!r}" for k, v in self.options.items())
         return f"{type(self).__name__}(dt={self.dt:g}, {params}{opts})"
+
+
+def _same(a, b) -> bool:
+    """``a == b`` for settings tuples; False where a value does not compare (an array)."""
+    try:
+        return bool(a == b)
+    except (ValueError, TypeError):
+        return False
 
 
 def _rebuild(cls, base: dict[str, Any], params: dict[str, Any]) -> Model:

@@ -80,6 +80,12 @@ class LbCS(Model):
                          obstacles=obstacles, **params)
         self._radius = self.values["rp"]
 
+    def _validate_params(self) -> None:
+        # (also after a change in place: the obstacles checked as the constructor checks them,
+        # and the footprint radius is rp)
+        self.options["obstacles"] = _obstacle_tuple(self.options["obstacles"])
+        self._radius = self.values["rp"]
+
     def with_params(self, **overrides: Any) -> LbCS:
         """A copy with some parameters changed (``radius`` follows a changed ``rp``)."""
         overrides.setdefault("radius", overrides.get("rp", self.values["rp"]))
