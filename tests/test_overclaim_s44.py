@@ -4,8 +4,9 @@ classification spread over where f(z)'s rounding lets the zero be). Each case wa
 expression holds, so the field is the one the analysis saw). Cases 1, 2, 3 and 5 are fixed (a
 point whose bisection passes the part budget is undecided and not claimed; a state the field does
 not depend on is not split; a jumping component bisected to adjacent floats counts when its values
-there are within the Jacobian's bound); 4 and 6 remain strict xfails: conservative labels
-("degenerate" for a stable node and a saddle), not over-claims.
+there are within the Jacobian's bound -- removed again after review 3, so 3 is a strict xfail,
+a documented miss); 4 and 6 remain strict xfails: conservative labels ("degenerate" for a stable
+node and a saddle), not over-claims.
 
 1. The bisection stops at SUBDIVIDE_BOXES = 256 parts and then accepts the point when a surviving
    part is continuous. Where a field comes within ~|J| w of 0 along a curve (a kink line), the
@@ -88,6 +89,11 @@ def test_an_unused_state_does_not_spend_the_bisection():
 
 # ---------------------------------------------------------------- 3. a continuous if_else zero missed
 
+@pytest.mark.xfail(strict=True, reason="a continuous if_else zero between two floats "
+                   "(x = 1 + 1e-30): no float shows it and the condition is undecided on "
+                   "the part between them; the rule that took a sign change within the "
+                   "Jacobian's bound there also took jumps whose interval slope bound was "
+                   "loose (review 3 of s44, C2) and was removed: undecided, not claimed")
 def test_a_continuous_if_else_zero_between_floats_is_kept():
     # f = (if_else(e >= 0, -e, -3 e), -y), e = (x - 1) - t, t = float(1e-30). Both branches are 0
     # where e = 0, so f1 is continuous (Lipschitz, slopes -1 and -3), and at the real point

@@ -1,8 +1,11 @@
 """Adversarial review 3 of s44: find_equilibria after 7364ffb (a point is 0 to rounding only where
 the jumping components are decided; a sign change between adjacent floats within the Jacobian's
 bound; splits only along splittable states; a bisection budget of 400 rounds per call). Every case
-is a strict xfail that fails because of the defect it names; the claims are justified by exact
-arithmetic (fractions.Fraction on the float constants the CasADi expressions hold).
+was a strict xfail that failed because of the defect it names; the claims are justified by exact
+arithmetic (fractions.Fraction on the float constants the CasADi expressions hold). All are fixed:
+the fast test asks that the jumping components be decided at z (or exactly 0), the adjacent-floats
+rule is gone, the centred form's radius covers the part, and the rounds of an accepted point's
+bisection are given back to the budget.
 
 C1. (false acceptance) The fast "f(z) is 0 to rounding" test in ``_ZeroTests.accepted`` runs
     before any bisection and never asks whether the jumping components are decided at z: a
@@ -45,9 +48,6 @@ def _q(v) -> Fraction:
 
 # ---------------------------------------------------------------- C1. the fast path at z
 
-@pytest.mark.xfail(strict=True, reason="accepted()'s fast 'f(z) is 0 to rounding' test takes the "
-                   "hull of both if_else branches at a Newton end where the condition is "
-                   "rounding-undecided (the decided-point rule guards bisected parts only)")
 def test_a_newton_end_on_an_undecided_condition_is_no_zero():
     # f = (if_else(3x - 1 >= 0, x - p, x - p - 1), -y), p = fl(1/3) = 6004799503160661 / 2^54.
     # For every real x: 3x - 1 >= 0 <=> x >= 1/3, and then f1 = x - p >= 1/3 - p = 1/(3 2^54) > 0;
@@ -75,9 +75,6 @@ def test_a_newton_end_on_an_undecided_condition_is_no_zero():
 _A = 2.0 ** 52 + 1                  # floats are spaced 1 in [2^52, 2^53)
 
 
-@pytest.mark.xfail(strict=True, reason="_crossing accepts a jump of 2 across 0 between adjacent "
-                   "floats because the interval enclosure of the Jacobian (an over-estimate by "
-                   "dependency) times the width is 2; the branch's real slope there is < L / 10")
 @pytest.mark.parametrize("a, K, region", [
     (_A, 1.0, {"x_0": (_A - 100, _A + 100), "x_1": (-1, 1)}),
     (1.0, 2.0 ** 212, None),
@@ -113,9 +110,6 @@ def test_a_jump_within_an_overestimated_slope_bound_is_no_zero(a, K, region):
 
 # ---------------------------------------------------------------- C3. the rounded midpoint
 
-@pytest.mark.xfail(strict=True, reason="_subdivided's centred form uses c = fl((lo + hi)/2) with "
-                   "r = (hi - lo)/2: c +- r misses the part's edge x = 1 by half an ulp on both "
-                   "sides, both parts holding the zero (1, 0) are excluded, the zero is missed")
 def test_a_degenerate_zero_on_a_bisection_point_is_found():
     # f = ((x - 1)^2 + y^2, x - 1). f(1, 0) = (0, 0) exactly; isolated: f2 = 0 forces x = 1, and
     # then f1 = y^2 = 0 forces y = 0. Degenerate (J(1, 0) = [[0, 0], [1, 0]]), so Krawczyk cannot
@@ -144,9 +138,6 @@ def test_a_degenerate_zero_on_a_bisection_point_is_found():
 
 # ---------------------------------------------------------------- C4. the budget spent on real zeros
 
-@pytest.mark.xfail(strict=True, reason="the 400-round bisection budget is spent on six real "
-                   "degenerate zeros (64 rounds each); the origin, where f = (0, 0) exactly, is "
-                   "marked undecided and every Newton end near it refused")
 def test_the_equilibrium_after_six_degenerate_zeros_is_found():
     # f = (sin(c x)^3, y), c = fl(3 fl(pi)). f(0, 0) = (0, 0) exactly (the equilibrium passed to
     # find_equilibria). Isolated: f2 = 0 forces y = 0, and sin(c x) != 0 for 0 < |x| < pi / c

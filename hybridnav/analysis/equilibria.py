@@ -69,9 +69,9 @@ def find_equilibria(
     parts are left or the call's bisection budget (400 rounds) is spent (undecided: not claimed),
     and counts when a part is left on which the field is continuous, or, where it may jump
     (``if_else``, ``floor``, ``sign``, ``atan2`` across its cut), where the components that may
-    jump are 0 to rounding at a point of that part where they are decided, or change sign
-    between adjacent floats by no more than the Jacobian's bound allows (a zero between two
-    floats): a jump across 0 is no zero. Points
+    jump are 0 to rounding at a point of that part where they are decided (or exactly 0): a
+    jump across 0 is no zero, and a zero strictly between two floats of such a component is
+    missed. The same holds for ``f(z)`` itself. Points
     within a millionth of the region's extent in every state, or whose boxes overlap, are one
     equilibrium. Only admissible states count (see
     :meth:`hybridnav.models.Model.state_constraints`).
@@ -222,11 +222,10 @@ class _ZeroTests:
     a part is left on which ``f`` is continuous (interval flags), or, where it may jump (an
     undecided ``if_else``, ``floor``, ``atan2`` across its cut), where the components that may
     jump are 0 to rounding at a point of the part (``z``, its centre or a corner) where they are
-    decided (an ``if_else`` condition the point's rounding leaves open gives both branches' hull,
-    no value), or are bisected to adjacent floats in the states they depend on and change sign
-    between two of those points by no more than the Jacobian's enclosure allows over the part
-    (a zero between two floats): a jump across 0 is no zero. The call spends at most
-    ``SUBDIVIDE_BUDGET`` rounds in all; the points left when it is spent are undecided.
+    decided, or exactly 0 (an ``if_else`` condition the point's rounding leaves open gives both
+    branches' hull, no value): a jump across 0 is no zero. The call spends at most
+    ``SUBDIVIDE_BUDGET`` rounds on points it refuses (an accepted point's rounds are given
+    back); the points left when it is spent are undecided.
     Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
     be within ``r`` and ``f(z)`` in the range of the Jacobian, and ``|f(z)| < 1e-9 max(1, span)``.
     """
@@ -254,7 +253,7 @@ class _ZeroTests:
             return
         self.lo, self.hi, self.smooth, self.cont = self.ifn(Z - self.radius, Z + self.radius,
                                                             continuity=True)
-        self.plo, self.phi, _ = self.ifn(Z, Z)
+        self.plo, self.phi, _, self.pcont = self.ifn(Z, Z, continuity=True)
         self.steps = may_step(x, f)
 
     def _small(self, i: int) -> bool:
@@ -304,14 +303,24 @@ class _ZeroTests:
                 and _krawczyk(Y, (fl + fh) / 2, (fh - fl) / 2, (Jl + Jh) / 2, (Jh - Jl) / 2, r)):
             self.proved.add(i)
             return True                             # exactly one zero in the box
-        if np.all((fl <= 0) & (fh >= 0)):
-            return True                             # f(z) is 0 to rounding
+        if np.all((fl <= 0) & (fh >= 0)) and (not self.steps or np.all(
+                self.pcont[i, :n] | ((fl == 0) & (fh == 0)))):
+            return True           # f(z) is 0 to rounding (where a condition is decided at z)
         lo, hi = z - r, z + r
         if any(np.all((lo <= uh) & (ul <= hi)) for ul, uh in self.undecided):
             return False            # on the curve of a box the bisection left undecided
         return self._subdivided(i, pre)
 
     def _subdivided(self, i: int, pre: list[np.ndarray]) -> bool:
+        # (the budget bounds the rounds spent on points refused: those of a point accepted are
+        # given back, since each equilibrium is bisected once -- its neighbours are the same)
+        start = self.rounds_left
+        found = self._bisect(i, pre)
+        if found:
+            self.rounds_left = start
+        return found
+
+    def _bisect(self, i: int, pre: list[np.ndarray]) -> bool:
         """Bisect the zero box of ``i``, dropping the parts that exclude a zero: whether a part
         is left where ``f`` is continuous, or where the components that may jump are 0 to
         rounding at a point of it."""
@@ -364,7 +373,8 @@ class _ZeroTests:
             Jh = bhi[:, n:].reshape(-1, n, n, order="F")
             ok = _smooth_rows(smooth[:, :n], Jl, Jh, clo[:, :n], chi[:, :n])
             out = (np.any(blo[:, :n] > 0, axis=1) | np.any(bhi[:, :n] < 0, axis=1)
-                   | _centred_excludes(clo[:, :n], chi[:, :n], Jl, Jh, ok, (hi - lo) / 2, pre))
+                   | _centred_excludes(clo[:, :n], chi[:, :n], Jl, Jh, ok,
+                                       np.maximum(c - lo, hi - c), pre))
             lo, hi, blo, bhi, cont = lo[~out], hi[~out], blo[~out], bhi[~out], cont[~out, :n]
             if not len(lo):
                 return False                        # every part excludes a zero
@@ -379,7 +389,6 @@ class _ZeroTests:
         jumps = ~cont
         if not self.steps:
             jumps &= ~(np.isfinite(blo[:, :n]) & np.isfinite(bhi[:, :n]))
-        L = np.maximum(np.abs(blo[:, n:]), np.abs(bhi[:, n:])).reshape(-1, n, n, order="F")
         for b in range(len(lo)):
             if not jumps[b].any():
                 return True                         # a part where f is continuous is left
@@ -393,23 +402,12 @@ class _ZeroTests:
             plo, phi, _, pcont = self.ifn(P, P, continuity=True)
             if not self.steps:          # (sqrt or a power at 0: continuous, only not Lipschitz)
                 pcont = np.isfinite(plo) & np.isfinite(phi)
+            # (exactly 0 is a value whatever the branches: sign(0) sqrt|0|)
+            pcont = pcont | ((plo == 0) & (phi == 0))
             # 0 to rounding at a point where the jumping components are decided (a condition
             # the point's rounding leaves open gives the hull of both branches, no value)
             if np.any(np.all(((plo[:, :n] <= 0) & (phi[:, :n] >= 0) & pcont[:, :n])
                              | ~jumps[b], axis=1)):
-                return True
-            # bisected down to adjacent floats in every state a jumping component depends on:
-            # a zero between two points p, q shows as a sign change no larger than the
-            # Jacobian's bound allows between them (sum_j L_ij |q_j - p_j|, rounded up); a jump
-            # across 0 as a larger one
-            width = hi[b] - lo[b]
-            on = L[b] > 0
-            ulp = width <= 2.0 * np.spacing(np.maximum(np.abs(lo[b]), np.abs(hi[b])))
-            Lb = np.where(np.isfinite(L[b]), L[b], np.inf)
-            dist = np.abs(P[:, None, :] - P[None, :, :])           # (points, points, n)
-            if all((not on[r].any() or bool(np.all(ulp[on[r]])))
-                   and _crossing(plo[:, r], phi[:, r], pcont[:, r], dist @ Lb[r])
-                   for r in np.nonzero(jumps[b])[0]):
                 return True
         return False
 
@@ -441,17 +439,6 @@ class _ZeroTests:
         if not np.all(np.isfinite(dev)):
             return np.inf
         return float(np.linalg.norm(dev, "fro"))
-
-
-def _crossing(lo, hi, decided, reach) -> bool:
-    """Whether some points ``p``, ``q`` (values in ``[lo, hi]``, decided there) have
-    ``f(p) <= 0 <= f(q)`` with ``f(q) - f(p)`` at most ``reach[p, q]`` (rounded up): a
-    continuous crossing of 0 between them that the Jacobian's bound allows."""
-    neg = decided & (hi <= 0)
-    pos = decided & (lo >= 0)
-    rise = lo[None, :] - hi[:, None]                  # f(q) - f(p), its smallest value
-    ok = neg[:, None] & pos[None, :] & (rise <= reach * (1 + 8 * np.finfo(float).eps))
-    return bool(ok.any())
 
 
 #: the zero box's bisection when no test decides it: rounds, and the most parts kept
