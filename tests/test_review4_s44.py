@@ -1,9 +1,12 @@
 """Adversarial review 4 of s44: find_equilibria after 522a847 (the fast "0 to rounding" test and
 the bisected parts' test points accept a jumping component that is exactly [0, 0]; the adjacent-
 floats rule is gone; the centred form's radius covers the part; an accepted point's bisection
-rounds are given back to the budget). Each case is a strict xfail that fails because of the defect
+rounds are given back to the budget). Each case was a strict xfail that failed because of the defect
 it names; the claims are justified by exact arithmetic (fractions.Fraction on the float constants
-the CasADi expressions hold).
+the CasADi expressions hold). D1 (1e-30) is fixed: with a step operation in f, the test point
+needs every component 0 to rounding there. D1 at 1e-300 is within the interval arithmetic's
+absolute rounding slack; D2 (time) and D3 (a 3-D degenerate zero past the part cap) remain strict
+xfails: a known cost and a documented miss.
 
 D1. (false acceptance, regression of 522a847) ``_bisect`` now counts a jumping component that is
     exactly [0, 0] at a test point as decided ("exactly 0 is a value whatever the branches"),
@@ -50,10 +53,9 @@ def _sign(v: Fraction) -> int:
 
 # ---------------------------------------------------------------- D1. [0, 0] at a part's corner
 
-@pytest.mark.xfail(strict=True, reason="522a847: a jumping component exactly [0, 0] at a part's "
-                   "test point is taken as decided, and the continuous components are not "
-                   "looked at there: (sign(x), x - 1e-30), which has no zero, gets two")
-@pytest.mark.parametrize("d", [1e-30, 1e-300])
+@pytest.mark.parametrize("d", [1e-30, pytest.param(1e-300, marks=pytest.mark.xfail(
+    strict=True, reason="x - 1e-300 at x = 0 is [-2e-300, 8e-316]: within the interval "
+    "arithmetic's absolute rounding slack (1e-300), so 0 to rounding there by design"))])
 def test_an_exact_zero_of_a_jump_beside_the_other_nullcline_is_no_equilibrium(d):
     # f = (sign(x), x - d), d = fl(1e-30) (or fl(1e-300)) > 0. For every real x: sign(x) = 0
     # <=> x = 0, and then f2 = -d != 0. No zero anywhere.
@@ -69,7 +71,7 @@ def test_an_exact_zero_of_a_jump_beside_the_other_nullcline_is_no_equilibrium(d)
     assert _q(d) > 0
     assert (-4e-9 + 4e-9) / 2 == 0.0
     assert Fraction(4e-9) / 2 ** 64 > _q(d)
-    X, Y = _X[0], _X[1]
+    X = _X[0]
     eqs = _eqs(cs.vertcat(cs.sign(X), X - d))
     for s in _states(eqs):
         x0 = _q(s[0])
@@ -80,11 +82,12 @@ def test_an_exact_zero_of_a_jump_beside_the_other_nullcline_is_no_equilibrium(d)
 
 # ---------------------------------------------------------------- D2. the refund removes the bound
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="522a847: an accepted point's bisection rounds are given "
-                   "back, so a call with many degenerate zeros spends 64 rounds on each: 572 "
-                   "zeros of a 3-D sin^3 field take ~53 s (d1d88e0: 1.4 s), far past the "
-                   "400-round budget the docstring promises")
+@pytest.mark.long
+@pytest.mark.xfail(strict=True, reason="an accepted point's bisection rounds are given back "
+                   "(review 3, C4: else six degenerate zeros spend the budget before the "
+                   "origin), so a call with many degenerate zeros spends 64 rounds on each: 572 "
+                   "zeros of a 3-D sin^3 field take ~50 s (d1d88e0: 1.4 s, by accepting any "
+                   "point it could not exclude); a known cost, not fixed")
 def test_many_degenerate_zeros_do_not_spend_unbounded_bisection(monkeypatch):
     # f = (sin(c x)^3, sin(c y)^3, sin(c z)^3), c = fl(6 fl(pi)) in (18, 19), on [-1, 1]^3. Its
     # zeros are the points with every state k pi / c, |k| <= 5 at least (5 pi / c < 5 pi / 18
@@ -117,8 +120,8 @@ def test_many_degenerate_zeros_do_not_spend_unbounded_bisection(monkeypatch):
                  region={f"x_{k}": (-1, 1) for k in range(3)}, x=X, equilibrium=(0, 0, 0))
     took = time.perf_counter() - t0
     assert len(found) > 400, len(found)
+    # (the time is printed, not asserted: the rounds bound it)
     assert sum(spent) <= eq.SUBDIVIDE_BUDGET, (sum(spent), len(found), took)
-    assert took < 30, (took, sum(spent), len(found))
 
 
 # ---------------------------------------------------------------- D3. a smooth 3-D degenerate zero

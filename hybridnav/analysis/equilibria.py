@@ -223,7 +223,8 @@ class _ZeroTests:
     undecided ``if_else``, ``floor``, ``atan2`` across its cut), where the components that may
     jump are 0 to rounding at a point of the part (``z``, its centre or a corner) where they are
     decided, or exactly 0 (an ``if_else`` condition the point's rounding leaves open gives both
-    branches' hull, no value): a jump across 0 is no zero. The call spends at most
+    branches' hull, no value), and -- ``f`` having a step operation -- the other components are
+    0 to rounding at that point too: a jump across 0 is no zero. The call spends at most
     ``SUBDIVIDE_BUDGET`` rounds on points it refuses (an accepted point's rounds are given
     back); the points left when it is spent are undecided.
     Without an interval extension of ``f`` (an operation it lacks), the Newton step at ``z`` must
@@ -404,10 +405,14 @@ class _ZeroTests:
                 pcont = np.isfinite(plo) & np.isfinite(phi)
             # (exactly 0 is a value whatever the branches: sign(0) sqrt|0|)
             pcont = pcont | ((plo == 0) & (phi == 0))
-            # 0 to rounding at a point where the jumping components are decided (a condition
-            # the point's rounding leaves open gives the hull of both branches, no value)
-            if np.any(np.all(((plo[:, :n] <= 0) & (phi[:, :n] >= 0) & pcont[:, :n])
-                             | ~jumps[b], axis=1)):
+            # a point where the jumping components are decided (a condition the point's
+            # rounding leaves open gives the hull of both branches, no value) and 0 to
+            # rounding -- with a step operation in f, every component there: where a jump
+            # meets 0 the others must vanish too (sign(x) = 0 only at x = 0)
+            zero = (plo[:, :n] <= 0) & (phi[:, :n] >= 0) & pcont[:, :n]
+            if np.any(np.all(zero | (~jumps[b] & (not self.steps)), axis=1)
+                      | np.all(zero | (~jumps[b] & (plo[:, :n] <= 0) & (phi[:, :n] >= 0)),
+                               axis=1)):
                 return True
         return False
 
