@@ -361,7 +361,7 @@ class _ZeroTests:
             if not can.any():
                 break
             keep_lo, keep_hi = lo[~can], hi[~can]
-            lo, hi, rows, j, mid = lo[can], hi[can], rows[can], j[can], mid[can]
+            lo, hi, j, mid = lo[can], hi[can], j[can], mid[can]
             left_hi, right_lo = hi.copy(), lo.copy()
             k = np.arange(len(lo))
             left_hi[k, j], right_lo[k, j] = mid, mid
@@ -390,31 +390,33 @@ class _ZeroTests:
         jumps = ~cont
         if not self.steps:
             jumps &= ~(np.isfinite(blo[:, :n]) & np.isfinite(bhi[:, :n]))
-        for b in range(len(lo)):
-            if not jumps[b].any():
-                return True                         # a part where f is continuous is left
-            pts = [lo[b], hi[b], (lo[b] + hi[b]) / 2]
-            if np.all((lo[b] <= z) & (z <= hi[b])):
-                pts.append(z)
-            if n <= 4:
-                corners = np.array(np.meshgrid(*zip(lo[b], hi[b]), indexing="ij"))
-                pts.extend(corners.reshape(n, -1).T)
-            P = np.array(pts)
-            plo, phi, _, pcont = self.ifn(P, P, continuity=True)
-            if not self.steps:          # (sqrt or a power at 0: continuous, only not Lipschitz)
-                pcont = np.isfinite(plo) & np.isfinite(phi)
-            # (exactly 0 is a value whatever the branches: sign(0) sqrt|0|)
-            pcont = pcont | ((plo == 0) & (phi == 0))
-            # a point where the jumping components are decided (a condition the point's
-            # rounding leaves open gives the hull of both branches, no value) and 0 to
-            # rounding -- with a step operation in f, every component there: where a jump
-            # meets 0 the others must vanish too (sign(x) = 0 only at x = 0)
-            zero = (plo[:, :n] <= 0) & (phi[:, :n] >= 0) & pcont[:, :n]
-            if np.any(np.all(zero | (~jumps[b] & (not self.steps)), axis=1)
-                      | np.all(zero | (~jumps[b] & (plo[:, :n] <= 0) & (phi[:, :n] >= 0)),
-                               axis=1)):
-                return True
-        return False
+        if (~jumps).all(axis=1).any():
+            return True                             # a part where f is continuous is left
+        # test points of every part, in one batch: its ends, its centre, z where it holds z,
+        # and (n <= 4) its corners
+        pts, owner = [lo, hi, (lo + hi) / 2], [np.arange(len(lo))] * 3
+        inside = np.all((lo <= z) & (z <= hi), axis=1)
+        pts.append(np.broadcast_to(z, (int(inside.sum()), n)))
+        owner.append(np.nonzero(inside)[0])
+        if n <= 4:
+            pick = np.array(np.meshgrid(*[[0, 1]] * n, indexing="ij")).reshape(n, -1).T
+            for corner in pick.astype(bool):
+                pts.append(np.where(corner, hi, lo))
+                owner.append(np.arange(len(lo)))
+        P, owner = np.vstack(pts), np.concatenate(owner)
+        plo, phi, _, pcont = self.ifn(P, P, continuity=True)
+        plo, phi, pcont = plo[:, :n], phi[:, :n], pcont[:, :n]
+        if not self.steps:              # (sqrt or a power at 0: continuous, only not Lipschitz)
+            pcont = np.isfinite(plo) & np.isfinite(phi)
+        # (exactly 0 is a value whatever the branches: sign(0) sqrt|0|)
+        pcont = pcont | ((plo == 0) & (phi == 0))
+        # a point where the jumping components are decided (a condition the point's rounding
+        # leaves open gives the hull of both branches, no value) and 0 to rounding -- with a
+        # step operation in f, every component there: where a jump meets 0 the others must
+        # vanish too (sign(x) = 0 only at x = 0)
+        holds = (plo <= 0) & (phi >= 0)
+        rest = ~jumps[owner] & (holds if self.steps else True)
+        return bool(np.any(np.all((holds & pcont) | rest, axis=1)))
 
     def _jacobian_box(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """The enclosure of the Jacobian on box ``i``: its lower and upper bound matrices."""
