@@ -266,21 +266,16 @@ class Model(ABC):
         cycle; for a continuous one its value at the cycle's start), through
         :meth:`body_rates`; None when the model has none."""
         X, targets = self._check_batch(X, targets)
-        now = self._settings()
-        self._recheck(now)
-        got = self.__dict__.get("_rates_fn")
-        if got is None or not _same(got[0], now):
+        def build():
             # (None, for a model without rates, is kept too; options such as the controller
-            # shape the expression: built again when they change)
+            # shape the expression). The parameters stay an input: folding their values in lets
+            # CasADi reassociate products of constants ((k_alpha*e)*L -> (k_alpha*L)*e), which
+            # changes the last bits for most values
             s = self.sym
             rates = self.body_rates(self.controller(s.x, s.target, s.p), s.p)
-            # the parameters stay an input: folding their values in lets CasADi reassociate
-            # products of constants ((k_alpha*e)*L -> (k_alpha*L)*e), which changes the last
-            # bits for most values
-            got = (now, None if rates is None
-                   else cs.Function("rates", [s.x, s.target, s.p], [rates]))
-            self.__dict__["_rates_fn"] = got
-        fn = got[1]
+            return None if rates is None else cs.Function("rates", [s.x, s.target, s.p], [rates])
+
+        fn, now = self._for_settings("_rates_fn", build)
         if fn is None:
             return None
         n = len(X)
@@ -358,15 +353,11 @@ class Model(ABC):
     def admissible(self, X) -> np.ndarray:
         """Whether each state of a batch ``(N, nx)`` satisfies :meth:`state_constraints`."""
         X = np.asarray(X, dtype=float).reshape(-1, self.nx)
-        now = self._settings()
-        self._recheck(now)
-        got = self.__dict__.get("_admissible_fn")
-        if got is None or not _same(got[0], now):   # built once per model (called in tight
-            g = self.state_constraints()             # loops) and when its settings change
-            got = (now, False if g.numel() == 0
-                   else cs.Function("g", [self.sym.x, self.sym.p], [g]))
-            self.__dict__["_admissible_fn"] = got
-        fn = got[1]
+        def build():
+            g = self.state_constraints()
+            return False if g.numel() == 0 else cs.Function("g", [self.sym.x, self.sym.p], [g])
+
+        fn, _ = self._for_settings("_admissible_fn", build)   # (called in tight loops)
         if fn is False:
             return np.ones(len(X), dtype=bool)
         (vals,) = evaluate_rows(fn, X, self.p_value())
@@ -438,15 +429,21 @@ class Model(ABC):
         the model's first batch from the environment (``HYBRIDNAV_SIMD``, ``HYBRIDNAV_NATIVE``,
         ``HYBRIDNAV_JIT``) as it is then; built again when :attr:`values` or :attr:`options`
         were changed in place since (the parameters are folded into its code)."""
+        return self._for_settings(
+            "_kernel", lambda: None if self.jit is False or not _kernel.allowed()
+            else _kernel.get(self, _kernel.wanted()))[0]
+
+    def _for_settings(self, name: str, build):
+        """``(value, settings)``: what ``build()`` makes of the current settings, kept in
+        ``self.__dict__[name]`` and built again (after :meth:`_recheck`) when :attr:`values`,
+        :attr:`options` or ``dt`` were changed in place since."""
         now = self._settings()
-        got = self.__dict__.get("_kernel")
-        if got is not None and _same(got[0], now):
-            return got[1]
-        self._recheck(now)
-        k = (None if self.jit is False or not _kernel.allowed()
-             else _kernel.get(self, _kernel.wanted()))
-        self.__dict__["_kernel"] = (now, k)
-        return k
+        got = self.__dict__.get(name)
+        if got is None or not _same(got[0], now):
+            self._recheck(now)
+            now = self._settings()                  # (as checked: ints made floats)
+            got = self.__dict__[name] = (now, build())
+        return got[1], got[0]
 
     def _recheck(self, now: tuple) -> None:
         """Validate :attr:`values`, :attr:`options` and ``dt`` when they differ from the settings
