@@ -59,3 +59,80 @@ def test_twelve_failed_tries_do_not_refute_every_level():
         c0, c1 = (Fraction(float(v)) for v in np.asarray(r.counterexample, dtype=float))
         assert c0 ** 2 + c1 ** 2 <= Fraction(r.level), (r.level, r.counterexample)
     assert r.level >= 0.2 or r.status != "counterexample", (r.level, r.status, r.details)
+
+
+# ---------------------------------------------------------------- bounded_by "equilibrium"
+
+R3 = {"x_0": (-3, 3), "x_1": (-3, 3)}
+
+
+def _assert_named_state_is_an_equilibrium(r, f1_exact):
+    """When estimate_roa names an equilibrium as the bound, f there must be 0 exactly (f2 = -y)."""
+    if r.bounded_by == "equilibrium":
+        x0, y0 = (Fraction(float(v)) for v in np.asarray(r.counterexample, dtype=float))
+        assert f1_exact(x0) == 0 and y0 == 0, (r.level, r.status, r.counterexample.tolist(),
+                                               float(f1_exact(x0)))
+
+
+@pytest.mark.xfail(strict=True, reason="find_equilibria accepts a Newton end near x = 1 where "
+                   "f1 = -x ((x - 1)^2 + 2^-52) != 0, and estimate_roa names it as the bounding "
+                   "equilibrium (the s43 case with c - 1 = 1e-13 is fixed, c - 1 = 2^-52 not)")
+def test_a_cubic_one_ulp_from_a_double_zero_bounds_no_level():
+    # f = (-(x^3 - 2 x^2 + c x), -y), c = fl(1 + 2^-52) = 1 + 2^-52 exactly. For real x,
+    # x^3 - 2 x^2 + c x = x ((x - 1)^2 + 2^-52): zero only at x = 0, so the origin is the only
+    # equilibrium, and V = x^2 + y^2 has Vdot = -2 x^2 ((x - 1)^2 + 2^-52) - 2 y^2 < 0 off it.
+    # fcbbe80: find_equilibria reports (0.9999999983474851, 0) "degenerate", and estimate_roa
+    # returns level 0.999 "proved", bounded_by "equilibrium", counterexample (1 - 1.65e-9, 0),
+    # where f1 = -2.22e-16 exactly.
+    X, Y = _X[0], _X[1]
+    c = 1 + 2 ** -52
+    assert Fraction(c) - 1 == Fraction(1, 2 ** 52)
+    f = cs.vertcat(-(X ** 3 - 2 * X ** 2 + c * X), -Y)
+    r = _roa((_X, f), X ** 2 + Y ** 2, equilibrium=[0, 0], region=R3, confirm=50)
+    _assert_named_state_is_an_equilibrium(
+        r, lambda x0: -(x0 ** 3 - 2 * x0 ** 2 + Fraction(c) * x0))
+
+
+@pytest.mark.xfail(strict=True, reason="find_equilibria accepts a Newton end near x = 1 where "
+                   "f1 = -x (cosh(x - 1) - 1 + d) != 0 (cosh t >= 1 and d = fl(1e-17) > 0), and "
+                   "estimate_roa names it as the bounding equilibrium")
+def test_a_cosh_tangency_bounds_no_level():
+    # f = (-x (cosh(x - 1) - 1 + d), -y), d = fl(1e-17) > 0. For real x, cosh(x - 1) - 1 >= 0,
+    # so f1 = 0 only at x = 0: the origin is the only equilibrium, and V = x^2 + y^2 has
+    # Vdot = -2 x^2 (cosh(x - 1) - 1 + d) - 2 y^2 < 0 off it.
+    # fcbbe80: estimate_roa returns level 0.99899997 "proved", bounded_by "equilibrium",
+    # counterexample (0.99999998527..., 0), where f1 < -d x0 < 0 exactly (checked with mpmath
+    # at 60 digits below; the sign argument above needs no numerics).
+    import mpmath
+
+    X, Y = _X[0], _X[1]
+    d = 1e-17
+    f = cs.vertcat(-X * (cs.cosh(X - 1) - 1 + d), -Y)
+    r = _roa((_X, f), X ** 2 + Y ** 2, equilibrium=[0, 0], region=R3, confirm=50)
+    if r.bounded_by == "equilibrium":
+        x0, y0 = (float(v) for v in np.asarray(r.counterexample, dtype=float))
+        with mpmath.workdps(60):
+            xm = mpmath.mpf(x0)
+            f1 = -xm * (mpmath.cosh(xm - 1) - 1 + mpmath.mpf(d))
+            assert f1 == 0 and y0 == 0, (r.level, r.counterexample.tolist(), mpmath.nstr(f1, 8))
+
+
+@pytest.mark.xfail(strict=True, reason="find_equilibria reports ~277 'degenerate' equilibria on "
+                   "y = 1, where f1 = -(y - 1)^2 - d = -d != 0 exactly (and in floats)")
+def test_a_field_a_constant_below_a_double_zero_has_no_equilibria():
+    # f = (-(y^2 - 2 y + 1) - d, 1 - y), d = fl(1e-20) > 0. For real y,
+    # y^2 - 2 y + 1 = (y - 1)^2 >= 0, so f1 <= -d < 0 everywhere: no equilibrium at all.
+    # At y = 1 the float evaluation is -(1 - 2 + 1) - d = -d too, not 0. fcbbe80 returns 277
+    # points (x_k, 1.0), x_k spread over (-3, 3), each "degenerate". (Unlike
+    # test_overclaim_s44's kink line, f is smooth; f does not depend on x.)
+    from equilibria_cases import eqs as _eqs
+    from equilibria_cases import states as _states
+
+    X, Y = _X[0], _X[1]
+    d = 1e-20
+    f = cs.vertcat(-(Y * Y - 2 * Y + 1) - d, 1 - Y)
+    found = _eqs(f, region=R3, equilibrium=(0, 1))
+    for e in found:
+        _, y0 = (Fraction(float(v)) for v in np.asarray(e.state, dtype=float))
+        f1 = -(y0 * y0 - 2 * y0 + 1) - Fraction(d)
+        assert f1 == 0, (len(found), _states(found)[:3], float(f1))
