@@ -209,3 +209,31 @@ def test_a_slow_run_names_no_counterexample():
             vdot = -2 * v * mpmath.exp(-v)
             assert vdot >= 0, (r.level, r.status, r.bounded_by, r.counterexample.tolist(),
                                mpmath.nstr(vdot, 8))
+
+
+# ---------------------------------------------------------------- the process-wide caches
+
+@pytest.mark.xfail(strict=True, reason="System._key hashes str(rhs), where CasADi prints "
+                   "constants to a few digits: two systems that differ only in a constant share "
+                   "the key, and find_equilibria (and the compiled rollouts) of the second reuse "
+                   "the first's cached results")
+def test_systems_that_print_alike_are_analysed_apart():
+    # f_c = (1e9 (c x - x), -y). c_A = fl(1 - 1e-9) < 1, c_B = fl(1 + 1e-9) > 1 (exactly, below),
+    # and both print as "(1e+09*((1*x_0)-x_0)), (-x_1)". The origin is the only zero of each
+    # (f1 = 1e9 (c - 1) x); its Jacobian is diag(1e9 (c - 1), -1): about diag(-1, -1) for A
+    # (stable) and diag(+1, -1) for B (a saddle).
+    # fcbbe80: find_equilibria of B alone reports the origin "saddle"; run after A in the same
+    # process it returns A's cached answer, "stable" (the state -1.99715085e-315 of A's run).
+    from equilibria_cases import eqs as _eqs
+    from equilibria_cases import states as _states
+
+    X, Y = _X[0], _X[1]
+    cA, cB = 1 - 1e-9, 1 + 1e-9
+    assert Fraction(cA) < 1 < Fraction(cB)
+    fA = cs.vertcat(1e9 * (cA * X - X), -Y)
+    fB = cs.vertcat(1e9 * (cB * X - X), -Y)
+    assert str(fA) == str(fB)
+    _eqs(fA, region=R3)
+    found = _eqs(fB, region=R3)
+    kinds = [e.kind for e in found]
+    assert kinds and all(k == "saddle" for k in kinds), (_states(found), kinds)
