@@ -223,7 +223,11 @@ def estimate_roa(
     for k in range(FINAL_TRIES):
         if not level > 0:
             break
-        final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
+        try:
+            final = check_lyapunov(model, V, level=level, certificate=certificate, **check)
+        except HybridnavError as exc:       # no sampled state below a tiny level: stop here
+            log.debug("level %g: %s", level, exc)
+            break
         status = final.status
         tried.append(float(level))
         if status != "counterexample":
@@ -235,13 +239,9 @@ def estimate_roa(
         below = final.details.get("counterexample_V", level) * (1 - rtol)
         level = min(below, level * (1 - min(0.5, rtol * 4.0 ** max(0, k - 2))))
     if status == "counterexample":
-        # every level tried (down to tried[-1]) holds a state with Vdot >= 0: no sublevel set
-        # is certified. Where V's minimum is not where Vdot's is that is so at every level
-        # (the counterexample is then inside the last one); else lower levels are untried
-        level = 0.0
-        cv = final.details.get("counterexample_V", np.inf) if final is not None else np.inf
-        if not cv <= tried[-1]:
-            status = "undecided"
+        # every level tried (down to tried[-1]) holds a state with Vdot >= 0, but the levels
+        # below it are untried: no sublevel set is certified, and none is refuted
+        level, status = 0.0, "undecided"
         details["not_proved"] = (f"the certificate found a state with Vdot >= 0 in {{V <= c}} "
                                  f"at each of {len(tried)} levels c from {tried[0]:.6g} down to "
                                  f"{tried[-1]:.6g}")

@@ -190,7 +190,11 @@ class System(Model):
             "name": self.name, "jit": self.jit, "source": source}, list(self.aliases)))
 
     def _key(self) -> tuple:
-        text = f"{self.state_names}|{self.input_names}|{self._rhs}|{self.u0.tolist()}"
+        # the right-hand side as CasADi serializes it (its constants to the bit): printed, it
+        # rounds constants to a few digits, and two systems differing in one would share the
+        # process's caches (equilibria, compiled cycles)
+        rhs = cs.Function("rhs", [self.sym.x, self.sym.u], [self._rhs]).serialize()
+        text = f"{self.state_names}|{self.input_names}|{rhs}|{self.u0.tolist()}"
         return ("System", self.name, self.dt, hashlib.sha256(text.encode()).hexdigest())
 
     def retarget(self, X, targets) -> np.ndarray:
